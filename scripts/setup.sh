@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Sets up a fresh Debian/Ubuntu machine for mpcde: system packages, a virtual
+# environment in .venv, the CPU build of torch first, then the package itself.
+# Idempotent: a second run only checks.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+VENV="${VENV:-.venv}"
+PYTHON="${PYTHON:-python3.11}"
+command -v "$PYTHON" >/dev/null 2>&1 || PYTHON=python3
+
+# open3d's wheel links libusb-1.0; ffmpeg comes with imageio-ffmpeg's wheel.
+if ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then
+    SUDO=""
+    [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    echo "[setup] installing system package libusb-1.0-0"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libusb-1.0-0 >/dev/null
+fi
+
+if [ ! -x "$VENV/bin/python" ]; then
+    echo "[setup] creating virtual environment $VENV"
+    "$PYTHON" -m venv "$VENV"
+fi
+PIP="$VENV/bin/python -m pip"
+stamp="$VENV/.mpcde-installed"
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+    $PIP install -q --upgrade pip setuptools wheel 2>&1 | grep -v '^WARNING: Location' || true
+    # CPU build of torch first so that no dependency pulls a multi-GB CUDA build.
+    $PIP install -q "torch==2.13.0" 2>&1 | grep -v '^WARNING: Location' || true
+    $PIP install -q -e ".[dev]" 2>&1 | grep -v '^WARNING: Location' || true
+    "$VENV/bin/python" -c "import torch, pybullet, open3d, osqp, filterpy, cv2, imageio_ffmpeg; print('[setup] torch', torch.__version__, '| pybullet ok | open3d', open3d.__version__)"
+    touch "$stamp"
+fi

@@ -1,0 +1,6 @@
+"""sim: the simulated world (PyBullet scene, quadrotor physics, cameras, radio).
+
+Imports no other package of mpcde. Onboard code sees only the types in
+:mod:`sim.types` that a real drone would have (its own camera frames and pose
+estimate, its radio inbox); ground truth stays in :mod:`sim.ground_truth`.
+"""
