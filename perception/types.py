@@ -16,10 +16,11 @@ so the same planners run on either.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Detection", "NeighborPrediction"]
+__all__ = ["Detection", "DistanceField", "NeighborPrediction"]
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,18 @@ class Detection:
 
     box_xyxy: np.ndarray
     score: float
+
+
+@runtime_checkable
+class DistanceField(Protocol):
+    """Anything the planners can ask for obstacle clearance (an ESDF, an analytic field).
+
+    ``distance_and_gradient(points_world)`` takes (n, 3) points in world [m]
+    and returns the signed distance to the nearest obstacle (n,) in [m]
+    (negative inside) and its gradient (n, 3) with respect to the points.
+    """
+
+    def distance_and_gradient(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
 
 @dataclass(frozen=True)
