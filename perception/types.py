@@ -16,11 +16,11 @@ so the same planners run on either.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Detection", "DistanceField", "NeighborPrediction"]
+__all__ = ["Detection", "DistanceField", "NeighborPrediction", "OccupancySnapshot"]
 
 
 @dataclass(frozen=True)
@@ -142,3 +142,147 @@ class NeighborPrediction:
         """Conservative radius [m] ``n_sigma * sqrt(trace P_pos(t))`` at times ``t`` (n,) -> (n,)."""
         cov = self.position_cov(t)
         return n_sigma * np.sqrt(np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0))
+
+
+@dataclass(frozen=True)
+class OccupancySnapshot:
+    """What a drone's map hands to the planners: one immutable copy of its local window.
+
+    The window is a regular grid of ``(nx, ny, nz)`` cubic voxels of edge
+    ``voxel_m``; voxel ``(i, j, k)`` spans ``origin_world + voxel_m * [i, i+1) x ...``
+    and its centre is ``origin_world + voxel_m * ([i, j, k] + 0.5)``.
+
+    Attributes:
+        time_s: time [s] of the last depth frame integrated.
+        origin_world: (3,) world position [m] of the minimum corner of voxel (0, 0, 0).
+        voxel_m: voxel edge [m].
+        state: (nx, ny, nz) int8; ``-1`` unknown (never observed), ``0`` free,
+            ``1`` occupied.
+        distance_m: (nx, ny, nz) float32 signed Euclidean distance [m] from each
+            voxel centre to the nearest *occupied* voxel surface; negative inside
+            obstacles, clipped at the map's truncation distance.
+        free_distance_m: (nx, ny, nz) float32 distance [m] from each voxel centre
+            to the nearest voxel that is *not verified free* (unknown or
+            occupied), 0 outside verified free space; MP-CDE Eq. 1's
+            ``d_free`` for the yaw planner's safety margin.
+
+    How unknown space counts: for ``distance_m`` (the ESDF the trajectory
+    optimiser reads through :class:`DistanceField`) unknown counts as free.
+    Counting it as occupied would wall the drone in at the edges of its
+    camera's field of view and behind every obstacle, so no trajectory could
+    ever leave the seen region towards a goal. Safety in unknown space comes
+    from the other two layers instead: the front-end path search penalises
+    unknown voxels so the initial path prefers seen free space, and the yaw
+    planner keeps the drone within ``free_distance_m`` of verified free space
+    (MP-CDE Sec. IV-A, Eq. 1). Outside the window every query returns the
+    value of the nearest boundary voxel (``state_at`` returns unknown).
+    """
+
+    UNKNOWN: ClassVar[int] = -1
+    FREE: ClassVar[int] = 0
+    OCCUPIED: ClassVar[int] = 1
+
+    time_s: float
+    origin_world: np.ndarray
+    voxel_m: float
+    state: np.ndarray
+    distance_m: np.ndarray
+    free_distance_m: np.ndarray
+
+    def __post_init__(self) -> None:
+        if np.shape(self.origin_world) != (3,):
+            raise ValueError(f"OccupancySnapshot.origin_world shape={np.shape(self.origin_world)}: allowed (3,)")
+        if not self.voxel_m > 0.0:
+            raise ValueError(f"OccupancySnapshot.voxel_m={self.voxel_m!r}: allowed > 0")
+        shape = np.shape(self.state)
+        if len(shape) != 3 or min(shape) < 2:
+            raise ValueError(f"OccupancySnapshot.state shape={shape}: allowed (nx, ny, nz) with every n >= 2")
+        for name in ("distance_m", "free_distance_m"):
+            if np.shape(getattr(self, name)) != shape:
+                raise ValueError(f"OccupancySnapshot.{name} shape={np.shape(getattr(self, name))}: allowed {shape}")
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """(nx, ny, nz) voxels."""
+        return tuple(int(n) for n in self.state.shape)  # type: ignore[return-value]
+
+    @property
+    def upper_world(self) -> np.ndarray:
+        """(3,) world position [m] of the maximum corner of the window."""
+        return self.origin_world + self.voxel_m * np.asarray(self.state.shape, float)
+
+    def world_to_index(self, points_world: np.ndarray) -> np.ndarray:
+        """Voxel indices (n, 3) int64 containing ``points_world`` (n, 3) [m]; may lie outside the window."""
+        p = np.asarray(points_world, float).reshape(-1, 3)
+        return np.floor((p - self.origin_world) / self.voxel_m).astype(np.int64)
+
+    def index_to_world(self, index: np.ndarray) -> np.ndarray:
+        """Voxel centres (n, 3) [m] of integer indices ``index`` (n, 3)."""
+        idx = np.asarray(index, float).reshape(-1, 3)
+        return self.origin_world + self.voxel_m * (idx + 0.5)
+
+    def contains(self, points_world: np.ndarray) -> np.ndarray:
+        """(n,) bool: which of ``points_world`` (n, 3) [m] lie inside the window."""
+        idx = self.world_to_index(points_world)
+        return np.all((idx >= 0) & (idx < np.asarray(self.state.shape)), axis=1)
+
+    def state_at(self, points_world: np.ndarray) -> np.ndarray:
+        """(n,) int8 state of the voxels holding ``points_world`` (n, 3) [m]; unknown outside the window."""
+        idx = self.world_to_index(points_world)
+        inside = np.all((idx >= 0) & (idx < np.asarray(self.state.shape)), axis=1)
+        out = np.full(idx.shape[0], self.UNKNOWN, dtype=np.int8)
+        i = idx[inside]
+        out[inside] = self.state[i[:, 0], i[:, 1], i[:, 2]]
+        return out
+
+    def is_verified_free(self, points_world: np.ndarray) -> np.ndarray:
+        """(n,) bool: the voxel holding each of ``points_world`` (n, 3) [m] was observed free."""
+        return self.state_at(points_world) == self.FREE
+
+    def distance_and_gradient(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Signed ESDF (n,) [m] and its gradient (n, 3) at ``points_world`` (n, 3) [m].
+
+        Trilinear interpolation between voxel centres; the gradient is the exact
+        derivative of that interpolant (zero along an axis where the point is
+        clamped to the window).
+        """
+        return _trilinear(self.distance_m, self.origin_world, self.voxel_m, points_world)
+
+    def free_distance(self, points_world: np.ndarray) -> np.ndarray:
+        """Distance (n,) [m] to the nearest not-verified-free voxel at ``points_world`` (n, 3), trilinear."""
+        return _trilinear(self.free_distance_m, self.origin_world, self.voxel_m, points_world)[0]
+
+
+def _trilinear(
+    field: np.ndarray, origin_world: np.ndarray, voxel_m: float, points_world: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Trilinear value (n,) and gradient (n, 3) of ``field`` (nx, ny, nz) sampled at voxel centres."""
+    p = np.asarray(points_world, float).reshape(-1, 3)
+    n_vox = np.asarray(field.shape)
+    c = (p - origin_world) / voxel_m - 0.5  # continuous index of the voxel-centre lattice
+    c_clamped = np.clip(c, 0.0, n_vox - 1.0)
+    inside = c == c_clamped  # (n, 3) axes along which the gradient is not clamped away
+    i0 = np.minimum(np.floor(c_clamped).astype(np.int64), n_vox - 2)
+    f = c_clamped - i0  # (n, 3) fractions in [0, 1]
+    x0, y0, z0 = i0[:, 0], i0[:, 1], i0[:, 2]
+    fx, fy, fz = f[:, 0], f[:, 1], f[:, 2]
+    v = field.astype(np.float64, copy=False)
+    c000, c100 = v[x0, y0, z0], v[x0 + 1, y0, z0]
+    c010, c110 = v[x0, y0 + 1, z0], v[x0 + 1, y0 + 1, z0]
+    c001, c101 = v[x0, y0, z0 + 1], v[x0 + 1, y0, z0 + 1]
+    c011, c111 = v[x0, y0 + 1, z0 + 1], v[x0 + 1, y0 + 1, z0 + 1]
+    c00 = c000 + fx * (c100 - c000)
+    c10 = c010 + fx * (c110 - c010)
+    c01 = c001 + fx * (c101 - c001)
+    c11 = c011 + fx * (c111 - c011)
+    c0 = c00 + fy * (c10 - c00)
+    c1 = c01 + fy * (c11 - c01)
+    value = c0 + fz * (c1 - c0)
+    # d/dfx, d/dfy, d/dfz of the trilinear form
+    d_fx = (1 - fy) * (1 - fz) * (c100 - c000) + fy * (1 - fz) * (c110 - c010)
+    d_fx += (1 - fy) * fz * (c101 - c001) + fy * fz * (c111 - c011)
+    d_fy = (1 - fz) * (c10 - c00) + fz * (c11 - c01)
+    d_fz = c1 - c0
+    grad = np.stack([d_fx, d_fy, d_fz], axis=1) / voxel_m
+    grad[~inside] = 0.0
+    return value, grad
