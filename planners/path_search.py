@@ -1,0 +1,419 @@
+"""Front-end path search on a drone's occupancy window: 26-connected A* and shortcutting.
+
+MP-CDE Sec. IV-C (after GCOPTER) initialises the MINCO trajectory from a
+front-end path on the occupancy grid; this module produces it. The search runs
+on an :class:`perception.types.OccupancySnapshot`:
+
+* a voxel is *traversable* when it is not occupied and its ESDF value is at
+  least the clearance: ``state != 1 and d(x) >= clearance_m``;
+* a step of length ``l`` (``voxel_m`` times 1, sqrt 2 or sqrt 3) costs ``l``
+  into a known free voxel and ``(1 + unknown_penalty) l`` into an unknown one,
+  so the path prefers space the camera has verified but may cross unknown
+  space (the ESDF counts unknown as free, see ``OccupancySnapshot``);
+* heuristic: the exact 26-connected distance on an empty grid
+  ``h = voxel_m (d1 + (sqrt 2 - 1) d2 + (sqrt 3 - sqrt 2) d3)`` with
+  ``d1 >= d2 >= d3`` the sorted absolute index differences, admissible for
+  ``heuristic_weight = 1``; it is scaled by ``1 + 1e-3`` to break ties
+  towards the goal (at most 0.1 % above the optimal cost);
+* escape rule: when the drone starts inside the clearance band (pose noise, a
+  neighbour that just became an obstacle) the search may enter a
+  non-traversable voxel only from a non-traversable voxel and only if its
+  distance is strictly larger, so it can climb out of the band but never
+  crawl along it through a gap narrower than the clearance.
+
+Goals outside the window are replaced by the point where the straight segment
+start -> goal leaves the window; a goal voxel that is not traversable is
+replaced by the nearest traversable voxel within ``goal_search_radius_m``.
+
+The path is then shortcut greedily (from each kept point, the farthest later
+path point reachable by a straight segment that stays traversable and costs no
+more, with the unknown penalty, than the A* path between them) and long
+segments are split, giving a few waypoints suitable as MINCO inner points.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from perception.types import OccupancySnapshot
+
+__all__ = ["PathSearchConfig", "PathSearchResult", "search_path"]
+
+_SQRT2 = float(np.sqrt(2.0))
+_SQRT3 = float(np.sqrt(3.0))
+_TIE_BREAK = 1.0 + 1e-3
+
+
+@dataclass(frozen=True)
+class PathSearchConfig:
+    """Settings of the front-end search.
+
+    Attributes:
+        unknown_penalty: extra relative cost [-] of a step into an unknown voxel
+            (cost ``(1 + unknown_penalty) * length``); 0 treats unknown as free.
+            Default 1.0: a detour through seen free space up to twice as long
+            is preferred to crossing unknown space.
+        allow_unknown: if False, unknown voxels are not traversable at all.
+        heuristic_weight: weight [-] on the heuristic (1 = optimal A*, > 1 =
+            weighted A*, faster and at most that factor longer).
+        max_expansions: node expansions [-] after which the search gives up.
+        goal_search_radius_m: radius [m] around a blocked goal in which the
+            nearest traversable voxel replaces it.
+        max_segment_m: longest segment [m] between consecutive output
+            waypoints; longer shortcut segments are split evenly.
+    """
+
+    unknown_penalty: float = 1.0
+    allow_unknown: bool = True
+    heuristic_weight: float = 1.0
+    max_expansions: int = 500_000
+    goal_search_radius_m: float = 1.0
+    max_segment_m: float = 2.0
+
+    def __post_init__(self) -> None:
+        if not self.unknown_penalty >= 0.0:
+            raise ValueError(f"unknown_penalty={self.unknown_penalty!r}: allowed >= 0")
+        if not self.heuristic_weight >= 1.0:
+            raise ValueError(f"heuristic_weight={self.heuristic_weight!r}: allowed >= 1")
+        if not self.max_expansions >= 1:
+            raise ValueError(f"max_expansions={self.max_expansions!r}: allowed >= 1")
+        if not self.goal_search_radius_m >= 0.0:
+            raise ValueError(f"goal_search_radius_m={self.goal_search_radius_m!r}: allowed >= 0")
+        if not self.max_segment_m > 0.0:
+            raise ValueError(f"max_segment_m={self.max_segment_m!r}: allowed > 0")
+
+
+@dataclass(frozen=True)
+class PathSearchResult:
+    """Outcome of :func:`search_path`.
+
+    Attributes:
+        status: ``"found"``, ``"no_path"`` (goal unreachable, e.g. enclosed),
+            ``"goal_blocked"`` (no traversable voxel near the goal),
+            ``"expansion_limit"``.
+        waypoints_world: (m, 3) shortcut waypoints [m], start and goal
+            included; ``None`` unless found.
+        path_world: (n, 3) the raw A* path [m] (start, voxel centres, goal);
+            ``None`` unless found.
+        expanded_nodes: voxels expanded by A*.
+        cost_m: path cost [m] including unknown penalties (``inf`` unless found).
+        goal_used_world: (3,) goal [m] actually searched for (clipped to the
+            window and/or moved off an obstacle).
+        goal_clipped: True when the goal lay outside the window.
+    """
+
+    status: str
+    waypoints_world: np.ndarray | None
+    path_world: np.ndarray | None
+    expanded_nodes: int
+    cost_m: float
+    goal_used_world: np.ndarray
+    goal_clipped: bool
+
+    @property
+    def found(self) -> bool:
+        """True when a path was found."""
+        return self.status == "found"
+
+
+def search_path(
+    snapshot: OccupancySnapshot,
+    start_world: np.ndarray,
+    goal_world: np.ndarray,
+    clearance_m: float,
+    config: PathSearchConfig = PathSearchConfig(),
+) -> PathSearchResult:
+    """A* from ``start_world`` (3,) to ``goal_world`` (3,) [m] keeping ``clearance_m`` [m] from obstacles.
+
+    ``start_world`` must lie inside the window (raises ValueError otherwise).
+    """
+    start = np.asarray(start_world, float).reshape(3)
+    goal = np.asarray(goal_world, float).reshape(3)
+    if not clearance_m >= 0.0:
+        raise ValueError(f"clearance_m={clearance_m!r}: allowed >= 0")
+    if not snapshot.contains(start[None])[0]:
+        raise ValueError(f"start_world={start.tolist()!r}: allowed inside the map window")
+    shape = np.asarray(snapshot.shape, np.int64)
+    v = snapshot.voxel_m
+    state = np.ascontiguousarray(snapshot.state, dtype=np.int8).ravel()
+    dist = np.ascontiguousarray(snapshot.distance_m, dtype=np.float32).ravel()
+    ok = (state != OccupancySnapshot.OCCUPIED) & (dist >= clearance_m)
+    if not config.allow_unknown:
+        ok &= state != OccupancySnapshot.UNKNOWN
+
+    goal_clipped = not bool(snapshot.contains(goal[None])[0])
+    goal_used = _clip_to_window(snapshot, start, goal) if goal_clipped else goal
+    start_idx = snapshot.world_to_index(start[None])[0]
+    goal_idx = snapshot.world_to_index(goal_used[None])[0]
+    if not ok[_lin(goal_idx, shape)]:
+        goal_idx = _nearest_traversable(ok.reshape(snapshot.shape), snapshot, goal_used, config.goal_search_radius_m)
+        if goal_idx is None:
+            return PathSearchResult("goal_blocked", None, None, 0, np.inf, goal_used, goal_clipped)
+        goal_used = snapshot.index_to_world(goal_idx[None])[0]
+
+    cells, costs, n_expanded, code = _astar(
+        state,
+        dist,
+        ok,
+        shape,
+        start_idx.astype(np.int64),
+        goal_idx.astype(np.int64),
+        v,
+        config.unknown_penalty,
+        config.heuristic_weight,
+        config.max_expansions,
+    )
+    if code != 0:
+        status = "no_path" if code == 1 else "expansion_limit"
+        return PathSearchResult(status, None, None, int(n_expanded), np.inf, goal_used, goal_clipped)
+
+    path_world = snapshot.index_to_world(cells)
+    path_world[0] = start
+    path_world[-1] = goal_used
+    if len(path_world) == 1:  # start and goal in the same voxel
+        path_world = np.vstack([start, goal_used])
+        cells = np.vstack([cells, cells])
+        costs = np.array([0.0, float(np.linalg.norm(goal_used - start))])
+    keep = _shortcut(cells, costs, ok.reshape(snapshot.shape), snapshot.state, v, config.unknown_penalty)
+    waypoints = _split_long(path_world[keep], config.max_segment_m)
+    return PathSearchResult("found", waypoints, path_world, int(n_expanded), float(costs[-1]), goal_used, goal_clipped)
+
+
+def _lin(idx: np.ndarray, shape: np.ndarray) -> int:
+    """Row-major linear index of a voxel index (3,)."""
+    return int((idx[0] * shape[1] + idx[1]) * shape[2] + idx[2])
+
+
+def _clip_to_window(snapshot: OccupancySnapshot, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """Point (3,) where the segment start -> goal leaves the window shrunk by half a voxel."""
+    lo = snapshot.origin_world + 0.5 * snapshot.voxel_m
+    hi = snapshot.upper_world - 0.5 * snapshot.voxel_m
+    d = goal - start
+    t_exit = 1.0
+    for a in range(3):  # slab method: largest t in [0, 1] with start + t d inside [lo, hi]
+        if d[a] > 0:
+            t_exit = min(t_exit, (hi[a] - start[a]) / d[a])
+        elif d[a] < 0:
+            t_exit = min(t_exit, (lo[a] - start[a]) / d[a])
+    return start + max(t_exit, 0.0) * d
+
+
+def _nearest_traversable(
+    ok: np.ndarray, snapshot: OccupancySnapshot, point: np.ndarray, radius_m: float
+) -> np.ndarray | None:
+    """Index (3,) of the traversable voxel nearest ``point`` (3,) within ``radius_m``, or None."""
+    r = int(np.ceil(radius_m / snapshot.voxel_m))
+    c = snapshot.world_to_index(point[None])[0]
+    lo = np.maximum(c - r, 0)
+    hi = np.minimum(c + r + 1, np.asarray(ok.shape))
+    if np.any(hi <= lo):
+        return None
+    sub = np.argwhere(ok[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]) + lo
+    if sub.size == 0:
+        return None
+    d2 = np.sum((snapshot.index_to_world(sub) - point) ** 2, axis=1)
+    best = int(np.argmin(d2))
+    return sub[best] if d2[best] <= radius_m**2 + 1e-12 else None
+
+
+def _split_long(points: np.ndarray, max_segment_m: float) -> np.ndarray:
+    """Insert evenly spaced points so no segment of ``points`` (m, 3) exceeds ``max_segment_m``."""
+    out = [points[0]]
+    for a, b in zip(points[:-1], points[1:]):
+        n = max(1, int(np.ceil(np.linalg.norm(b - a) / max_segment_m - 1e-9)))
+        for k in range(1, n + 1):
+            out.append(a + (b - a) * (k / n))
+    return np.asarray(out)
+
+
+@njit(cache=True)
+def _heap_push(keys, vals, size, key, val):
+    """Push (key, val) on a binary min-heap stored in ``keys``/``vals``; returns the new size."""
+    i = size
+    keys[i] = key
+    vals[i] = val
+    while i > 0:
+        p = (i - 1) >> 1
+        if keys[p] <= keys[i]:
+            break
+        keys[p], keys[i] = keys[i], keys[p]
+        vals[p], vals[i] = vals[i], vals[p]
+        i = p
+    return size + 1
+
+
+@njit(cache=True)
+def _heap_pop(keys, vals, size):
+    """Pop the minimum; returns (val, new size)."""
+    top = vals[0]
+    size -= 1
+    keys[0] = keys[size]
+    vals[0] = vals[size]
+    i = 0
+    while True:
+        left = 2 * i + 1
+        if left >= size:
+            break
+        c = left
+        if left + 1 < size and keys[left + 1] < keys[left]:
+            c = left + 1
+        if keys[i] <= keys[c]:
+            break
+        keys[c], keys[i] = keys[i], keys[c]
+        vals[c], vals[i] = vals[i], vals[c]
+        i = c
+    return top, size
+
+
+@njit(cache=True)
+def _octile(ix, iy, iz, gx, gy, gz):
+    """Exact 26-connected grid distance [voxels] on an empty grid."""
+    a = abs(ix - gx)
+    b = abs(iy - gy)
+    c = abs(iz - gz)
+    if a < b:
+        a, b = b, a
+    if b < c:
+        b, c = c, b
+    if a < b:
+        a, b = b, a
+    return a + (_SQRT2 - 1.0) * b + (_SQRT3 - _SQRT2) * c
+
+
+@njit(cache=True)
+def _astar(state, dist, ok, shape, start, goal, voxel_m, unknown_penalty, h_weight, max_expansions):
+    """26-connected A*; returns (cells (n, 3), cumulative costs (n,) [m], expanded, code 0 ok / 1 none / 2 limit)."""
+    nx, ny, nz = shape[0], shape[1], shape[2]
+    n = nx * ny * nz
+    g = np.full(n, np.inf)
+    parent = np.full(n, -1, np.int64)
+    closed = np.zeros(n, np.uint8)
+    cap = 1024
+    keys = np.empty(cap)
+    vals = np.empty(cap, np.int64)
+    s = (start[0] * ny + start[1]) * nz + start[2]
+    t = (goal[0] * ny + goal[1]) * nz + goal[2]
+    hw = h_weight * voxel_m * _TIE_BREAK
+    g[s] = 0.0
+    size = _heap_push(keys, vals, 0, hw * _octile(start[0], start[1], start[2], goal[0], goal[1], goal[2]), s)
+    expanded = 0
+    code = 1
+    while size > 0:
+        cur, size = _heap_pop(keys, vals, size)
+        if closed[cur]:
+            continue
+        closed[cur] = 1
+        if cur == t:
+            code = 0
+            break
+        expanded += 1
+        if expanded > max_expansions:
+            code = 2
+            break
+        cx = cur // (ny * nz)
+        cy = (cur // nz) % ny
+        cz = cur % nz
+        cur_ok = ok[cur]
+        for dx in range(-1, 2):
+            x = cx + dx
+            if x < 0 or x >= nx:
+                continue
+            for dy in range(-1, 2):
+                y = cy + dy
+                if y < 0 or y >= ny:
+                    continue
+                for dz in range(-1, 2):
+                    z = cz + dz
+                    if z < 0 or z >= nz or (dx == 0 and dy == 0 and dz == 0):
+                        continue
+                    nb = (x * ny + y) * nz + z
+                    if closed[nb]:
+                        continue
+                    if not ok[nb]:
+                        # escape rule: climb strictly out of the clearance band, never along it
+                        if cur_ok or not dist[nb] > dist[cur]:
+                            continue
+                    m = abs(dx) + abs(dy) + abs(dz)
+                    step = voxel_m if m == 1 else (voxel_m * _SQRT2 if m == 2 else voxel_m * _SQRT3)
+                    if state[nb] == -1:
+                        step *= 1.0 + unknown_penalty
+                    g_new = g[cur] + step
+                    if g_new < g[nb]:
+                        g[nb] = g_new
+                        parent[nb] = cur
+                        if size >= cap:
+                            cap *= 2
+                            keys2 = np.empty(cap)
+                            vals2 = np.empty(cap, np.int64)
+                            keys2[:size] = keys[:size]
+                            vals2[:size] = vals[:size]
+                            keys, vals = keys2, vals2
+                        size = _heap_push(keys, vals, size, g_new + hw * _octile(x, y, z, goal[0], goal[1], goal[2]), nb)
+    if code != 0:
+        return np.empty((0, 3), np.int64), np.empty(0), expanded, code
+    count = 1
+    c = t
+    while c != s:
+        c = parent[c]
+        count += 1
+    cells = np.empty((count, 3), np.int64)
+    costs = np.empty(count)
+    c = t
+    for k in range(count - 1, -1, -1):
+        cells[k, 0] = c // (ny * nz)
+        cells[k, 1] = (c // nz) % ny
+        cells[k, 2] = c % nz
+        costs[k] = g[c]
+        c = parent[c]
+    return cells, costs, expanded, 0
+
+
+@njit(cache=True)
+def _segment_cost(a, b, ok, state, unknown_penalty):
+    """Penalised cost [voxels] of the straight segment a -> b (voxel-index coordinates), inf if it leaves ``ok``."""
+    length = np.sqrt(np.sum((b - a) ** 2))
+    n = max(1, int(np.ceil(length * 4.0)))  # samples every quarter voxel
+    step = length / n
+    cost = 0.0
+    for k in range(1, n + 1):
+        p = a + (b - a) * (k / n)
+        i = int(np.floor(p[0] + 0.5))
+        j = int(np.floor(p[1] + 0.5))
+        m = int(np.floor(p[2] + 0.5))
+        if not ok[i, j, m]:
+            return np.inf
+        cost += step * (1.0 + unknown_penalty) if state[i, j, m] == -1 else step
+    return cost
+
+
+@njit(cache=True)
+def _shortcut_numba(cells_f, costs_vox, ok, state, unknown_penalty):
+    """Indices of the path points kept by greedy forward shortcutting."""
+    n = cells_f.shape[0]
+    keep = np.empty(n, np.int64)
+    keep[0] = 0
+    count = 1
+    i = 0
+    while i < n - 1:
+        j = i + 1
+        while j + 1 < n:
+            c = _segment_cost(cells_f[i], cells_f[j + 1], ok, state, unknown_penalty)
+            if c > costs_vox[j + 1] - costs_vox[i] + 1e-6:
+                break
+            j += 1
+        keep[count] = j
+        count += 1
+        i = j
+    return keep[:count]
+
+
+def _shortcut(
+    cells: np.ndarray, costs_m: np.ndarray, ok: np.ndarray, state: np.ndarray, voxel_m: float, unknown_penalty: float
+) -> np.ndarray:
+    """Indices into the path of the points kept after shortcutting (first and last always kept)."""
+    return _shortcut_numba(
+        cells.astype(np.float64), costs_m / voxel_m, ok, np.ascontiguousarray(state, np.int8), float(unknown_penalty)
+    )
