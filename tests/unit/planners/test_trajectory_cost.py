@@ -1,0 +1,159 @@
+"""Sampled penalties: values against brute force, gradients against finite differences."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from perception.types import NeighborPrediction
+from planners.minco import MincoS3
+from planners.trajectory_cost import NeighborTable, PenaltyParameters, TrajectoryCost, _neighbor_state
+
+
+class CylinderField:
+    """Signed distance to the nearest of vertical cylinders (centres (n, 2) [m], radii (n,) [m])."""
+
+    def __init__(self, centers_xy: np.ndarray, radii_m: np.ndarray):
+        self.centers_xy = np.asarray(centers_xy, float)
+        self.radii_m = np.asarray(radii_m, float)
+
+    def distance_and_gradient(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        diff = points_world[:, None, :2] - self.centers_xy[None]
+        rho = np.linalg.norm(diff, axis=2)
+        d_all = rho - self.radii_m[None]
+        k = np.argmin(d_all, axis=1)
+        rows = np.arange(points_world.shape[0])
+        grad = np.zeros_like(points_world)
+        grad[:, :2] = diff[rows, k] / rho[rows, k][:, None]
+        return d_all[rows, k], grad
+
+
+def _problem(seed: int = 3, m: int = 4):
+    rng = np.random.default_rng(seed)
+    head = np.array([[0.0, 0.0, 1.0], [1.0, 0.2, 0.0], [0.0, 0.0, 0.0]])
+    tail = np.array([[8.0, 0.5, 1.2], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    q = np.linspace(head[0], tail[0], m + 1)[1:-1] + rng.normal(scale=0.3, size=(m - 1, 3))
+    T = rng.uniform(0.6, 1.0, m)
+    return head, tail, q, T
+
+
+def _neighbors(t0: float):
+    cov = np.diag([0.01, 0.02, 0.01, 0.04, 0.03, 0.02])
+    track = NeighborPrediction.constant_velocity(7, "perception", t0 - 0.2, [4.0, -2.0, 1.1], [0.0, 1.2, 0.0], cov)
+    ts = t0 + np.array([0.0, 0.8, 1.6, 2.4, 3.5])
+    pos = np.array([[6.0, 2.0, 1.0], [5.0, 1.0, 1.1], [4.0, 0.4, 1.2], [3.0, 0.0, 1.2], [2.0, -0.5, 1.0]])
+    vel = np.gradient(pos, ts, axis=0)
+    plan = NeighborPrediction(2, "radio", t0 - 0.1, ts, pos, vel, np.zeros((6, 6)))
+    return [track, plan]
+
+
+def _total_cost(cost: TrajectoryCost, head, tail, q, T):
+    minco = MincoS3()
+    minco.set_conditions(head, tail, T.size)
+    minco.set_parameters(q, T)
+    terms = cost.evaluate(minco.coefficients, T)
+    gq, gt = minco.propagate_grad(terms.grad_by_coeffs, terms.grad_by_times)
+    return terms, gq, gt
+
+
+@pytest.fixture
+def cost():
+    params = PenaltyParameters(v_max_mps=1.5, a_max_mps2=2.0, samples_per_piece=8, max_uncertainty_inflation_m=5.0)
+    field = CylinderField([[3.0, 0.6], [5.5, 0.0]], [0.5, 0.4])
+    return TrajectoryCost(params, 10.0, field, _neighbors(10.0))
+
+
+def test_neighbor_kernel_matches_neighbor_prediction():
+    nbs = _neighbors(10.0)
+    table = NeighborTable(nbs)
+    p, v = np.empty(3), np.empty(3)
+    for n, nb in enumerate(nbs):
+        for t in (9.0, 10.0, 10.3, 11.1, 12.0, 13.5, 15.0):
+            _neighbor_state(table.times_s, table.pos_world, table.vel_world, table.offsets[n], table.offsets[n + 1], t, p, v)
+            np.testing.assert_allclose(p, nb.position(t), atol=1e-12)
+            h = 1e-6
+            np.testing.assert_allclose(v, (nb.position(t + h) - nb.position(t - h)) / (2 * h), atol=1e-5)
+        t = np.array([12.0])
+        dt = t - table.t_last_s[n]
+        a, b, c = table.cov_trace_poly[n]
+        np.testing.assert_allclose(np.sqrt(a + b * dt + c * dt**2), nb.uncertainty_radius(t), rtol=1e-12)
+
+
+def test_every_penalty_is_active_in_the_test_problem(cost):
+    terms, _, _ = _total_cost(cost, *_problem())
+    assert terms.vel > 0 and terms.acc > 0 and terms.obstacle > 0 and terms.swarm > 0
+
+
+@pytest.mark.parametrize("term", ["vel", "acc", "obstacle", "swarm"])
+def test_each_penalty_gradient_matches_finite_differences(term):
+    weights = {k: 0.0 for k in ("weight_vel", "weight_acc", "weight_obstacle", "weight_swarm")}
+    weights[f"weight_{term}"] = 1.0
+    params = PenaltyParameters(v_max_mps=1.5, a_max_mps2=2.0, samples_per_piece=8, max_uncertainty_inflation_m=5.0, **weights)
+    field = CylinderField([[3.0, 0.6], [5.5, 0.0]], [0.5, 0.4])
+    cost = TrajectoryCost(params, 10.0, field, _neighbors(10.0))
+    head, tail, q, T = _problem()
+    terms, gq, gt = _total_cost(cost, head, tail, q, T)
+    assert getattr(terms, term) > 1e-6
+    h = 1e-6
+    for i in range(q.shape[0]):
+        for d in range(3):
+            qp, qm = q.copy(), q.copy()
+            qp[i, d] += h
+            qm[i, d] -= h
+            fd = (_total_cost(cost, head, tail, qp, T)[0].total - _total_cost(cost, head, tail, qm, T)[0].total) / (2 * h)
+            assert gq[i, d] == pytest.approx(fd, rel=1e-5, abs=1e-6 * (1 + abs(fd)))
+    for i in range(T.size):
+        Tp, Tm = T.copy(), T.copy()
+        Tp[i] += h
+        Tm[i] -= h
+        fd = (_total_cost(cost, head, tail, q, Tp)[0].total - _total_cost(cost, head, tail, q, Tm)[0].total) / (2 * h)
+        assert gt[i] == pytest.approx(fd, rel=1e-5, abs=1e-6 * (1 + abs(fd)))
+
+
+def test_penalty_values_match_a_brute_force_trapezoid(cost):
+    head, tail, q, T = _problem()
+    terms, _, _ = _total_cost(cost, head, tail, q, T)
+    minco = MincoS3()
+    minco.set_conditions(head, tail, T.size)
+    minco.set_parameters(q, T)
+    traj = minco.trajectory(cost.t0_s)
+    p = cost.params
+    K = p.samples_per_piece
+    start = np.concatenate([[0.0], np.cumsum(T)[:-1]])
+    vel = acc = obs = sw = 0.0
+    for i in range(T.size):
+        t_loc = start[i] + np.linspace(0.0, T[i], K + 1)
+        w = np.full(K + 1, T[i] / K)
+        w[[0, -1]] *= 0.5
+        v, a, x = traj.vel(t_loc), traj.acc(t_loc), traj.pos(t_loc)  # C^4 joints: either piece at a joint
+        vel += np.sum(w * np.maximum((v**2).sum(1) - p.v_max_mps**2, 0) ** 3) * p.weight_vel
+        acc += np.sum(w * np.maximum((a**2).sum(1) - p.a_max_mps2**2, 0) ** 3) * p.weight_acc
+        d, _ = cost.distance_field.distance_and_gradient(x)
+        obs += np.sum(w * np.maximum(p.obstacle_clearance_m + p.clearance_margin_m - d, 0) ** 3) * p.weight_obstacle
+        for nb in _neighbors(cost.t0_s):
+            t_abs = cost.t0_s + t_loc
+            e = x - nb.position(t_abs)
+            ell2 = e[:, 0] ** 2 + e[:, 1] ** 2 + e[:, 2] ** 2 / p.swarm_z_scale
+            r = np.minimum(nb.uncertainty_radius(t_abs, p.uncertainty_sigma), p.max_uncertainty_inflation_m)
+            sw += np.sum(w * np.maximum((p.swarm_clearance_m + p.clearance_margin_m + r) ** 2 - ell2, 0) ** 3) * p.weight_swarm
+    assert terms.vel == pytest.approx(vel, rel=1e-9)
+    assert terms.acc == pytest.approx(acc, rel=1e-9)
+    assert terms.obstacle == pytest.approx(obs, rel=1e-9)
+    assert terms.swarm == pytest.approx(sw, rel=1e-9)
+
+
+def test_penalties_vanish_inside_the_limits():
+    params = PenaltyParameters(v_max_mps=50.0, a_max_mps2=50.0)
+    cost = TrajectoryCost(params, 0.0, None, [])
+    head, tail, q, T = _problem()
+    terms, gq, gt = _total_cost(cost, head, tail, q, T)
+    assert terms.total == 0.0 and not gq.any() and not gt.any()
+    assert np.isinf(terms.min_obstacle_distance_m) and np.isinf(terms.min_swarm_margin_m)
+
+
+@pytest.mark.parametrize(
+    "field, value", [("v_max_mps", 0.0), ("swarm_z_scale", 0.5), ("samples_per_piece", 1), ("weight_swarm", -1.0)]
+)
+def test_invalid_parameters_raise_one_line_value_error(field, value):
+    with pytest.raises(ValueError, match=field):
+        PenaltyParameters(**{field: value})
