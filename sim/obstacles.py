@@ -1,0 +1,154 @@
+"""Static obstacles: cylinder "trees" and boxes, a seeded generator and exact distances.
+
+Obstacles stand on the ground (z = 0). A tree is a vertical cylinder; a box is
+yawed about z. Density is counted in obstacles per 100 m^2 of arena.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+__all__ = ["ObstacleSpec", "generate_obstacles", "distance_to_obstacles"]
+
+
+@dataclass(frozen=True)
+class ObstacleSpec:
+    """One static obstacle.
+
+    Attributes:
+        kind: ``"tree"`` (vertical cylinder) or ``"box"``.
+        center_xy: (2,) ground position of its axis/centre in world [m].
+        height_m: height [m] (from z = 0).
+        radius_m: cylinder radius [m] (trees).
+        half_extents_xy: (2,) half sizes along the box's own x, y [m] (boxes).
+        yaw: box heading about world z [rad].
+        rgba: colour (4,) in [0, 1].
+    """
+
+    kind: str
+    center_xy: tuple[float, float]
+    height_m: float
+    radius_m: float = 0.0
+    half_extents_xy: tuple[float, float] = (0.0, 0.0)
+    yaw: float = 0.0
+    rgba: tuple[float, float, float, float] = (0.45, 0.32, 0.2, 1.0)
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("tree", "box"):
+            raise ValueError(f"kind={self.kind!r}: allowed 'tree' or 'box'")
+        if self.height_m <= 0:
+            raise ValueError(f"height_m={self.height_m!r}: must be > 0")
+        if self.kind == "tree" and self.radius_m <= 0:
+            raise ValueError(f"radius_m={self.radius_m!r}: a tree needs a radius > 0")
+        if self.kind == "box" and min(self.half_extents_xy) <= 0:
+            raise ValueError(f"half_extents_xy={self.half_extents_xy!r}: a box needs positive half sizes")
+
+    @property
+    def footprint_radius_m(self) -> float:
+        """Radius [m] of the smallest vertical cylinder containing the obstacle."""
+        return self.radius_m if self.kind == "tree" else float(np.hypot(*self.half_extents_xy))
+
+
+TREE_COLOURS = ((0.45, 0.32, 0.2), (0.35, 0.25, 0.15), (0.3, 0.45, 0.25), (0.5, 0.42, 0.3))
+BOX_COLOURS = ((0.6, 0.6, 0.62), (0.55, 0.45, 0.4), (0.4, 0.45, 0.55), (0.7, 0.65, 0.5))
+
+
+def generate_obstacles(
+    rng: np.random.Generator,
+    arena_size_m: tuple[float, float],
+    density_per_100m2: float,
+    keep_clear_xy: np.ndarray,
+    clear_radius_m: float,
+    box_fraction: float = 0.25,
+    tree_radius_m: tuple[float, float] = (0.15, 0.3),
+    tree_height_m: tuple[float, float] = (3.0, 5.0),
+    box_half_size_m: tuple[float, float] = (0.25, 0.6),
+    box_height_m: tuple[float, float] = (1.0, 3.0),
+    min_gap_m: float = 0.8,
+) -> list[ObstacleSpec]:
+    """Place obstacles uniformly in the arena by rejection sampling.
+
+    Args:
+        rng: seeded generator.
+        arena_size_m: (x, y) extent [m], centred on the origin.
+        density_per_100m2: obstacles per 100 m^2.
+        keep_clear_xy: (k, 2) points (starts, goals) no obstacle may come within
+            ``clear_radius_m`` of (footprint to point).
+        clear_radius_m: radius of the clear zones [m].
+        box_fraction: share of boxes among obstacles.
+        min_gap_m: free gap between two obstacles' footprints [m] so that a
+            drone can pass between any two.
+
+    Returns:
+        The obstacles; fewer than asked only if the arena is too full (the
+        rejection sampler gives up after 200 tries per obstacle).
+    """
+    ax, ay = arena_size_m
+    n = int(round(density_per_100m2 * ax * ay / 100.0))
+    keep = np.asarray(keep_clear_xy, float).reshape(-1, 2)
+    placed: list[ObstacleSpec] = []
+    for _ in range(n):
+        for _try in range(200):
+            xy = rng.uniform([-ax / 2, -ay / 2], [ax / 2, ay / 2])
+            if rng.uniform() < box_fraction:
+                c = BOX_COLOURS[rng.integers(len(BOX_COLOURS))]
+                ob = ObstacleSpec(
+                    kind="box",
+                    center_xy=(float(xy[0]), float(xy[1])),
+                    height_m=float(rng.uniform(*box_height_m)),
+                    half_extents_xy=tuple(float(h) for h in rng.uniform(*box_half_size_m, size=2)),
+                    yaw=float(rng.uniform(-np.pi, np.pi)),
+                    rgba=(*c, 1.0),
+                )
+            else:
+                c = TREE_COLOURS[rng.integers(len(TREE_COLOURS))]
+                ob = ObstacleSpec(
+                    kind="tree",
+                    center_xy=(float(xy[0]), float(xy[1])),
+                    height_m=float(rng.uniform(*tree_height_m)),
+                    radius_m=float(rng.uniform(*tree_radius_m)),
+                    rgba=(*c, 1.0),
+                )
+            r = ob.footprint_radius_m
+            if keep.size and np.min(np.linalg.norm(keep - xy, axis=1)) < clear_radius_m + r:
+                continue
+            if any(np.hypot(*(np.subtract(o.center_xy, xy))) < o.footprint_radius_m + r + min_gap_m for o in placed):
+                continue
+            placed.append(ob)
+            break
+    return placed
+
+
+def distance_to_obstacles(points_world: np.ndarray, obstacles: Sequence[ObstacleSpec]) -> np.ndarray:
+    """Exact Euclidean distance [m] from points to the nearest obstacle surface.
+
+    Args:
+        points_world: (n, 3) points [m].
+        obstacles: the obstacles.
+
+    Returns:
+        (n,) distances [m]; negative inside an obstacle (depth of penetration
+        in the horizontal plane); ``inf`` when there are no obstacles.
+    """
+    pts = np.atleast_2d(np.asarray(points_world, float))
+    best = np.full(pts.shape[0], np.inf)
+    for ob in obstacles:
+        d_xy = pts[:, :2] - np.asarray(ob.center_xy)
+        if ob.kind == "tree":
+            radial = np.linalg.norm(d_xy, axis=1) - ob.radius_m
+            outside_xy = np.maximum(radial, 0.0)
+            inside = radial < 0
+        else:
+            c, s = np.cos(ob.yaw), np.sin(ob.yaw)
+            local = np.stack([c * d_xy[:, 0] + s * d_xy[:, 1], -s * d_xy[:, 0] + c * d_xy[:, 1]], axis=1)
+            q = np.abs(local) - np.asarray(ob.half_extents_xy)
+            outside_xy = np.linalg.norm(np.maximum(q, 0.0), axis=1)
+            radial = np.where(np.all(q < 0, axis=1), np.max(q, axis=1), outside_xy)
+            inside = np.all(q < 0, axis=1)
+        dz = np.maximum(pts[:, 2] - ob.height_m, 0.0) + np.maximum(-pts[:, 2], 0.0)
+        d = np.where(inside & (dz == 0), radial, np.hypot(outside_xy, dz))
+        best = np.minimum(best, d)
+    return best
