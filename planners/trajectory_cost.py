@@ -363,7 +363,8 @@ class TrajectoryCost:
         self.distance_field = distance_field
         self.neighbors = NeighborTable(list(neighbors))
         p = params
-        self._prm = np.array(
+        #: (11,) kernel parameters (v_max, a_max, C_o + margin, C_s + margin, 1/c, n_sigma, r_max, w_v, w_a, w_o, w_s)
+        self.parameter_vector = np.array(
             [
                 p.v_max_mps,
                 p.a_max_mps2,
@@ -399,7 +400,7 @@ class TrajectoryCost:
             d, gd, use_field = self._no_dist, self._no_grad, False
         nb = self.neighbors
         _penalty_kernel(
-            coeffs, durations, K, self.t0_s, self._prm, d, gd, use_field,
+            coeffs, durations, K, self.t0_s, self.parameter_vector, d, gd, use_field,
             nb.times_s, nb.pos_world, nb.vel_world, nb.offsets, nb.t_last_s, nb.cov_trace_poly,
             gdc, gdt, self._out,
         )  # fmt: skip
