@@ -1,0 +1,36 @@
+"""DMPC: per-drone QP over exchanged plans with on-demand or BVC collision avoidance.
+
+Imports :mod:`perception.types` and :mod:`sim.types` only (DESIGN.md section 1).
+"""
+
+from planners.dmpc.collision import (
+    BvcPlanes,
+    OnDemandConstraints,
+    bvc_planes,
+    ellipsoidal_distance,
+    first_conflict_step,
+    on_demand_constraints,
+)
+from planners.dmpc.config import DmpcConfig
+from planners.dmpc.model import PredictionMatrices, discrete_model, prediction_matrices, rollout
+from planners.dmpc.qp import DmpcProblem, DmpcResult, DmpcSolveError, QpSnapshot
+from planners.dmpc.types import DmpcPlan
+
+__all__ = [
+    "BvcPlanes",
+    "DmpcConfig",
+    "DmpcPlan",
+    "DmpcProblem",
+    "DmpcResult",
+    "DmpcSolveError",
+    "OnDemandConstraints",
+    "PredictionMatrices",
+    "QpSnapshot",
+    "bvc_planes",
+    "discrete_model",
+    "ellipsoidal_distance",
+    "first_conflict_step",
+    "on_demand_constraints",
+    "prediction_matrices",
+    "rollout",
+]

@@ -1,0 +1,173 @@
+"""Configuration of the per-drone DMPC QP (:class:`DmpcConfig`).
+
+Defaults come from the on-demand DMPC paper (``papers/on-demand-dmpc-formation.txt``,
+Sec. 4: K = 15, h = 0.2 s, a_max = 4 m/s^2, r_min = 0.2 m in simulation and
+0.4 m in flight), from the reference implementation of on-demand DMPC by Luis,
+Vukosavljev and Schoellig (``online_dmpc``: goal weight 100 over the last 3
+steps, linear slack penalty 5e4, quadratic 1, conflict margin 0.05 m,
+neighbourhood 3 r_min, downwash ellipsoid c = 2) and from DMPC-Swarm Eq. 2
+(the downwash scaling matrix Theta). Values without a source are marked
+"chosen" and say why.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["DmpcConfig"]
+
+_MODELS = ("double", "triple")
+_COLLISION_MODES = ("on_demand", "bvc")
+
+
+def _positive(name: str, value: float) -> None:
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{name}={value!r}: must be a finite number > 0")
+
+
+def _non_negative(name: str, value: float) -> None:
+    if not (np.isfinite(value) and value >= 0):
+        raise ValueError(f"{name}={value!r}: must be a finite number >= 0")
+
+
+@dataclass(frozen=True)
+class DmpcConfig:
+    """Settings of one drone's DMPC quadratic program.
+
+    Attributes:
+        horizon_steps: K, number of prediction steps (on-demand DMPC Sec. 4: 15).
+        step_s: h, prediction step and DMPC round period in [s] (Sec. 4: 0.2 s).
+        model: ``"double"`` (state [p, v], input acceleration; on-demand DMPC
+            Eq. 6) or ``"triple"`` (state [p, v, a], input jerk).
+        goal_steps: theta, number of final horizon steps pulled towards the
+            goal (on-demand DMPC F_e; online_dmpc ``spd_f = 3``).
+        weight_goal: q_k of the goal term in [1/m^2] (online_dmpc ``s_free = 100``).
+        weight_formation: q_f of the formation term in [1/m^2] (chosen: 10, a
+            tenth of the goal weight so the goal still wins far from it).
+        weight_smoothness: q_Theta of the input-difference term, in
+            [s^4/m^2] (double) or [s^6/m^2] (triple) (chosen: 1.0, which keeps
+            plans bang-bang free at h = 0.2 s).
+        weight_slack_quadratic: zeta, quadratic slack penalty in [1/m^2]
+            (online_dmpc ``quad_coll_penalty = 1``).
+        weight_slack_linear: xi, linear slack penalty in [1/m]
+            (online_dmpc ``lin_coll_penalty = -5e4`` on a non-positive slack).
+        slack_max_m: upper bound on one slack (relaxation) in [m]
+            (online_dmpc ``relax_lim = 10``).
+        pos_min_world: (3,) lower corner of the position box in world [m]
+            (chosen: a 40 m x 40 m arena, 0.2 m above the ground).
+        pos_max_world: (3,) upper corner of the position box in world [m].
+        v_max: per-axis speed limit in [m/s] (chosen: 2.0 m/s; the paper
+            reports mean speeds below 1 m/s).
+        a_max: per-axis acceleration limit in [m/s^2] (on-demand DMPC Sec. 4: 4).
+        j_max: per-axis jerk limit in [m/s^3], triple integrator only (chosen: 20).
+        r_min: minimum ellipsoidal inter-drone distance in [m] (on-demand DMPC
+            Sec. 5 flight: 0.4 m).
+        downwash: c >= 1, vertical stretch of the collision ellipsoid,
+            Theta = diag(1, 1, c) (DMPC-Swarm Eq. 2; online_dmpc ``c_a = 2``);
+            the distance is ||Theta^-1 (p_i - p_j)||_2.
+        collision_mode: ``"on_demand"`` (one soft linearised constraint per
+            close neighbour at the first predicted conflict; on-demand DMPC
+            Sec. 3.4) or ``"bvc"`` (hard time-varying buffered Voronoi planes at
+            every step against every neighbour; DMPC-Swarm Eq. 14-15).
+        neighbourhood_factor: on-demand constraints are built only for
+            neighbours closer than ``neighbourhood_factor * r_min`` at the
+            conflict step (on-demand DMPC Sec. 3.4 and online_dmpc: 3).
+        conflict_margin_m: a conflict is predicted when the distance is below
+            ``r_min + conflict_margin_m`` in [m] (online_dmpc ``check_horizon``: 0.05).
+        max_neighbours: number of neighbour slots in the QP (fixed sparsity);
+            more neighbours than this are cut to the nearest ones (chosen: 8).
+        max_obstacle_planes: number of static-obstacle half-space slots per
+            horizon step (0 disables them; chosen: 0).
+        terminal_halt: if true, v[K] = 0 (and a[K] = 0 for the triple
+            integrator), DMPC-Swarm Eq. 13e; makes a shifted plan a feasible
+            candidate, i.e. recursive feasibility of the BVC problem.
+        osqp_eps_abs: OSQP absolute tolerance (chosen: 1e-4).
+        osqp_eps_rel: OSQP relative tolerance (chosen: 1e-4).
+        osqp_max_iter: OSQP iteration limit (chosen: 4000).
+        osqp_polish: run OSQP's solution polishing (exact active-set solve).
+    """
+
+    horizon_steps: int = 15
+    step_s: float = 0.2
+    model: str = "double"
+    goal_steps: int = 3
+    weight_goal: float = 100.0
+    weight_formation: float = 10.0
+    weight_smoothness: float = 1.0
+    weight_slack_quadratic: float = 1.0
+    weight_slack_linear: float = 5.0e4
+    slack_max_m: float = 10.0
+    pos_min_world: tuple[float, float, float] = (-20.0, -20.0, 0.2)
+    pos_max_world: tuple[float, float, float] = (20.0, 20.0, 10.0)
+    v_max: float = 2.0
+    a_max: float = 4.0
+    j_max: float = 20.0
+    r_min: float = 0.4
+    downwash: float = 2.0
+    collision_mode: str = "on_demand"
+    neighbourhood_factor: float = 3.0
+    conflict_margin_m: float = 0.05
+    max_neighbours: int = 8
+    max_obstacle_planes: int = 0
+    terminal_halt: bool = False
+    osqp_eps_abs: float = 1e-4
+    osqp_eps_rel: float = 1e-4
+    osqp_max_iter: int = 4000
+    osqp_polish: bool = False
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.horizon_steps, (int, np.integer)) or self.horizon_steps < 2:
+            raise ValueError(f"horizon_steps={self.horizon_steps!r}: an integer >= 2")
+        _positive("step_s", self.step_s)
+        if self.model not in _MODELS:
+            raise ValueError(f"model={self.model!r}: one of {', '.join(_MODELS)}")
+        if not isinstance(self.goal_steps, (int, np.integer)) or not 1 <= self.goal_steps <= self.horizon_steps:
+            raise ValueError(f"goal_steps={self.goal_steps!r}: an integer in [1, horizon_steps={self.horizon_steps}]")
+        _positive("weight_goal", self.weight_goal)
+        for name in ("weight_formation", "weight_smoothness", "weight_slack_linear"):
+            _non_negative(name, getattr(self, name))
+        _positive("weight_slack_quadratic", self.weight_slack_quadratic)
+        _positive("slack_max_m", self.slack_max_m)
+        lo, hi = np.asarray(self.pos_min_world, float), np.asarray(self.pos_max_world, float)
+        if lo.shape != (3,) or hi.shape != (3,) or not np.all(np.isfinite(lo)) or not np.all(np.isfinite(hi)):
+            raise ValueError(f"pos_min_world={self.pos_min_world!r}, pos_max_world={self.pos_max_world!r}: two finite (3,) corners")
+        if not np.all(lo < hi):
+            raise ValueError(f"pos_max_world={self.pos_max_world!r}: every component > pos_min_world={self.pos_min_world!r}")
+        for name in ("v_max", "a_max", "j_max", "r_min", "neighbourhood_factor"):
+            _positive(name, getattr(self, name))
+        if not (np.isfinite(self.downwash) and self.downwash >= 1.0):
+            raise ValueError(f"downwash={self.downwash!r}: a finite number >= 1")
+        if self.collision_mode not in _COLLISION_MODES:
+            raise ValueError(f"collision_mode={self.collision_mode!r}: one of {', '.join(_COLLISION_MODES)}")
+        if self.neighbourhood_factor < 1.0:
+            raise ValueError(f"neighbourhood_factor={self.neighbourhood_factor!r}: a number >= 1")
+        _non_negative("conflict_margin_m", self.conflict_margin_m)
+        if not isinstance(self.max_neighbours, (int, np.integer)) or self.max_neighbours < 1:
+            raise ValueError(f"max_neighbours={self.max_neighbours!r}: an integer >= 1")
+        if not isinstance(self.max_obstacle_planes, (int, np.integer)) or self.max_obstacle_planes < 0:
+            raise ValueError(f"max_obstacle_planes={self.max_obstacle_planes!r}: an integer >= 0")
+        if not isinstance(self.terminal_halt, bool):
+            raise ValueError(f"terminal_halt={self.terminal_halt!r}: True or False")
+        _positive("osqp_eps_abs", self.osqp_eps_abs)
+        _positive("osqp_eps_rel", self.osqp_eps_rel)
+        if not isinstance(self.osqp_max_iter, (int, np.integer)) or self.osqp_max_iter < 1:
+            raise ValueError(f"osqp_max_iter={self.osqp_max_iter!r}: an integer >= 1")
+        if not isinstance(self.osqp_polish, bool):
+            raise ValueError(f"osqp_polish={self.osqp_polish!r}: True or False")
+
+    @property
+    def state_dim(self) -> int:
+        """Dimension of the state: 6 (double) or 9 (triple)."""
+        return 6 if self.model == "double" else 9
+
+    @property
+    def horizon_s(self) -> float:
+        """Prediction horizon K h in [s]."""
+        return self.horizon_steps * self.step_s
+
+    @property
+    def theta_inv_diag(self) -> np.ndarray:
+        """(3,) diagonal of Theta^-1 = diag(1, 1, 1/c) (DMPC-Swarm Eq. 2)."""
+        return np.array([1.0, 1.0, 1.0 / self.downwash])

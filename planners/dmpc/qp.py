@@ -1,0 +1,497 @@
+"""The per-drone DMPC quadratic program (on-demand DMPC Sec. 3; BVC baseline, DMPC-Swarm Eq. 14-15).
+
+Decision variables z = [U; s]: the stacked inputs U = [u[0]; ...; u[K-1]] (3K,)
+(acceleration for the double integrator, jerk for the triple one) and, in
+on-demand mode, one slack s_m >= 0 [m] per neighbour slot. With the prediction
+P = A0_p x0 + Lambda_p U (on-demand DMPC Eq. 10, :mod:`planners.dmpc.model`)::
+
+    min  sum_{k=K-theta+1}^{K} q_g ||p[k] - p_goal||^2                      (F_e, goal)
+       + sum_{j in F} sum_{k=1}^{K} q_f ||p[k] - (p_j[k] - d_ij)||^2          (F_f, formation)
+       + sum_{k=0}^{K-1} q_Theta ||u[k] - u[k-1]||^2                          (F_Theta, smoothness)
+       + sum_m zeta s_m^2 + xi s_m                                            (F_v, slack)
+    s.t. p_min <= p[k] <= p_max,  |v[k]| <= v_max,  |a| <= a_max  (|j| <= j_max)   (box, per axis)
+         on demand: a_m^T p[k_c] + s_m >= b_m,  0 <= s_m <= s_max                  (Sec. 3.4)
+         bvc:       a_mk^T p[k] >= b_mk  for every neighbour m and step k            (Eq. 15)
+         obstacles: n_ok^T p[k] >= c_ok                                             (half-spaces)
+         optional terminal halt: v[K] = 0 (a[K] = 0)                                (DMPC-Swarm Eq. 13e)
+
+with d_ij the desired offset p_j - p_i (on-demand DMPC design goal 2) and
+u[-1] the input applied in the previous round (read from the previous plan).
+Written for OSQP as  min 1/2 z^T P z + q^T z  s.t.  l <= A z <= u.
+
+Build, then solve: :class:`DmpcProblem` sets OSQP up once with a FIXED
+sparsity pattern sized for the maximum number of collision rows
+(``max_neighbours``; K x ``max_neighbours`` for BVC); an unused row keeps its
+structural entries at value 0 with bounds (-inf, inf). Each round only
+``q``, ``l``, ``u`` and ``Ax`` (``Px`` when the number of formation neighbours
+changes) are updated and the solver is warm-started with the previous solution
+shifted by one step.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from perception.types import NeighborPrediction
+from planners.dmpc.collision import bvc_planes, ellipsoidal_distance, on_demand_constraints
+from planners.dmpc.config import DmpcConfig
+from planners.dmpc.model import prediction_matrices, stacked_state_matrices
+from planners.dmpc.types import DmpcPlan
+
+__all__ = ["DmpcProblem", "DmpcResult", "DmpcSolveError", "QpSnapshot"]
+
+_INF = 1e30  # OSQP_INFTY
+_ACCEPTED = (osqp.SolverStatus.OSQP_SOLVED, osqp.SolverStatus.OSQP_SOLVED_INACCURATE)
+
+
+@dataclass(frozen=True)
+class QpSnapshot:
+    """The QP as OSQP last saw it, with its solution (for KKT checks and error reports).
+
+    Attributes:
+        P: (n, n) upper-triangular CSC cost matrix.
+        q: (n,) linear cost.
+        A: (m, n) CSC constraint matrix.
+        l: (m,) lower bounds (-1e30 = -inf).
+        u: (m,) upper bounds (1e30 = inf).
+        x: (n,) primal solution (None before a solve).
+        y: (m,) dual solution, OSQP sign convention (y > 0 on active upper bounds).
+        status: OSQP status string.
+    """
+
+    P: sp.csc_matrix
+    q: np.ndarray
+    A: sp.csc_matrix
+    l: np.ndarray
+    u: np.ndarray
+    x: np.ndarray | None
+    y: np.ndarray | None
+    status: str
+
+
+class DmpcSolveError(RuntimeError):
+    """OSQP did not solve the DMPC QP (infeasible, iteration limit...).
+
+    Attributes:
+        status: OSQP status string.
+        snapshot: the :class:`QpSnapshot` that failed.
+    """
+
+    def __init__(self, status: str, snapshot: QpSnapshot) -> None:
+        super().__init__(f"DMPC QP not solved: OSQP status {status!r}")
+        self.status = status
+        self.snapshot = snapshot
+
+
+@dataclass(frozen=True)
+class DmpcResult:
+    """Solution of one DMPC round.
+
+    Attributes:
+        plan: the new plan from t_now (K+1 samples, the first is x0).
+        pos_world: (K, 3) predicted positions p[1..K] [m].
+        vel_world: (K, 3) predicted velocities v[1..K] [m/s].
+        acc_world: (K, 3) accelerations [m/s^2]: the inputs u[0..K-1] (double) or a[1..K] (triple).
+        inputs: (K, 3) optimal inputs u[0..K-1] (acceleration [m/s^2] or jerk [m/s^3]).
+        cost: J at the solution (all terms, constants included).
+        iterations: OSQP iterations.
+        status: OSQP status string ("solved" or "solved inaccurate").
+        solve_time_s: wall time [s] of the OSQP solve call (warm-started).
+        osqp_solve_time_s: OSQP's own solve-phase time [s] (C code only).
+        update_time_s: time [s] spent building constraints and updating the QP data.
+        n_collision_constraints: active collision rows (on demand: planes at k_c; bvc: K x neighbours).
+        conflict_step: on demand: 1-based conflict step k_c, 0 if none; bvc: 0.
+        slack: (n_collision_constraints,) on-demand slacks s = -alpha [m] (empty for bvc).
+    """
+
+    plan: DmpcPlan
+    pos_world: np.ndarray
+    vel_world: np.ndarray
+    acc_world: np.ndarray
+    inputs: np.ndarray
+    cost: float
+    iterations: int
+    status: str
+    solve_time_s: float
+    osqp_solve_time_s: float
+    update_time_s: float
+    n_collision_constraints: int
+    conflict_step: int
+    slack: np.ndarray
+
+
+class _Pattern:
+    """COO entries accumulated block by block; dynamic blocks remember where they land in CSC data."""
+
+    def __init__(self) -> None:
+        self.rows: list[np.ndarray] = []
+        self.cols: list[np.ndarray] = []
+        self.vals: list[np.ndarray] = []
+        self.count = 0
+
+    def add(self, rows: np.ndarray, cols: np.ndarray, vals: np.ndarray) -> slice:
+        """Append entries; returns their slice in COO order."""
+        self.rows.append(np.asarray(rows, int).ravel())
+        self.cols.append(np.asarray(cols, int).ravel())
+        self.vals.append(np.asarray(vals, float).ravel())
+        start = self.count
+        self.count += self.rows[-1].size
+        return slice(start, self.count)
+
+    def to_csc(self, shape: tuple[int, int]) -> tuple[sp.csc_matrix, np.ndarray]:
+        """(CSC matrix with explicit zeros kept, coo_to_csc (nnz,) index map)."""
+        rows, cols = np.concatenate(self.rows), np.concatenate(self.cols)
+        tag = sp.coo_matrix((np.arange(1, self.count + 1, dtype=float), (rows, cols)), shape=shape).tocsc()
+        coo_to_csc = np.empty(self.count, int)
+        coo_to_csc[tag.data.astype(int) - 1] = np.arange(self.count)
+        data = np.concatenate(self.vals)[tag.data.astype(int) - 1]
+        return sp.csc_matrix((data, tag.indices, tag.indptr), shape=shape), coo_to_csc
+
+
+class DmpcProblem:
+    """One drone's DMPC QP, built once (fixed sparsity) and re-solved every round.
+
+    Args:
+        config: the :class:`DmpcConfig`.
+    """
+
+    def __init__(self, config: DmpcConfig) -> None:
+        self.config = config
+        cfg = config
+        K, M, O = cfg.horizon_steps, cfg.max_neighbours, cfg.max_obstacle_planes
+        self.matrices = prediction_matrices(cfg.model, cfg.step_s, K)
+        mats = self.matrices
+        self._n_u = 3 * K
+        self._n_slack = M if cfg.collision_mode == "on_demand" else 0
+        n = self._n_u + self._n_slack
+        self._Lambda_pos_blocks = mats.Lambda_pos.reshape(K, 3, 3 * K)
+        self._A0_pos_blocks = mats.A0_pos.reshape(K, 3, -1)
+        lower = np.arange(3 * K)[None, :] < 3 * (np.arange(K)[:, None] + 1)  # (K, 3K): inputs 0..k-1 reach p[k]
+        self._lower_mask = lower
+
+        pat = _Pattern()
+        row = 0
+
+        def add_dense(block: np.ndarray, col0: int = 0) -> int:
+            nonlocal row
+            r, c = np.nonzero(np.abs(block) > 0)
+            pat.add(row + r, col0 + c, block[r, c])
+            row += block.shape[0]
+            return row - block.shape[0]
+
+        self._row_pos = add_dense(mats.Lambda_pos)
+        self._row_vel = add_dense(mats.Lambda_vel)
+        self._row_acc = add_dense(mats.Lambda_acc)
+        self._row_jerk = add_dense(np.eye(3 * K)) if cfg.model == "triple" else -1
+        # Collision rows (dynamic values).
+        self._row_coll = row
+        if cfg.collision_mode == "on_demand":
+            r = np.repeat(np.arange(M), 3 * K)
+            c = np.tile(np.arange(3 * K), M)
+            self._coll_slice = pat.add(row + r, c, np.zeros(r.size))
+            self._slack_coef_slice = pat.add(row + np.arange(M), self._n_u + np.arange(M), np.zeros(M))
+            row += M
+            self._row_slack = row
+            pat.add(row + np.arange(M), self._n_u + np.arange(M), np.ones(M))
+            row += M
+            self._n_coll_rows = M
+        else:
+            kk, cc = np.nonzero(lower)
+            r = (np.arange(M)[:, None] * K + kk[None, :]).ravel()
+            c = np.tile(cc, M)
+            self._coll_slice = pat.add(row + r, c, np.zeros(r.size))
+            row += M * K
+            self._n_coll_rows = M * K
+        # Obstacle half-spaces (dynamic values).
+        self._row_obs = row
+        if O:
+            kk, cc = np.nonzero(lower)
+            r = (np.arange(O)[:, None] * K + kk[None, :]).ravel()
+            self._obs_slice = pat.add(row + r, np.tile(cc, O), np.zeros(r.size))
+            row += O * K
+        self._n_rows = row
+        A, self._A_coo_to_csc = pat.to_csc((row, n))
+        self._Ax = A.data.copy()
+
+        # Cost Hessian pieces (on U), P = 2 (goal + formation + smoothness) + slack.
+        goal_rows = slice(3 * (K - cfg.goal_steps), 3 * K)
+        L_goal = mats.Lambda_pos[goal_rows]
+        self._goal_rows = goal_rows
+        D = np.eye(3 * K) - np.eye(3 * K, k=-3)  # (D U)_k = u[k] - u[k-1], u[-1] enters through q
+        self._D = D
+        self._H_base = 2.0 * cfg.weight_goal * L_goal.T @ L_goal + 2.0 * cfg.weight_smoothness * D.T @ D
+        self._H_form = 2.0 * cfg.weight_formation * mats.Lambda_pos.T @ mats.Lambda_pos
+        iu = np.triu_indices(self._n_u)
+        self._P_triu = iu
+        P = self._assemble_P(0)
+        self._n_form = 0
+
+        self._l = np.full(row, -_INF)
+        self._u = np.full(row, _INF)
+        self._osqp = osqp.OSQP()
+        self._osqp.setup(
+            P, np.zeros(n), A, self._l, self._u,
+            verbose=False, eps_abs=cfg.osqp_eps_abs, eps_rel=cfg.osqp_eps_rel,
+            max_iter=cfg.osqp_max_iter, polishing=cfg.osqp_polish,
+            adaptive_rho_interval=25, warm_starting=True,
+        )  # fmt: skip
+        self._P, self._A = P, A
+        self._q = np.zeros(n)
+        self._x_last: np.ndarray | None = None
+        self._snapshot: QpSnapshot | None = None
+
+    # ------------------------------------------------------------------ build
+    def _assemble_P(self, n_form: int) -> sp.csc_matrix:
+        """Upper-triangular CSC P for ``n_form`` formation neighbours (dense U block + slack diagonal)."""
+        H = self._H_base + n_form * self._H_form
+        iu = self._P_triu
+        n = self._n_u + self._n_slack
+        rows = np.concatenate([iu[0], self._n_u + np.arange(self._n_slack)])
+        cols = np.concatenate([iu[1], self._n_u + np.arange(self._n_slack)])
+        vals = np.concatenate([H[iu], np.full(self._n_slack, 2.0 * self.config.weight_slack_quadratic)])
+        tag = sp.coo_matrix((np.arange(1, rows.size + 1, dtype=float), (rows, cols)), shape=(n, n)).tocsc()
+        order = tag.data.astype(int) - 1
+        return sp.csc_matrix((vals[order], tag.indices, tag.indptr), shape=(n, n))
+
+    def _set_dynamic(self, sl: slice, values: np.ndarray) -> None:
+        self._Ax[self._A_coo_to_csc[sl]] = values
+
+    def snapshot(self) -> QpSnapshot | None:
+        """The QP and solution of the last :meth:`solve` (None before the first)."""
+        return self._snapshot
+
+    def _own_previous(self, t_s: np.ndarray, x0: np.ndarray, previous_plan: DmpcPlan | None) -> np.ndarray:
+        if previous_plan is None:
+            return x0[:3] + x0[3:6] * (t_s - t_s[0] + self.config.step_s)[:, None]  # constant velocity
+        return previous_plan.position(t_s)
+
+    def _previous_input(self, t_now_s: float, previous_plan: DmpcPlan | None) -> np.ndarray:
+        """u[-1]: the input the previous plan held on [t_now - h, t_now) (zeros without one)."""
+        h = self.config.step_s
+        if previous_plan is None or not (previous_plan.t0_s <= t_now_s - 0.5 * h < previous_plan.t_end_s):
+            return np.zeros(3)
+        if self.config.model == "double":
+            return previous_plan.acceleration(t_now_s - 0.5 * h)
+        return (previous_plan.acceleration(t_now_s) - previous_plan.acceleration(t_now_s - h)) / h  # jerk
+
+    # ------------------------------------------------------------------ solve
+    def solve(
+        self,
+        x0: np.ndarray,
+        goal: np.ndarray,
+        neighbour_plans: Sequence[NeighborPrediction],
+        previous_plan: DmpcPlan | None,
+        formation_offsets: Mapping[int, np.ndarray] | None = None,
+        *,
+        t_now_s: float,
+        obstacles: Sequence[tuple[np.ndarray, np.ndarray | float]] | None = None,
+    ) -> DmpcResult:
+        """Solve one DMPC round from state ``x0`` at time ``t_now_s``.
+
+        Args:
+            x0: (6,) ``[p, v]`` (double) or (9,) ``[p, v, a]`` (triple), world [m, m/s, m/s^2].
+            goal: (3,) goal position p_goal in world [m].
+            neighbour_plans: predictions of the other drones (radio plans or
+                tracks), evaluated at t_now + k h, k = 1..K (a stale plan is
+                used as it is: its tail extrapolates at constant velocity).
+            previous_plan: this drone's previous plan (any start time; it is
+                evaluated at the current round's times), or None (then a
+                constant-velocity guess from x0).
+            formation_offsets: desired p_j - p_i (3,) [m] by neighbour id; only
+                neighbours present in ``neighbour_plans`` count.
+            t_now_s: current absolute time [s] (the plan's t0).
+            obstacles: static obstacle half-spaces ``(normal, offset)`` with
+                normal (3,) or (K, 3) and offset scalar or (K,), meaning
+                normal^T p[k] >= offset [m]; at most ``max_obstacle_planes``.
+
+        Raises:
+            DmpcSolveError: OSQP did not return a solution (carries the QP).
+            ValueError: bad shapes or too many obstacle planes.
+        """
+        t_start = time.perf_counter()
+        cfg, mats = self.config, self.matrices
+        K, M, h = cfg.horizon_steps, cfg.max_neighbours, cfg.step_s
+        x0 = np.asarray(x0, float)
+        if x0.shape != (cfg.state_dim,):
+            raise ValueError(f"x0 shape {x0.shape}: expected ({cfg.state_dim},) for model {cfg.model!r}")
+        goal = np.asarray(goal, float).reshape(3)
+        t_s = float(t_now_s) + h * np.arange(1, K + 1)
+        own_prev = self._own_previous(t_s, x0, previous_plan)
+        nb_ids = [p.neighbor_id for p in neighbour_plans]
+        nb_pos = np.array([p.position(t_s) for p in neighbour_plans]).reshape(-1, K, 3)
+        nb_now = np.array([p.position(float(t_now_s)) for p in neighbour_plans]).reshape(-1, 3)
+
+        free_pos = (mats.A0_pos @ x0).reshape(K, 3)  # A0_p x0
+        l, u = self._l, self._u
+        # Box constraints (on-demand DMPC Sec. 3.4 (1)): P_min - A0 x0 <= Lambda U <= P_max - A0 x0.
+        rp = slice(self._row_pos, self._row_pos + 3 * K)
+        l[rp] = (np.asarray(cfg.pos_min_world)[None] - free_pos).ravel()
+        u[rp] = (np.asarray(cfg.pos_max_world)[None] - free_pos).ravel()
+        rv = slice(self._row_vel, self._row_vel + 3 * K)
+        free_vel = mats.A0_vel @ x0
+        l[rv], u[rv] = -cfg.v_max - free_vel, cfg.v_max - free_vel
+        ra = slice(self._row_acc, self._row_acc + 3 * K)
+        free_acc = mats.A0_acc @ x0
+        l[ra], u[ra] = -cfg.a_max - free_acc, cfg.a_max - free_acc
+        if cfg.terminal_halt:  # v[K] = 0 (a[K] = 0): DMPC-Swarm Eq. 13e
+            last = slice(self._row_vel + 3 * K - 3, self._row_vel + 3 * K)
+            l[last] = u[last] = -free_vel[-3:]
+            if cfg.model == "triple":
+                last = slice(self._row_acc + 3 * K - 3, self._row_acc + 3 * K)
+                l[last] = u[last] = -free_acc[-3:]
+        if cfg.model == "triple":
+            rj = slice(self._row_jerk, self._row_jerk + 3 * K)
+            l[rj], u[rj] = -cfg.j_max, cfg.j_max
+
+        # Collision rows.
+        slack_cols = np.arange(self._n_slack)
+        n_coll, conflict_step = 0, 0
+        rc = slice(self._row_coll, self._row_coll + self._n_coll_rows)
+        l[rc], u[rc] = -_INF, _INF
+        if cfg.collision_mode == "on_demand":
+            cons = on_demand_constraints(
+                own_prev, nb_pos, cfg.r_min, cfg.downwash, cfg.conflict_margin_m,
+                cfg.neighbourhood_factor, x0[:3], nb_now,
+            )  # fmt: skip
+            keep = np.argsort(cons.distance_m)[:M]  # nearest first if more than the slots
+            n_coll = keep.size
+            coef = np.zeros((M, 3 * K))
+            slack_coef = np.zeros(M)
+            if n_coll:
+                k_c = cons.step_index
+                conflict_step = k_c + 1
+                a = cons.normal[keep]
+                coef[:n_coll] = a @ self._Lambda_pos_blocks[k_c]  # a^T Lambda_p,k_c U
+                slack_coef[:n_coll] = cons.sigma[keep]  # + sigma s  (s = -alpha)
+                # a^T Lambda U + s >= b - a^T A0 x0   (on-demand DMPC Sec. 3.4)
+                l[self._row_coll : self._row_coll + n_coll] = cons.offset[keep] - a @ free_pos[k_c]
+            self._set_dynamic(self._coll_slice, coef.ravel())
+            self._set_dynamic(self._slack_coef_slice, slack_coef)
+            rs = slice(self._row_slack, self._row_slack + M)
+            l[rs], u[rs] = 0.0, cfg.slack_max_m
+        else:
+            chosen = self._nearest(own_prev, nb_pos, M)
+            coef = np.zeros((M, K, 3 * K))
+            if chosen.size:
+                planes = bvc_planes(own_prev, nb_pos[chosen], cfg.r_min, cfg.downwash, x0[:3], nb_now[chosen])
+                m = chosen.size
+                coef[:m] = np.einsum("mkd,kdc->mkc", planes.normal, self._Lambda_pos_blocks)
+                rhs = planes.offset - np.einsum("mkd,kd->mk", planes.normal, free_pos)  # b - a^T A0 x0, Eq. 15
+                l[self._row_coll : self._row_coll + m * K] = rhs.ravel()
+                n_coll = m * K
+            self._set_dynamic(self._coll_slice, coef[:, self._lower_mask].ravel())
+
+        if cfg.max_obstacle_planes:
+            self._fill_obstacles(obstacles, free_pos)
+        elif obstacles:
+            raise ValueError(f"obstacles: {len(obstacles)} planes given but max_obstacle_planes=0")
+
+        # Linear cost q.
+        q = self._q
+        goal_err = (np.tile(goal, K) - mats.A0_pos @ x0)[self._goal_rows]
+        q_u = -2.0 * cfg.weight_goal * mats.Lambda_pos[self._goal_rows].T @ goal_err  # F_e
+        u_prev = self._previous_input(float(t_now_s), previous_plan)
+        e = np.zeros(3 * K)
+        e[:3] = u_prev
+        q_u -= 2.0 * cfg.weight_smoothness * self._D.T @ e  # F_Theta with u[-1]
+        form_targets = self._formation_targets(nb_ids, nb_pos, formation_offsets)
+        if form_targets.shape[0]:
+            resid = (form_targets - free_pos[None]).reshape(form_targets.shape[0], -1).sum(axis=0)
+            q_u -= 2.0 * cfg.weight_formation * mats.Lambda_pos.T @ resid  # F_f
+        q[: self._n_u] = q_u
+        q[self._n_u :] = cfg.weight_slack_linear  # F_v linear part
+
+        update = {"q": q, "l": l, "u": u, "Ax": self._Ax}
+        if form_targets.shape[0] != self._n_form:
+            self._n_form = form_targets.shape[0]
+            self._P = self._assemble_P(self._n_form)
+            update["Px"] = self._P.data
+        self._osqp.update(**update)
+        x_ws = np.zeros(self._n_u + self._n_slack)
+        if self._x_last is not None:
+            x_ws[: self._n_u - 3] = self._x_last[3 : self._n_u]  # shift by one step
+            x_ws[self._n_u - 3 : self._n_u] = self._x_last[self._n_u - 3 : self._n_u]
+        self._osqp.warm_start(x=x_ws)
+        t_solve = time.perf_counter()
+        res = self._osqp.solve(raise_error=False)
+        t_end = time.perf_counter()
+        A = sp.csc_matrix((self._Ax.copy(), self._A.indices, self._A.indptr), shape=self._A.shape)
+        status = str(res.info.status)
+        self._snapshot = QpSnapshot(self._P, q.copy(), A, l.copy(), u.copy(), res.x, res.y, status)
+        if res.info.status_val not in _ACCEPTED:
+            self._x_last = None
+            raise DmpcSolveError(status, self._snapshot)
+        self._x_last = res.x.copy()
+        return self._result(
+            res, x0, goal, float(t_now_s), e, form_targets, n_coll, conflict_step,
+            t_solve - t_start, t_end - t_solve,
+        )  # fmt: skip
+
+    def _nearest(self, own_prev: np.ndarray, nb_pos: np.ndarray, count: int) -> np.ndarray:
+        """Indices of the ``count`` neighbours closest (over the horizon) to the own previous plan."""
+        if nb_pos.shape[0] <= count:
+            return np.arange(nb_pos.shape[0])
+        d = ellipsoidal_distance(own_prev[None] - nb_pos, self.config.downwash).min(axis=1)
+        return np.sort(np.argsort(d)[:count])
+
+    def _formation_targets(
+        self, nb_ids: list[int], nb_pos: np.ndarray, offsets: Mapping[int, np.ndarray] | None
+    ) -> np.ndarray:
+        """(F, K, 3) formation targets p_j[k] - d_ij for neighbours with a desired offset."""
+        if not offsets or self.config.weight_formation == 0.0:
+            return np.zeros((0, self.config.horizon_steps, 3))
+        rows = [nb_pos[i] - np.asarray(offsets[j], float).reshape(1, 3) for i, j in enumerate(nb_ids) if j in offsets]
+        return np.array(rows).reshape(-1, self.config.horizon_steps, 3)
+
+    def _fill_obstacles(self, obstacles: Sequence | None, free_pos: np.ndarray) -> None:
+        """Obstacle rows: normal^T (A0 x0 + Lambda U)[k] >= offset."""
+        K, O = self.config.horizon_steps, self.config.max_obstacle_planes
+        obstacles = list(obstacles or [])
+        if len(obstacles) > O:
+            raise ValueError(f"obstacles: {len(obstacles)} planes given, max_obstacle_planes={O}")
+        normals, offsets = np.zeros((O, K, 3)), np.full((O, K), -_INF)
+        for i, (nrm, off) in enumerate(obstacles):
+            normals[i] = np.broadcast_to(np.asarray(nrm, float), (K, 3))
+            offsets[i] = np.broadcast_to(np.asarray(off, float), (K,))
+        coef = np.einsum("okd,kdc->okc", normals, self._Lambda_pos_blocks)
+        self._set_dynamic(self._obs_slice, coef[:, self._lower_mask].ravel())
+        rows = slice(self._row_obs, self._row_obs + O * K)
+        lo = offsets - np.einsum("okd,kd->ok", normals, free_pos)
+        self._l[rows] = np.where(offsets <= -_INF, -_INF, lo).ravel()
+        self._u[rows] = _INF
+
+    def _result(self, res, x0, goal, t_now_s, e, form_targets, n_coll, conflict_step, t_update, t_solve) -> DmpcResult:
+        cfg, mats = self.config, self.matrices
+        K = cfg.horizon_steps
+        U = res.x[: self._n_u]
+        s = res.x[self._n_u :]
+        A0_x, Lambda_x = stacked_state_matrices(mats.A, mats.B, K)
+        states = np.vstack([x0, (A0_x @ x0 + Lambda_x @ U).reshape(K, -1)])  # x[0..K]
+        inputs = U.reshape(K, 3)
+        pos, vel = states[:, :3], states[:, 3:6]
+        if cfg.model == "double":
+            acc_samples = np.vstack([inputs, np.zeros((1, 3))])  # a on [t_k, t_k+1) = u[k]; tail 0
+            acc_world = inputs.copy()
+        else:
+            acc_samples = states[:, 6:9]
+            acc_world = states[1:, 6:9]
+        plan = DmpcPlan(t_now_s, cfg.step_s, pos.copy(), vel.copy(), acc_samples)
+        # J = F_e + F_f + F_Theta + F_v, evaluated directly.
+        cost = cfg.weight_goal * np.sum((pos[K - cfg.goal_steps + 1 :] - goal) ** 2)
+        if form_targets.shape[0]:
+            cost += cfg.weight_formation * np.sum((pos[None, 1:] - form_targets) ** 2)
+        cost += cfg.weight_smoothness * np.sum((self._D @ U - e) ** 2)
+        cost += np.sum(cfg.weight_slack_quadratic * s**2 + cfg.weight_slack_linear * s)
+        slack = s[:n_coll].copy() if cfg.collision_mode == "on_demand" else np.zeros(0)
+        return DmpcResult(
+            plan=plan, pos_world=pos[1:].copy(), vel_world=vel[1:].copy(), acc_world=acc_world,
+            inputs=inputs.copy(), cost=float(cost), iterations=int(res.info.iter), status=str(res.info.status),
+            solve_time_s=t_solve, osqp_solve_time_s=float(res.info.solve_time), update_time_s=t_update,
+            n_collision_constraints=int(n_coll), conflict_step=int(conflict_step), slack=slack,
+        )  # fmt: skip
