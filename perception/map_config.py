@@ -1,0 +1,101 @@
+"""Settings of a drone's local occupancy map and its ESDF (frozen, validated)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["MapConfig"]
+
+
+@dataclass(frozen=True)
+class MapConfig:
+    """Occupancy window, ray casting and ESDF settings.
+
+    Log-odds defaults are OctoMap's (Hornung et al. 2013): hit probability 0.7,
+    miss 0.4, clamping at 0.12 / 0.97.
+
+    Attributes:
+        voxel_m: voxel edge [m], 0.1 to 0.2 (default 0.15).
+        window_size_m: (3,) edge lengths [m] of the rolling window centred on
+            the drone, x y z in world (default 10 x 10 x 4). Rounded up to whole
+            voxels.
+        min_range_m: depth readings nearer than this [m] are ignored (sensor
+            minimum, D435i 0.2 m).
+        max_range_m: depth readings farther than this [m] are not integrated as
+            hits; their ray is cleared as free up to this range (default 10 m,
+            the simulated camera's range).
+        clear_invalid_m: range [m] up to which a ray through an invalid (NaN)
+            pixel is cleared as free; 0 skips such rays. The simulated camera
+            reports NaN only for surfaces beyond ``max_range_m`` or nearer than
+            ``min_range_m``; a surface that near is inside the drone's own
+            collision radius (a collision has already happened), so clearing
+            loses nothing the planner could still act on, while it lets open
+            sky and open corridors become verified free (default 10 m; values
+            above ``max_range_m`` act as ``max_range_m``). Set 0 for a sensor
+            whose NaNs also mean dropouts.
+        pixel_stride: integrate every ``pixel_stride``-th pixel in u and v
+            (1 = full resolution; default 2, i.e. a quarter of the rays; at
+            0.15 m voxels and 320 x 240 px the skipped rays are redundant beyond
+            about 1.5 m).
+        detection_margin_px: margin [px] added on each side of a detection box
+            before its pixels are masked out.
+        log_odds_hit: log-odds increment [-] of the end voxel of a ray
+            (logit 0.7 = 0.847).
+        log_odds_miss: log-odds increment [-] of a voxel a ray passes through
+            (logit 0.4 = -0.405).
+        log_odds_min: lower clamp [-] (logit 0.12 = -1.99).
+        log_odds_max: upper clamp [-] (logit 0.97 = 3.48).
+        log_odds_occupied: a voxel is occupied above this log-odds [-] and free
+            at or below it (once observed). Default 0 (probability 0.5).
+        esdf_max_m: truncation distance [m]: ESDF values are clipped to
+            ``[-esdf_max_m, esdf_max_m]`` (default 3 m; nothing farther matters
+            to a clearance of about 1 m).
+    """
+
+    voxel_m: float = 0.15
+    window_size_m: tuple[float, float, float] = (10.0, 10.0, 4.0)
+    min_range_m: float = 0.2
+    max_range_m: float = 10.0
+    clear_invalid_m: float = 10.0
+    pixel_stride: int = 2
+    detection_margin_px: int = 4
+    log_odds_hit: float = 0.847
+    log_odds_miss: float = -0.405
+    log_odds_min: float = -1.99
+    log_odds_max: float = 3.48
+    log_odds_occupied: float = 0.0
+    esdf_max_m: float = 3.0
+
+    def __post_init__(self) -> None:
+        if not 0.1 <= self.voxel_m <= 0.2:
+            raise ValueError(f"voxel_m={self.voxel_m!r}: allowed 0.1 to 0.2 m")
+        w = tuple(self.window_size_m)
+        if len(w) != 3 or not all(np.isfinite(x) and x >= 2 * self.voxel_m for x in w):
+            raise ValueError(f"window_size_m={self.window_size_m!r}: allowed three finite lengths >= 2 voxels")
+        if not 0.0 <= self.min_range_m < self.max_range_m:
+            raise ValueError(f"min_range_m={self.min_range_m!r}: allowed 0 <= min_range_m < max_range_m")
+        if not np.isfinite(self.max_range_m):
+            raise ValueError(f"max_range_m={self.max_range_m!r}: allowed finite > min_range_m")
+        if not (np.isfinite(self.clear_invalid_m) and self.clear_invalid_m >= 0.0):
+            raise ValueError(f"clear_invalid_m={self.clear_invalid_m!r}: allowed finite >= 0 (0 = skip invalid pixels)")
+        if not (isinstance(self.pixel_stride, (int, np.integer)) and self.pixel_stride >= 1):
+            raise ValueError(f"pixel_stride={self.pixel_stride!r}: allowed integer >= 1")
+        if not (isinstance(self.detection_margin_px, (int, np.integer)) and self.detection_margin_px >= 0):
+            raise ValueError(f"detection_margin_px={self.detection_margin_px!r}: allowed integer >= 0")
+        if not self.log_odds_hit > 0.0:
+            raise ValueError(f"log_odds_hit={self.log_odds_hit!r}: allowed > 0")
+        if not self.log_odds_miss < 0.0:
+            raise ValueError(f"log_odds_miss={self.log_odds_miss!r}: allowed < 0")
+        if not self.log_odds_min < self.log_odds_occupied < self.log_odds_max:
+            raise ValueError(
+                f"log_odds_occupied={self.log_odds_occupied!r}: allowed log_odds_min < log_odds_occupied < log_odds_max"
+            )
+        if not self.esdf_max_m > 0.0:
+            raise ValueError(f"esdf_max_m={self.esdf_max_m!r}: allowed > 0")
+
+    @property
+    def window_shape(self) -> tuple[int, int, int]:
+        """(nx, ny, nz) voxels of the window."""
+        return tuple(int(np.ceil(x / self.voxel_m - 1e-9)) for x in self.window_size_m)  # type: ignore[return-value]

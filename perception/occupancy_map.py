@@ -1,0 +1,284 @@
+"""A drone's own occupancy map: a rolling log-odds voxel window fed by its depth frames.
+
+Each :meth:`OccupancyMap.update` integrates one depth frame (DESIGN.md
+section 4, perception: "Map"):
+
+1. every ``pixel_stride``-th pixel ``(u, v)`` with depth ``d`` is
+   back-projected, ``p_c = d K^-1 [u, v, 1]^T`` (MP-CDE Eq. 7), and taken to
+   world, ``p_w = T_wc p_c`` (Eq. 8), with ``T_wc`` the frame's
+   ``transform_camera_to_world`` (the drone's own pose estimate);
+2. pixels inside a detected drone's box (plus ``detection_margin_px``) are
+   dropped entirely, so a neighbour never becomes a wall and the space around
+   it is not claimed either;
+3. each ray camera -> ``p_w`` is traversed voxel by voxel (Amanatides & Woo
+   1987, compiled with numba): the voxels it passes through get a miss, the
+   voxel of a valid end point (``min_range_m <= d <= max_range_m``) a hit.
+   Readings beyond ``max_range_m`` and invalid (NaN) pixels clear their ray up
+   to ``max_range_m`` / ``clear_invalid_m`` without a hit (see
+   :class:`MapConfig` for why NaN may be cleared); readings nearer than
+   ``min_range_m`` are skipped;
+4. within one frame a voxel is updated once, and a hit wins over a miss
+   (OctoMap's rule), so a wall seen at grazing angles is not eroded by the
+   rays that pass next to it; the log-odds ``l`` is updated
+   ``l <- clamp(l + l_hit or l_miss, l_min, l_max)``.
+
+The window (``window_size_m``, aligned to a global grid of ``voxel_m``) is
+recentred on the camera at every update; voxels that scroll in are unknown.
+A voxel is unknown until a ray touches it, then occupied if
+``l > log_odds_occupied``, else free. :meth:`OccupancyMap.snapshot` hands out an
+immutable :class:`perception.types.OccupancySnapshot` with the ESDF
+recomputed (see :mod:`perception.esdf`) when the map changed since the last one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numba import njit
+
+from perception.esdf import compute_esdf
+from perception.map_config import MapConfig
+from perception.types import Detection, OccupancySnapshot
+from sim.types import RgbdFrame
+
+__all__ = ["OccupancyMap"]
+
+
+class OccupancyMap:
+    """Rolling-window log-odds occupancy map of one drone.
+
+    Args:
+        config: map settings.
+        center_world: (3,) initial window centre [m]; by default the window is
+            placed around the camera of the first frame.
+    """
+
+    def __init__(self, config: MapConfig = MapConfig(), center_world: np.ndarray | None = None) -> None:
+        self.config = config
+        self._shape = np.asarray(config.window_shape, np.int64)
+        self._log_odds = np.zeros(config.window_shape, np.float32)
+        self._observed = np.zeros(config.window_shape, np.bool_)
+        self._mark = np.zeros(config.window_shape, np.int8)  # per-frame scratch, always zero between calls
+        self._origin_index: np.ndarray | None = None  # global index of voxel (0, 0, 0)
+        self._time_s = -np.inf
+        self._snapshot: OccupancySnapshot | None = None
+        if center_world is not None:
+            self.recenter(np.asarray(center_world, float))
+
+    @property
+    def origin_world(self) -> np.ndarray:
+        """(3,) world position [m] of the window's minimum corner (zeros before the first frame)."""
+        if self._origin_index is None:
+            return np.zeros(3)
+        return self._origin_index * self.config.voxel_m
+
+    def state(self) -> np.ndarray:
+        """(nx, ny, nz) int8 voxel states: -1 unknown, 0 free, 1 occupied."""
+        out = np.where(self._log_odds > self.config.log_odds_occupied, 1, 0).astype(np.int8)
+        out[~self._observed] = OccupancySnapshot.UNKNOWN
+        return out
+
+    def recenter(self, center_world: np.ndarray) -> None:
+        """Move the window so that ``center_world`` (3,) [m] lies in its central voxel; keeps the overlap."""
+        center_index = np.floor(np.asarray(center_world, float) / self.config.voxel_m).astype(np.int64)
+        new_origin = center_index - self._shape // 2
+        if self._origin_index is not None and np.array_equal(new_origin, self._origin_index):
+            return
+        if self._origin_index is not None:
+            shift = new_origin - self._origin_index  # old index = new index + shift
+            self._log_odds = _shifted(self._log_odds, shift, 0.0)
+            self._observed = _shifted(self._observed, shift, False)
+        self._origin_index = new_origin
+        self._snapshot = None
+
+    def update(self, frame: RgbdFrame, detections: Sequence[Detection] = ()) -> None:
+        """Integrate one depth frame; pixels inside ``detections`` boxes are ignored."""
+        cfg = self.config
+        T_wc = np.asarray(frame.transform_camera_to_world, float)
+        cam_world = T_wc[:3, 3]
+        self.recenter(cam_world)
+        ends_cam, is_hit = self._rays_camera(frame, detections)
+        ends_world = ends_cam @ T_wc[:3, :3].T + cam_world  # p_w = R_wc p_c + t_wc (MP-CDE Eq. 8)
+        origin = self.origin_world
+        _integrate_rays(
+            (cam_world - origin) / cfg.voxel_m,
+            np.ascontiguousarray((ends_world - origin) / cfg.voxel_m),
+            is_hit,
+            self._log_odds,
+            self._observed,
+            self._mark,
+            cfg.log_odds_hit,
+            cfg.log_odds_miss,
+            cfg.log_odds_min,
+            cfg.log_odds_max,
+        )
+        self._time_s = float(frame.time_s)
+        self._snapshot = None
+
+    def snapshot(self) -> OccupancySnapshot:
+        """Immutable copy of the window with its ESDF (recomputed only if the map changed)."""
+        if self._snapshot is None:
+            state = self.state()
+            distance_m, free_distance_m = compute_esdf(
+                state == OccupancySnapshot.OCCUPIED,
+                state == OccupancySnapshot.FREE,
+                self.config.voxel_m,
+                self.config.esdf_max_m,
+            )
+            state.flags.writeable = False
+            distance_m.flags.writeable = False
+            free_distance_m.flags.writeable = False
+            origin = self.origin_world
+            origin.flags.writeable = False
+            self._snapshot = OccupancySnapshot(
+                self._time_s, origin, self.config.voxel_m, state, distance_m, free_distance_m
+            )
+        return self._snapshot
+
+    def _rays_camera(self, frame: RgbdFrame, detections: Sequence[Detection]) -> tuple[np.ndarray, np.ndarray]:
+        """Ray end points in camera frame (n, 3) [m] and whether each ends on a surface (n,) bool."""
+        cfg = self.config
+        depth_m = np.asarray(frame.depth_m)
+        h, w = depth_m.shape
+        s = cfg.pixel_stride
+        v_px = np.arange(s // 2, h, s)
+        u_px = np.arange(s // 2, w, s)
+        d = depth_m[np.ix_(v_px, u_px)].astype(np.float64)
+        keep = np.ones(d.shape, bool)
+        m = cfg.detection_margin_px
+        for det in detections:  # mask neighbours: their pixels are neither hits nor misses
+            u0, v0, u1, v1 = np.asarray(det.box_xyxy, float)
+            keep[np.ix_((v_px >= v0 - m) & (v_px <= v1 + m), (u_px >= u0 - m) & (u_px <= u1 + m))] = False
+        finite = np.isfinite(d)
+        hit = finite & (d >= cfg.min_range_m) & (d <= cfg.max_range_m)
+        far = finite & (d > cfg.max_range_m)
+        clear_nan = min(cfg.clear_invalid_m, cfg.max_range_m)
+        nan_ray = ~finite if clear_nan > 0.0 else np.zeros_like(finite)
+        use = keep & (hit | far | nan_ray)
+        depth_end = np.where(hit, d, np.where(far, cfg.max_range_m, clear_nan))[use]
+        K_inv = np.linalg.inv(np.asarray(frame.K, float))
+        uu, vv = np.meshgrid(u_px.astype(float), v_px.astype(float))
+        pix = np.stack([uu[use], vv[use], np.ones(depth_end.size)], axis=1)
+        ends_cam = (pix @ K_inv.T) * depth_end[:, None]  # p_c = d K^-1 [u, v, 1]^T (MP-CDE Eq. 7)
+        return ends_cam, np.ascontiguousarray(hit[use])
+
+
+def _shifted(a: np.ndarray, shift: np.ndarray, fill: float | bool) -> np.ndarray:
+    """``out[i] = a[i + shift]`` where that index exists, ``fill`` elsewhere; same shape as ``a`` (nx, ny, nz)."""
+    out = np.full_like(a, fill)
+    n = np.asarray(a.shape)
+    dst_lo = np.clip(-shift, 0, n)
+    dst_hi = np.clip(n - shift, 0, n)
+    if np.any(dst_hi <= dst_lo):
+        return out
+    src_lo, src_hi = dst_lo + shift, dst_hi + shift
+    out[dst_lo[0] : dst_hi[0], dst_lo[1] : dst_hi[1], dst_lo[2] : dst_hi[2]] = a[
+        src_lo[0] : src_hi[0], src_lo[1] : src_hi[1], src_lo[2] : src_hi[2]
+    ]
+    return out
+
+
+@njit(cache=True)
+def _axis_setup(o, dv, i):
+    """DDA set-up along one axis: (step, t_delta, t_max) for a ray o + t dv currently in cell i."""
+    if dv > 0.0:
+        return 1, 1.0 / dv, (i + 1 - o) / dv
+    if dv < 0.0:
+        return -1, -1.0 / dv, (i - o) / dv
+    return 0, np.inf, np.inf
+
+
+@njit(cache=True)
+def _integrate_rays(origin_vox, ends_vox, is_hit, log_odds, observed, mark, l_hit, l_miss, l_min, l_max):
+    """Cast rays from ``origin_vox`` (3,) to ``ends_vox`` (n, 3) (window voxel units) and update log-odds.
+
+    Amanatides-Woo traversal on the flattened window. ``mark`` (nx, ny, nz)
+    int8 must be zero on entry and is zero on return; within the call
+    1 = passed through (miss), 2 = end point (hit wins).
+    """
+    nx, ny, nz = log_odds.shape
+    lo_flat = log_odds.reshape(-1)
+    obs_flat = observed.reshape(-1)
+    mk = mark.reshape(-1)
+    touched = np.empty(4096, np.int64)
+    n_touched = 0
+    ox, oy, oz = origin_vox[0], origin_vox[1], origin_vox[2]
+    for r in range(ends_vox.shape[0]):
+        ex_f, ey_f, ez_f = ends_vox[r, 0], ends_vox[r, 1], ends_vox[r, 2]
+        dx, dy, dz = ex_f - ox, ey_f - oy, ez_f - oz
+        # clip the segment origin + t d, t in [0, 1], to the box [0, n) (slab method)
+        t0 = 0.0
+        t1 = 1.0
+        for o, dv, n in ((ox, dx, nx), (oy, dy, ny), (oz, dz, nz)):
+            if dv != 0.0:
+                ta = -o / dv
+                tb = (n - o) / dv
+                if ta > tb:
+                    ta, tb = tb, ta
+                t0 = max(t0, ta)
+                t1 = min(t1, tb)
+            elif o < 0.0 or o >= n:
+                t1 = -1.0
+        if t0 >= t1:
+            continue
+        end_inside = is_hit[r] and t1 >= 1.0
+        ix = min(max(int(np.floor(ox + t0 * dx)), 0), nx - 1)
+        iy = min(max(int(np.floor(oy + t0 * dy)), 0), ny - 1)
+        iz = min(max(int(np.floor(oz + t0 * dz)), 0), nz - 1)
+        sx, tdx, tmx = _axis_setup(ox, dx, ix)
+        sy, tdy, tmy = _axis_setup(oy, dy, iy)
+        sz, tdz, tmz = _axis_setup(oz, dz, iz)
+        ex = int(np.floor(ex_f))
+        ey = int(np.floor(ey_f))
+        ez = int(np.floor(ez_f))
+        end_lin = (ex * ny + ey) * nz + ez if end_inside else -1
+        lin = (ix * ny + iy) * nz + iz
+        while lin != end_lin:
+            if mk[lin] == 0:
+                mk[lin] = 1
+                if n_touched == touched.shape[0]:
+                    grown = np.empty(2 * n_touched, np.int64)
+                    grown[:n_touched] = touched
+                    touched = grown
+                touched[n_touched] = lin
+                n_touched += 1
+            if tmx <= tmy and tmx <= tmz:
+                if tmx > t1:
+                    break
+                ix += sx
+                if ix < 0 or ix >= nx:
+                    break
+                tmx += tdx
+                lin += sx * ny * nz
+            elif tmy <= tmz:
+                if tmy > t1:
+                    break
+                iy += sy
+                if iy < 0 or iy >= ny:
+                    break
+                tmy += tdy
+                lin += sy * nz
+            else:
+                if tmz > t1:
+                    break
+                iz += sz
+                if iz < 0 or iz >= nz:
+                    break
+                tmz += tdz
+                lin += sz
+        if end_inside and 0 <= ex < nx and 0 <= ey < ny and 0 <= ez < nz:
+            if mk[end_lin] == 0:
+                if n_touched == touched.shape[0]:
+                    grown = np.empty(2 * n_touched, np.int64)
+                    grown[:n_touched] = touched
+                    touched = grown
+                touched[n_touched] = end_lin
+                n_touched += 1
+            mk[end_lin] = 2
+    for k in range(n_touched):
+        lin = touched[k]
+        l_new = lo_flat[lin] + (l_hit if mk[lin] == 2 else l_miss)  # l <- l + l_hit / l_miss
+        lo_flat[lin] = min(max(l_new, l_min), l_max)  # clamp to [l_min, l_max]
+        obs_flat[lin] = True
+        mk[lin] = 0
