@@ -1,0 +1,126 @@
+"""Configuration of the neighbour tracker (MP-CDE Sec. IV-B, Table I).
+
+One frozen dataclass, :class:`TrackerConfig`. Every field has a default taken
+from MP-CDE (Table I or the text of Sec. IV-B) where the paper gives one, and
+otherwise the value chosen here with the reason in its docstring. Validation
+raises ``ValueError`` with the one-line message ``"<field>=<value!r>: <allowed>"``
+(perception/ may not import mpcde; mpcde turns these into ``ConfigError``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["FILTERS", "TrackerConfig"]
+
+FILTERS = ("akf", "kf")
+"""Allowed values of :attr:`TrackerConfig.filter`."""
+
+
+def _check_positive(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{name}={value!r}: a finite number > 0")
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Settings of :class:`perception.tracker.MultiTargetTracker`.
+
+    Attributes:
+        filter: ``"akf"`` (MP-CDE's adaptive Kalman filter: process noise by
+            covariance matching on the innovation, Eq. 11) or ``"kf"`` (the
+            baseline: the same constant-velocity filter with the fixed process
+            noise ``sigma_acc_mps2``).
+        alpha_ema: exponential smoothing factor of the adaptive process noise,
+            ``Q_k = alpha Q_hat_k + (1 - alpha) Q_{k-1}`` [-] (MP-CDE Table I,
+            alpha_EMA = 0.3). Used by ``"akf"`` only.
+        sigma_acc_mps2: standard deviation of the white-noise acceleration of
+            the fixed process noise, per axis [m/s^2]. It is the whole process
+            noise of ``"kf"`` and the floor under the adaptive part of
+            ``"akf"`` (the paper gives no value; 0.5 m/s^2 suits a slowly
+            manoeuvring or hovering neighbour, so the two filters differ only
+            by the adaptation).
+        sigma_acc_max_mps2: cap on the adaptive acceleration standard deviation
+            per axis [m/s^2] (a quadrotor's acceleration is bounded; the cap
+            keeps one wild innovation from blowing the covariance up).
+        init_vel_std_mps: velocity standard deviation per axis of a new track
+            [m/s] (a track is born from one position; its velocity is unknown
+            up to about the neighbours' top speed).
+        gate_chi2: chi-square gate on the squared Mahalanobis distance of the
+            innovation [-]. MP-CDE prints 7.38, which is the 97.5 % quantile of
+            chi-square with 2 degrees of freedom; for the 3-D position
+            measurement used here it keeps about 94 % of true measurements
+            (9.35 would keep 97.5 %). Default: the paper's 7.38.
+        t_hold_s: a confirmed track without a matched measurement for longer
+            than this keeps predicting (Eq. 9) and becomes ``coasting`` with
+            linearly inflated covariance [s] (MP-CDE Table I, 0.6 s).
+        t_drop_s: a track without a matched measurement for longer than this
+            is pruned [s] (MP-CDE Table I, 1.0 s).
+        coast_pos_inflation_m2ps: growth rate of the position variance per
+            axis of a coasting track [m^2/s] (linear inflation, Sec. IV-B; the
+            paper gives no rate: 0.1 m^2/s adds about 0.2 m of standard
+            deviation over the 0.4 s between t_hold and t_drop).
+        coast_vel_inflation_m2ps3: growth rate of the velocity variance per
+            axis of a coasting track [(m/s)^2/s].
+        confirm_hits: a tentative track becomes ``confirmed`` once this many
+            measurements (its birth included) were associated to it [-]
+            (a 3-hit rule; the paper does not state one).
+        tentative_drop_s: a tentative track without a matched measurement for
+            longer than this is deleted [s] (false positives die quickly).
+        meas_std_floor_m: measurement noise model, standard deviation per axis
+            at zero range [m]; see :func:`perception.tracker.range_noise_cov`.
+        meas_std_per_range: measurement noise model, growth of the standard
+            deviation per metre of range [m/m] (back-projection error grows
+            with depth: std = floor + per_range * range).
+    """
+
+    filter: str = "akf"
+    alpha_ema: float = 0.3
+    sigma_acc_mps2: float = 0.5
+    sigma_acc_max_mps2: float = 20.0
+    init_vel_std_mps: float = 2.0
+    gate_chi2: float = 7.38
+    t_hold_s: float = 0.6
+    t_drop_s: float = 1.0
+    coast_pos_inflation_m2ps: float = 0.1
+    coast_vel_inflation_m2ps3: float = 1.0
+    confirm_hits: int = 3
+    tentative_drop_s: float = 0.2
+    meas_std_floor_m: float = 0.02
+    meas_std_per_range: float = 0.01
+
+    def __post_init__(self) -> None:
+        if self.filter not in FILTERS:
+            raise ValueError(f"filter={self.filter!r}: one of {', '.join(repr(f) for f in FILTERS)}")
+        if not (isinstance(self.alpha_ema, (int, float)) and 0.0 < self.alpha_ema <= 1.0):
+            raise ValueError(f"alpha_ema={self.alpha_ema!r}: a number in (0, 1]")
+        for name in (
+            "sigma_acc_mps2",
+            "sigma_acc_max_mps2",
+            "init_vel_std_mps",
+            "gate_chi2",
+            "t_hold_s",
+            "t_drop_s",
+            "tentative_drop_s",
+        ):
+            _check_positive(name, getattr(self, name))
+        if self.sigma_acc_max_mps2 < self.sigma_acc_mps2:
+            raise ValueError(
+                f"sigma_acc_max_mps2={self.sigma_acc_max_mps2!r}: >= sigma_acc_mps2 ({self.sigma_acc_mps2!r})"
+            )
+        if self.t_drop_s < self.t_hold_s:
+            raise ValueError(f"t_drop_s={self.t_drop_s!r}: >= t_hold_s ({self.t_hold_s!r})")
+        for name in ("coast_pos_inflation_m2ps", "coast_vel_inflation_m2ps3", "meas_std_floor_m", "meas_std_per_range"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name}={value!r}: a finite number >= 0")
+        if self.meas_std_floor_m == 0 and self.meas_std_per_range == 0:
+            raise ValueError("meas_std_floor_m=0: > 0 when meas_std_per_range is 0 (measurement noise must be > 0)")
+        if isinstance(self.confirm_hits, bool) or not isinstance(self.confirm_hits, int) or self.confirm_hits < 1:
+            raise ValueError(f"confirm_hits={self.confirm_hits!r}: an integer >= 1")
+
+    @property
+    def adaptive(self) -> bool:
+        """True for the adaptive filter (``filter == "akf"``)."""
+        return self.filter == "akf"
