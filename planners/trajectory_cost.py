@@ -282,6 +282,8 @@ def _penalty_kernel(
                     g_a[d] += w_a * 3.0 * viol * viol * 2.0 * acc[d]
             if use_field:
                 idx = i * (K + 1) + j
+                if not dist[idx] == dist[idx]:  # NaN from the field poisons the cost (the optimiser raises)
+                    out[2] = np.nan
                 out[6] = min(out[6], dist[idx])
                 viol = c_obs - dist[idx]  # (C_o + margin) - d(p)
                 if viol > 0.0 and w_o > 0.0:

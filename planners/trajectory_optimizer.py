@@ -1,0 +1,488 @@
+"""MP-CDE trajectory optimiser: MINCO over inner points and times, solved with L-BFGS.
+
+MP-CDE Sec. IV-C, Eq. 15 (GCOPTER's unconstrained reformulation):
+
+    min_{q, tau}  w_e J(c, T) + w_t sum_i T_i + F_vel + F_acc + F_obstacle + F_swarm,
+    c = M(q, T),  T_i = sigma(tau_i),
+
+with ``J`` the jerk energy of :mod:`planners.minco`, the penalties ``F`` of
+:mod:`planners.trajectory_cost` (the swarm term is Eq. 16) and
+``sigma(tau) = tau^2/2 + tau + 1`` for ``tau > 0``, ``1 / (tau^2/2 - tau + 1)``
+otherwise (GCOPTER's C^1 map of R onto T > 0). Build, then solve:
+``problem = build_trajectory_problem(...)``, ``result = solve(problem)``.
+
+Solver: our own L-BFGS (memory 16, two-loop recursion, Lewis-Overton weak-Wolfe
+line search as in GCOPTER's ``lbfgs.hpp``); ``solver="scipy"`` runs
+``scipy.optimize.minimize(method="L-BFGS-B")`` on the same cost instead.
+``benchmarks/bench_minco.py`` measures both.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+from scipy.optimize import minimize
+
+from perception.types import DistanceField, NeighborPrediction
+from planners.minco import MincoTrajectory, _energy, _energy_grad, _propagate_grad, _set_parameters
+from planners.trajectory_cost import PenaltyParameters, TrajectoryCost, _penalty_kernel, _sample_positions
+
+__all__ = [
+    "TrajectoryOptimizationError",
+    "TrajectoryOptimizerConfig",
+    "TrajectoryOptimizerResult",
+    "TrajectoryProblem",
+    "build_trajectory_problem",
+    "solve",
+]
+
+
+@dataclass(frozen=True)
+class TrajectoryOptimizerConfig:
+    """Settings of the MINCO optimiser (MP-CDE Eq. 15-16).
+
+    Attributes:
+        weight_energy: w_e on the jerk energy [s^5/m^2 (cost per unit energy)]; default 1.
+        weight_time: w_t on the total duration [1/s]; default 20 (aggressiveness).
+        v_max_mps: speed limit [m/s]; default 2.0.
+        a_max_mps2: acceleration limit [m/s^2]; default 4.0.
+        obstacle_clearance_m: clearance to obstacles on the distance field [m]; default 0.4.
+        swarm_clearance_m: C_s [m]; default 0.7 (MP-CDE Table I).
+        swarm_z_scale: c of E = diag(1, 1, 1/c) [-], >= 1; default 2.0 (not given in the paper).
+        clearance_margin_m: margin added to both clearances inside the penalties [m]; default 0.1.
+        uncertainty_sigma: n_sigma of the neighbour uncertainty inflation [-]; default 1.0.
+        max_uncertainty_inflation_m: cap on that inflation [m]; default 1.0.
+        weight_vel: weight of the speed penalty [-]; default 1e4.
+        weight_acc: weight of the acceleration penalty [-]; default 1e4.
+        weight_obstacle: weight of the obstacle penalty [-]; default 1e4.
+        weight_swarm: weight of the swarm penalty w_s [-]; default 1e4.
+        samples_per_piece: K penalty samples per piece [-]; default 16.
+        max_piece_length_m: front-end segments longer than this are split evenly [m]; default 2.0.
+        initial_speed_fraction: initial durations are segment length / (fraction v_max) [-]; default 0.6.
+        max_iterations: L-BFGS iteration limit [-]; default 200.
+        gradient_tolerance: stop when ||g||_inf <= tol max(1, ||x||_inf) [-]; default 1e-5.
+        relative_cost_tolerance: stop when the cost fell by less than this fraction over 3 iterations [-]; default 1e-5.
+        lbfgs_memory: number of correction pairs [-]; default 16.
+        solver: ``"lbfgs"`` (ours) or ``"scipy"`` (L-BFGS-B); default ``"lbfgs"``.
+    """
+
+    weight_energy: float = 1.0
+    weight_time: float = 20.0
+    v_max_mps: float = 2.0
+    a_max_mps2: float = 4.0
+    obstacle_clearance_m: float = 0.4
+    swarm_clearance_m: float = 0.7
+    swarm_z_scale: float = 2.0
+    clearance_margin_m: float = 0.1
+    uncertainty_sigma: float = 1.0
+    max_uncertainty_inflation_m: float = 1.0
+    weight_vel: float = 1.0e4
+    weight_acc: float = 1.0e4
+    weight_obstacle: float = 1.0e4
+    weight_swarm: float = 1.0e4
+    samples_per_piece: int = 16
+    max_piece_length_m: float = 2.0
+    initial_speed_fraction: float = 0.6
+    max_iterations: int = 200
+    gradient_tolerance: float = 1e-5
+    relative_cost_tolerance: float = 1e-5
+    lbfgs_memory: int = 16
+    solver: str = "lbfgs"
+
+    def __post_init__(self) -> None:
+        for name in ("weight_energy", "weight_time"):
+            if not getattr(self, name) >= 0.0:
+                raise ValueError(f"{name}={getattr(self, name)!r}: must be >= 0")
+        for name in ("max_piece_length_m", "gradient_tolerance"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"{name}={getattr(self, name)!r}: must be > 0")
+        if not 0.0 < self.initial_speed_fraction <= 1.0:
+            raise ValueError(f"initial_speed_fraction={self.initial_speed_fraction!r}: must be in (0, 1]")
+        if not self.relative_cost_tolerance >= 0.0:
+            raise ValueError(f"relative_cost_tolerance={self.relative_cost_tolerance!r}: must be >= 0")
+        for name in ("max_iterations", "lbfgs_memory"):
+            if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
+                raise ValueError(f"{name}={getattr(self, name)!r}: must be an int >= 1")
+        if self.solver not in ("lbfgs", "scipy"):
+            raise ValueError(f"solver={self.solver!r}: must be 'lbfgs' or 'scipy'")
+        self.penalty_parameters()  # validates the penalty fields (ValueError, one line)
+
+    def penalty_parameters(self) -> PenaltyParameters:
+        """The penalty part of this config."""
+        return PenaltyParameters(
+            v_max_mps=self.v_max_mps,
+            a_max_mps2=self.a_max_mps2,
+            obstacle_clearance_m=self.obstacle_clearance_m,
+            swarm_clearance_m=self.swarm_clearance_m,
+            swarm_z_scale=self.swarm_z_scale,
+            clearance_margin_m=self.clearance_margin_m,
+            uncertainty_sigma=self.uncertainty_sigma,
+            max_uncertainty_inflation_m=self.max_uncertainty_inflation_m,
+            weight_vel=self.weight_vel,
+            weight_acc=self.weight_acc,
+            weight_obstacle=self.weight_obstacle,
+            weight_swarm=self.weight_swarm,
+            samples_per_piece=self.samples_per_piece,
+        )
+
+
+@njit(cache=True)
+def _tau_to_time(tau):
+    T = np.empty(tau.shape[0])
+    for i in range(tau.shape[0]):
+        t = tau[i]
+        if t > 0.0:
+            T[i] = (0.5 * t + 1.0) * t + 1.0  # T = tau^2/2 + tau + 1
+        else:
+            T[i] = 1.0 / ((0.5 * t - 1.0) * t + 1.0)  # T = 1 / (tau^2/2 - tau + 1)
+    return T
+
+
+def _time_to_tau(T: np.ndarray) -> np.ndarray:
+    return np.where(T > 1.0, np.sqrt(np.maximum(2.0 * T - 1.0, 0.0)) - 1.0, 1.0 - np.sqrt(np.maximum(2.0 / T - 1.0, 0.0)))
+
+
+@njit(cache=True)
+def _dtime_dtau(tau):
+    """dT/dtau (M,) of :func:`_tau_to_time` at tau (M,)."""
+    out = np.empty(tau.shape[0])
+    for i in range(tau.shape[0]):
+        t = tau[i]
+        if t > 0.0:
+            out[i] = t + 1.0
+        else:
+            den = (0.5 * t - 1.0) * t + 1.0
+            out[i] = (1.0 - t) / (den * den)
+    return out
+
+
+@njit(cache=True)
+def _forward(head, tail, x, n_q, K):
+    """Decision vector -> durations (M,), coefficients (6M, 3), LU factors, sample positions."""
+    q = x[:n_q].copy().reshape(-1, 3)
+    T = _tau_to_time(x[n_q:])
+    coeffs, ab = _set_parameters(head, tail, q, T)
+    return T, coeffs, ab, _sample_positions(coeffs, T, K)
+
+
+@njit(cache=True)
+def _backward(
+    x, n_q, T, coeffs, ab, K, t0, prm, dist, dist_grad, use_field, nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, w_e, w_t, out
+):
+    """Eq. 15 cost and its gradient by x, given the forward pass; out (9,) gets penalty terms/statistics and energy."""
+    m = T.shape[0]
+    energy = _energy(coeffs, T)
+    gdc = np.zeros_like(coeffs)
+    gdt = np.zeros(m)
+    _energy_grad(coeffs, T, gdc, gdt)
+    gdc *= w_e
+    gdt *= w_e
+    gdt += w_t  # d(w_t sum T) / dT
+    terms = out[:8]
+    _penalty_kernel(
+        coeffs, T, K, t0, prm, dist, dist_grad, use_field, nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, gdc, gdt, terms
+    )
+    out[8] = energy
+    gq, gT = _propagate_grad(ab, coeffs, T, gdc, gdt)
+    grad = np.empty(x.shape[0])
+    grad[:n_q] = gq.ravel()
+    grad[n_q:] = gT * _dtime_dtau(x[n_q:])  # chain rule through T = sigma(tau)
+    f = w_e * energy + w_t * np.sum(T) + terms[0] + terms[1] + terms[2] + terms[3]  # MP-CDE Eq. 15
+    return f, grad
+
+
+class TrajectoryProblem:
+    """One planning problem: boundary states, initial points and times, field, neighbours, config.
+
+    Attributes:
+        start_pva, goal_pva: (3, 3) position [m], velocity [m/s], acceleration [m/s^2] rows.
+        initial_points: (M-1, 3) initial inner points [m]; initial_durations: (M,) [s].
+        t0_s: absolute start time [s]; config: the settings; cost: the penalties.
+    """
+
+    def __init__(
+        self,
+        start_pva: np.ndarray,
+        goal_pva: np.ndarray,
+        initial_points: np.ndarray,
+        initial_durations: np.ndarray,
+        distance_field: DistanceField | None,
+        neighbors: list[NeighborPrediction],
+        t0_s: float,
+        config: TrajectoryOptimizerConfig,
+    ):
+        self.start_pva = start_pva
+        self.goal_pva = goal_pva
+        self.initial_points = initial_points
+        self.initial_durations = initial_durations
+        self.t0_s = float(t0_s)
+        self.config = config
+        self.distance_field = distance_field
+        self.neighbors = list(neighbors)
+        self.cost = TrajectoryCost(config.penalty_parameters(), t0_s, distance_field, self.neighbors)
+        self.num_pieces = int(initial_durations.shape[0])
+        self.x0 = np.concatenate([initial_points.ravel(), _time_to_tau(initial_durations)])
+        self.evaluations = 0
+        self.last_terms = np.zeros(9)  # penalty terms, statistics (TrajectoryCost.accumulate), energy
+        self.last_coefficients = np.zeros((6 * self.num_pieces, 3))
+        self.last_durations = initial_durations.copy()
+        self._no_dist = np.zeros(0)
+        self._no_grad = np.zeros((0, 3))
+
+    def unpack(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Inner points (M-1, 3) [m] and durations (M,) [s] from the decision vector x (3(M-1) + M,)."""
+        n_q = 3 * (self.num_pieces - 1)
+        return x[:n_q].reshape(-1, 3).copy(), _tau_to_time(np.ascontiguousarray(x[n_q:], dtype=float))
+
+    def cost_and_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """Total cost (MP-CDE Eq. 15) and its gradient (3(M-1) + M,) by x (3(M-1) + M,)."""
+        cfg = self.config
+        cost = self.cost
+        nb = cost.neighbors
+        K = cost.params.samples_per_piece
+        x = np.ascontiguousarray(x, dtype=float)
+        n_q = 3 * (self.num_pieces - 1)
+        T, coeffs, ab, pts = _forward(self.start_pva, self.goal_pva, x, n_q, K)
+        if self.distance_field is not None:
+            d, gd = self.distance_field.distance_and_gradient(pts)
+            d = np.ascontiguousarray(d, dtype=float)
+            gd = np.ascontiguousarray(gd, dtype=float)
+            use_field = True
+        else:
+            d, gd, use_field = self._no_dist, self._no_grad, False
+        f, g = _backward(
+            x, n_q, T, coeffs, ab, K, cost.t0_s, cost.parameter_vector, d, gd, use_field,
+            nb.times_s, nb.pos_world, nb.vel_world, nb.offsets, nb.t_last_s, nb.cov_trace_poly,
+            cfg.weight_energy, cfg.weight_time, self.last_terms,
+        )  # fmt: skip
+        self.evaluations += 1
+        self.last_coefficients = coeffs
+        self.last_durations = T
+        return f, g
+
+
+class TrajectoryOptimizationError(RuntimeError):
+    """The optimiser failed (non-finite cost or no descent possible); ``problem`` is the failing problem."""
+
+    def __init__(self, reason: str, problem: TrajectoryProblem):
+        super().__init__(reason)
+        self.reason = reason
+        self.problem = problem
+
+
+@dataclass(frozen=True)
+class TrajectoryOptimizerResult:
+    """Outcome of :func:`solve`.
+
+    Attributes:
+        trajectory: the optimised trajectory (``t0_s`` = the problem's start time).
+        status: ``"converged"`` (gradient or cost tolerance met), ``"max_iterations"``,
+            or ``"line_search_stalled"`` (no further decrease found; best point kept).
+        cost: total cost; energy_cost, time_cost, vel_cost, acc_cost, obstacle_cost,
+            swarm_cost: its weighted terms.
+        iterations: solver iterations; evaluations: cost evaluations.
+        solve_time_s: wall time of :func:`solve` [s].
+        max_speed_mps, max_acc_mps2, min_obstacle_distance_m, min_swarm_margin_m:
+            sampled statistics of the result (``min_swarm_margin_m`` is the
+            smallest ``||E^{1/2}(p - p_n)|| - r_n``).
+        feasible: every sampled limit and clearance holds (1 % slack on the limits).
+    """
+
+    trajectory: MincoTrajectory
+    status: str
+    cost: float
+    energy_cost: float
+    time_cost: float
+    vel_cost: float
+    acc_cost: float
+    obstacle_cost: float
+    swarm_cost: float
+    iterations: int
+    evaluations: int
+    solve_time_s: float
+    max_speed_mps: float
+    max_acc_mps2: float
+    min_obstacle_distance_m: float
+    min_swarm_margin_m: float
+    feasible: bool
+
+
+def build_trajectory_problem(
+    start_pva: np.ndarray,
+    goal_pva: np.ndarray,
+    waypoints_world: np.ndarray,
+    distance_field: DistanceField | None,
+    neighbors: list[NeighborPrediction],
+    t0_s: float,
+    config: TrajectoryOptimizerConfig = TrajectoryOptimizerConfig(),
+) -> TrajectoryProblem:
+    """Build the problem from a front-end path.
+
+    Args:
+        start_pva, goal_pva: (3, 3) rows position [m], velocity [m/s], acceleration [m/s^2].
+        waypoints_world: (n, 3) front-end path [m] with start and goal included, n >= 2
+            (``PathSearchResult.waypoints_world``); its first and last rows are
+            replaced by the start and goal positions, segments longer than
+            ``max_piece_length_m`` are split evenly, and the inner points become q.
+        distance_field: obstacle field or None; neighbors: predictions of the other drones.
+        t0_s: absolute time [s] of the start state.
+    """
+    start = np.ascontiguousarray(start_pva, dtype=float)
+    goal = np.ascontiguousarray(goal_pva, dtype=float)
+    if start.shape != (3, 3) or goal.shape != (3, 3):
+        raise ValueError(f"start_pva/goal_pva shapes={start.shape}/{goal.shape}: must be (3, 3)")
+    wp = np.array(waypoints_world, dtype=float)
+    if wp.ndim != 2 or wp.shape[0] < 2 or wp.shape[1] != 3 or not np.all(np.isfinite(wp)):
+        raise ValueError(f"waypoints_world shape={wp.shape}: must be finite (n, 3), n >= 2")
+    if not (np.all(np.isfinite(start)) and np.all(np.isfinite(goal))):
+        raise ValueError("start_pva/goal_pva: must be finite")
+    wp[0], wp[-1] = start[0], goal[0]
+    points = [wp[0]]
+    for a, b in zip(wp[:-1], wp[1:]):
+        n_split = max(1, int(np.ceil(np.linalg.norm(b - a) / config.max_piece_length_m)))
+        points.extend(a + (b - a) * (k / n_split) for k in range(1, n_split + 1))
+    points = np.array(points)
+    lengths = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    durations = np.maximum(lengths / (config.initial_speed_fraction * config.v_max_mps), 0.2)
+    return TrajectoryProblem(start, goal, points[1:-1].copy(), durations, distance_field, neighbors, t0_s, config)
+
+
+@njit(cache=True)
+def _two_loop(g, S, Y, rho, count, newest):
+    """L-BFGS direction d = -H g by the two-loop recursion over ``count`` pairs in ring buffers S, Y (mem, n)."""
+    mem = S.shape[0]
+    d = -g
+    alpha = np.empty(mem)
+    j = newest
+    for _ in range(count):
+        alpha[j] = rho[j] * (S[j] @ d)
+        d -= alpha[j] * Y[j]
+        j = (j - 1) % mem
+    if count > 0:
+        d *= 1.0 / (rho[newest] * (Y[newest] @ Y[newest]))  # H0 = s'y / y'y
+    j = (newest - count + 1) % mem
+    for _ in range(count):
+        beta = rho[j] * (Y[j] @ d)
+        d += (alpha[j] - beta) * S[j]
+        j = (j + 1) % mem
+    return d
+
+
+def _lbfgs(problem: TrajectoryProblem) -> tuple[np.ndarray, float, int, str]:
+    """Own L-BFGS with a Lewis-Overton weak-Wolfe line search (c1 = 1e-4, c2 = 0.9)."""
+    cfg = problem.config
+    fun = problem.cost_and_gradient
+    x = problem.x0.copy()
+    f, g = fun(x)
+    if not (np.isfinite(f) and np.all(np.isfinite(g))):
+        raise TrajectoryOptimizationError(f"non-finite initial cost {f!r}", problem)
+    mem = cfg.lbfgs_memory
+    S = np.zeros((mem, x.size))
+    Y = np.zeros((mem, x.size))
+    rho = np.zeros(mem)
+    count, newest = 0, -1
+    history = [f]
+    status = "max_iterations"
+    k = 0
+    for k in range(1, cfg.max_iterations + 1):
+        if np.max(np.abs(g)) <= cfg.gradient_tolerance * max(1.0, float(np.max(np.abs(x)))):
+            status = "converged"
+            k -= 1
+            break
+        d = _two_loop(g, S, Y, rho, count, newest % mem)
+        dg0 = float(g @ d)
+        if not dg0 < 0.0:  # not a descent direction: restart from steepest descent
+            count = 0
+            d, dg0 = -g, -float(g @ g)
+        step = 1.0 if count else min(1.0, 1.0 / max(float(np.sqrt(g @ g)), 1e-12))
+        lo, hi = 0.0, np.inf
+        accepted = False
+        for _ in range(40):
+            xn = x + step * d
+            fn, gn = fun(xn)
+            if not fn <= f + 1e-4 * step * dg0:  # sufficient decrease fails (or NaN)
+                hi = step
+            elif gn @ d < 0.9 * dg0:  # curvature condition fails
+                lo = step
+            else:
+                accepted = True
+                break
+            step = 0.5 * (lo + hi) if hi < np.inf else 2.0 * step
+            if hi - lo < 1e-16 * max(1.0, hi):
+                break
+        if not accepted:
+            status = "line_search_stalled"
+            break
+        s, y = xn - x, gn - g
+        sy = float(s @ y)
+        if sy > 1e-12 * float(y @ y):
+            newest = (newest + 1) % mem
+            S[newest], Y[newest], rho[newest] = s, y, 1.0 / sy
+            count = min(count + 1, mem)
+        x, f, g = xn, fn, gn
+        history.append(f)
+        if len(history) > 3 and history[-4] - f <= cfg.relative_cost_tolerance * max(1.0, abs(f)):
+            status = "converged"
+            break
+    return x, f, k, status
+
+
+def _scipy(problem: TrajectoryProblem) -> tuple[np.ndarray, float, int, str]:
+    cfg = problem.config
+    res = minimize(
+        problem.cost_and_gradient,
+        problem.x0,
+        jac=True,
+        method="L-BFGS-B",
+        options={
+            "maxiter": cfg.max_iterations,
+            "maxcor": cfg.lbfgs_memory,
+            "gtol": cfg.gradient_tolerance,
+            "ftol": cfg.relative_cost_tolerance,
+        },
+    )
+    if not np.isfinite(res.fun):
+        raise TrajectoryOptimizationError(f"non-finite cost {res.fun!r}: {res.message}", problem)
+    status = "converged" if res.success else ("max_iterations" if res.nit >= cfg.max_iterations else "line_search_stalled")
+    return res.x, float(res.fun), int(res.nit), status
+
+
+def solve(problem: TrajectoryProblem) -> TrajectoryOptimizerResult:
+    """Minimise MP-CDE Eq. 15 over inner points and times; raises :class:`TrajectoryOptimizationError`."""
+    t_start = time.perf_counter()
+    problem.evaluations = 0
+    cfg = problem.config
+    x, _, iterations, status = _lbfgs(problem) if cfg.solver == "lbfgs" else _scipy(problem)
+    f, _ = problem.cost_and_gradient(x)  # leaves coefficients and terms at x
+    if not np.isfinite(f):
+        raise TrajectoryOptimizationError(f"non-finite final cost {f!r}", problem)
+    terms = problem.last_terms
+    T = problem.last_durations
+    feasible = bool(
+        terms[4] <= 1.01 * cfg.v_max_mps
+        and terms[5] <= 1.01 * cfg.a_max_mps2
+        and terms[6] >= cfg.obstacle_clearance_m
+        and terms[7] >= cfg.swarm_clearance_m
+    )
+    return TrajectoryOptimizerResult(
+        trajectory=MincoTrajectory(problem.last_coefficients.copy(), T.copy(), problem.t0_s),
+        status=status,
+        cost=float(f),
+        energy_cost=cfg.weight_energy * float(terms[8]),
+        time_cost=cfg.weight_time * float(np.sum(T)),
+        vel_cost=float(terms[0]),
+        acc_cost=float(terms[1]),
+        obstacle_cost=float(terms[2]),
+        swarm_cost=float(terms[3]),
+        iterations=int(iterations),
+        evaluations=int(problem.evaluations),
+        solve_time_s=time.perf_counter() - t_start,
+        max_speed_mps=float(terms[4]),
+        max_acc_mps2=float(terms[5]),
+        min_obstacle_distance_m=float(terms[6]),
+        min_swarm_margin_m=float(terms[7]),
+        feasible=feasible,
+    )

@@ -1,0 +1,194 @@
+"""MINCO trajectory optimiser: gradient of the whole cost, clearances and limits after solving, errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from perception.types import NeighborPrediction
+from planners.trajectory_optimizer import (
+    TrajectoryOptimizationError,
+    TrajectoryOptimizerConfig,
+    _dtime_dtau,
+    _tau_to_time,
+    _time_to_tau,
+    build_trajectory_problem,
+    solve,
+)
+
+
+class CylinderField:
+    """Signed distance to the nearest of vertical cylinders (centres (n, 2) [m], radii (n,) [m])."""
+
+    def __init__(self, centers_xy, radii_m):
+        self.centers_xy = np.asarray(centers_xy, float)
+        self.radii_m = np.asarray(radii_m, float)
+
+    def distance_and_gradient(self, points_world):
+        diff = points_world[:, None, :2] - self.centers_xy[None]
+        rho = np.linalg.norm(diff, axis=2)
+        d_all = rho - self.radii_m[None]
+        k = np.argmin(d_all, axis=1)
+        rows = np.arange(points_world.shape[0])
+        grad = np.zeros_like(points_world)
+        grad[:, :2] = diff[rows, k] / rho[rows, k][:, None]
+        return d_all[rows, k], grad
+
+
+class NanField:
+    def distance_and_gradient(self, points_world):
+        return np.full(points_world.shape[0], np.nan), np.zeros_like(points_world)
+
+
+START = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+GOAL = np.array([[10.0, 0.0, 1.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+STRAIGHT = np.array([START[0], GOAL[0]])
+
+
+def _dense(traj, n=4000):
+    t = np.linspace(0.0, traj.total_duration, n)
+    return t, traj.pos(t), traj.vel(t), traj.acc(t)
+
+
+def _crossing_neighbor(t0):
+    """A neighbour that flies across the straight line x = 5 m when the drone would pass there."""
+    return NeighborPrediction.constant_velocity(4, "radio", t0, [5.0, -3.0, 1.0], [0.0, 1.0, 0.0], np.zeros((6, 6)))
+
+
+def test_time_map_round_trips_and_its_derivative_matches_finite_differences():
+    T = np.array([0.05, 0.5, 1.0, 1.7, 6.0])
+    tau = _time_to_tau(T)
+    np.testing.assert_allclose(_tau_to_time(tau), T, rtol=1e-12)
+    h = 1e-7
+    fd = (_tau_to_time(tau + h) - _tau_to_time(tau - h)) / (2 * h)
+    np.testing.assert_allclose(_dtime_dtau(tau), fd, rtol=1e-6)
+
+
+def test_total_cost_gradient_matches_finite_differences():
+    field = CylinderField([[3.0, 0.3], [7.0, -0.2]], [0.4, 0.3])
+    cfg = TrajectoryOptimizerConfig(v_max_mps=1.2, a_max_mps2=0.3, samples_per_piece=8)
+    nb = NeighborPrediction.constant_velocity(
+        1, "perception", 0.0, [5.0, -0.5, 1.2], [0.0, 0.1, 0.0], np.diag([0.01] * 3 + [0.02] * 3)
+    )
+    problem = build_trajectory_problem(START, GOAL, STRAIGHT, field, [nb], 0.0, cfg)
+    rng = np.random.default_rng(5)
+    x = problem.x0 + rng.normal(scale=0.05, size=problem.x0.size)
+    f, g = problem.cost_and_gradient(x)
+    terms = problem.last_terms
+    assert all(terms[k] > 0 for k in range(4)), terms[:4]
+    h = 1e-6
+    for k in range(x.size):
+        xp, xm = x.copy(), x.copy()
+        xp[k] += h
+        xm[k] -= h
+        fd = (problem.cost_and_gradient(xp)[0] - problem.cost_and_gradient(xm)[0]) / (2 * h)
+        assert g[k] == pytest.approx(fd, rel=1e-5, abs=1e-6 * (1 + abs(f)))
+
+
+def test_long_segments_are_split_and_the_waypoints_become_inner_points():
+    cfg = TrajectoryOptimizerConfig(max_piece_length_m=2.0)
+    wp = np.array([[0.1, 0.0, 1.0], [4.0, 0.0, 1.0], [4.0, 1.0, 1.0], [10.2, 0.0, 1.0]])
+    problem = build_trajectory_problem(START, GOAL, wp, None, [], 0.0, cfg)
+    q, T = problem.unpack(problem.x0)
+    assert problem.num_pieces == 2 + 1 + 4
+    np.testing.assert_allclose(q[1], [4.0, 0.0, 1.0])
+    np.testing.assert_allclose(q[2], [4.0, 1.0, 1.0])
+    np.testing.assert_allclose(T.sum(), problem.initial_durations.sum(), rtol=1e-12)
+
+
+def test_trajectory_past_cylinders_keeps_its_clearance_on_the_true_field():
+    field = CylinderField([[3.0, 0.3], [5.5, -0.35], [8.0, 0.25]], [0.35, 0.3, 0.4])
+    cfg = TrajectoryOptimizerConfig(obstacle_clearance_m=0.4)
+    result = solve(build_trajectory_problem(START, GOAL, STRAIGHT, field, [], 0.0, cfg))
+    _, pos, _, _ = _dense(result.trajectory)
+    d, _ = field.distance_and_gradient(pos)
+    assert d.min() >= cfg.obstacle_clearance_m
+    assert result.feasible and result.status == "converged"
+    np.testing.assert_allclose(pos[-1], GOAL[0], atol=1e-9)
+    assert field.distance_and_gradient(np.linspace(START[0], GOAL[0], 100))[0].min() < 0.1  # the line was blocked
+
+
+def test_speed_and_acceleration_limits_hold_after_optimisation():
+    cfg = TrajectoryOptimizerConfig(v_max_mps=1.5, a_max_mps2=1.5)
+    result = solve(build_trajectory_problem(START, GOAL, STRAIGHT, None, [], 0.0, cfg))
+    _, _, vel, acc = _dense(result.trajectory)
+    speed = np.linalg.norm(vel, axis=1).max()
+    accel = np.linalg.norm(acc, axis=1).max()
+    # soft constraints: within 1 % of the limits, and the limits are active (the time weight pushes into them)
+    assert speed <= 1.01 * cfg.v_max_mps and accel <= 1.01 * cfg.a_max_mps2
+    assert speed >= 0.95 * cfg.v_max_mps
+    unconstrained = solve(
+        build_trajectory_problem(START, GOAL, STRAIGHT, None, [], 0.0, TrajectoryOptimizerConfig(v_max_mps=50.0, a_max_mps2=50.0))
+    )
+    assert np.linalg.norm(_dense(unconstrained.trajectory)[2], axis=1).max() > 1.5 * cfg.v_max_mps
+
+
+@pytest.mark.parametrize("solver", ["lbfgs", "scipy"])
+def test_crossing_neighbor_is_avoided_by_the_swarm_clearance_under_the_ellipsoid_metric(solver):
+    t0 = 100.0
+    cfg = TrajectoryOptimizerConfig(solver=solver)
+    nb = _crossing_neighbor(t0)
+    plain = solve(build_trajectory_problem(START, GOAL, STRAIGHT, None, [], t0, cfg))
+    result = solve(build_trajectory_problem(START, GOAL, STRAIGHT, None, [nb], t0, cfg))
+    scale = np.array([1.0, 1.0, 1.0 / np.sqrt(cfg.swarm_z_scale)])  # E^{1/2}
+
+    def ellipsoid_distance(res):
+        t, pos, _, _ = _dense(res.trajectory)
+        return np.linalg.norm((pos - nb.position(t0 + t)) * scale, axis=1).min()
+
+    assert ellipsoid_distance(plain) < 0.6 * cfg.swarm_clearance_m  # without the neighbour term: far inside C_s
+    assert ellipsoid_distance(result) >= cfg.swarm_clearance_m
+    assert result.min_swarm_margin_m >= cfg.swarm_clearance_m and result.feasible
+
+
+def test_uncertain_neighbor_is_avoided_by_clearance_plus_its_uncertainty_radius():
+    t0 = 3.0
+    cov = np.diag([0.02, 0.02, 0.02, 0.01, 0.01, 0.01])
+    nb = NeighborPrediction.constant_velocity(4, "perception", t0 - 0.3, [5.0, -3.3, 1.0], [0.0, 1.0, 0.0], cov)
+    cfg = TrajectoryOptimizerConfig()
+    result = solve(build_trajectory_problem(START, GOAL, STRAIGHT, None, [nb], t0, cfg))
+    t, pos, _, _ = _dense(result.trajectory)
+    scale = np.array([1.0, 1.0, 1.0 / np.sqrt(cfg.swarm_z_scale)])
+    dist = np.linalg.norm((pos - nb.position(t0 + t)) * scale, axis=1)
+    radius = np.minimum(nb.uncertainty_radius(t0 + t), cfg.max_uncertainty_inflation_m)
+    assert radius.min() > 0.2
+    assert np.min(dist - radius) >= cfg.swarm_clearance_m
+
+
+def test_own_lbfgs_and_scipy_reach_the_same_cost():
+    field = CylinderField([[3.0, 0.3], [7.0, -0.3]], [0.35, 0.3])
+    costs = []
+    for solver in ("lbfgs", "scipy"):
+        cfg = TrajectoryOptimizerConfig(solver=solver, relative_cost_tolerance=1e-9, gradient_tolerance=1e-7)
+        costs.append(solve(build_trajectory_problem(START, GOAL, STRAIGHT, field, [], 0.0, cfg)).cost)
+    assert costs[0] == pytest.approx(costs[1], rel=1e-3)
+
+
+def test_non_finite_field_raises_the_optimizer_error_carrying_the_problem():
+    problem = build_trajectory_problem(START, GOAL, STRAIGHT, NanField(), [], 0.0, TrajectoryOptimizerConfig())
+    with pytest.raises(TrajectoryOptimizationError) as info:
+        solve(problem)
+    assert info.value.problem is problem
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("weight_time", -1.0),
+        ("v_max_mps", 0.0),
+        ("swarm_z_scale", 0.9),
+        ("max_iterations", 0),
+        ("solver", "newton"),
+        ("initial_speed_fraction", 1.5),
+        ("samples_per_piece", 1),
+    ],
+)
+def test_invalid_config_raises_one_line_value_error(field, value):
+    with pytest.raises(ValueError, match=f"^{field}=") as info:
+        TrajectoryOptimizerConfig(**{field: value})
+    assert "\n" not in str(info.value)
+
+
+def test_bad_waypoints_raise_value_error():
+    with pytest.raises(ValueError, match="waypoints_world"):
+        build_trajectory_problem(START, GOAL, np.zeros((1, 3)), None, [], 0.0)
