@@ -64,6 +64,11 @@ class PathSearchConfig:
             nearest traversable voxel replaces it.
         max_segment_m: longest segment [m] between consecutive output
             waypoints; longer shortcut segments are split evenly.
+        min_altitude_m: voxels whose centre lies below this world z [m] are
+            not traversable (default 0: the ground plane, DESIGN.md section 2;
+            keeps paths from diving through unseen ground).
+        max_altitude_m: voxels whose centre lies above this world z [m] are
+            not traversable (default: no ceiling).
     """
 
     unknown_penalty: float = 1.0
@@ -72,6 +77,8 @@ class PathSearchConfig:
     max_expansions: int = 500_000
     goal_search_radius_m: float = 1.0
     max_segment_m: float = 2.0
+    min_altitude_m: float = 0.0
+    max_altitude_m: float = float("inf")
 
     def __post_init__(self) -> None:
         if not self.unknown_penalty >= 0.0:
@@ -84,6 +91,8 @@ class PathSearchConfig:
             raise ValueError(f"goal_search_radius_m={self.goal_search_radius_m!r}: allowed >= 0")
         if not self.max_segment_m > 0.0:
             raise ValueError(f"max_segment_m={self.max_segment_m!r}: allowed > 0")
+        if not self.min_altitude_m < self.max_altitude_m:
+            raise ValueError(f"max_altitude_m={self.max_altitude_m!r}: allowed > min_altitude_m")
 
 
 @dataclass(frozen=True)
@@ -143,6 +152,9 @@ def search_path(
     ok = (state != OccupancySnapshot.OCCUPIED) & (dist >= clearance_m)
     if not config.allow_unknown:
         ok &= state != OccupancySnapshot.UNKNOWN
+    z_world = snapshot.origin_world[2] + v * (np.arange(snapshot.shape[2]) + 0.5)
+    in_band = (z_world >= config.min_altitude_m) & (z_world <= config.max_altitude_m)
+    ok = (ok.reshape(snapshot.shape) & in_band).ravel()
 
     goal_clipped = not bool(snapshot.contains(goal[None])[0])
     goal_used = _clip_to_window(snapshot, start, goal) if goal_clipped else goal

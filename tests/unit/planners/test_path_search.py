@@ -169,6 +169,19 @@ def test_start_inside_clearance_band_escapes() -> None:
     assert np.all(d[np.argmax(d >= 0.4) :] >= 0.4 - 1e-6)  # once out of the band it stays out
 
 
+def test_altitude_band_is_respected() -> None:
+    occ = np.zeros((40, 40, 12), bool)
+    occ[20, :, :8] = True  # wall up to z = 1.2 m, open above
+    snap = make_snapshot(occ)
+    start, goal = np.array([-1.0, 0.0, 0.6]), np.array([1.0, 0.0, 0.6])
+    over = search_path(snap, start, goal, 0.2)
+    assert over.found and over.path_world[:, 2].max() > 1.2
+    assert search_path(snap, start, goal, 0.2, PathSearchConfig(max_altitude_m=1.3)).status == "no_path"
+    low = search_path(snap, start, np.array([1.0, 0.0, 0.05]), 0.0, PathSearchConfig(min_altitude_m=0.5))
+    assert low.found and low.goal_used_world[2] >= 0.5  # a goal below the band moves up into it
+    assert low.path_world[1:-1, 2].min() >= 0.5
+
+
 def test_invalid_arguments_raise() -> None:
     snap = make_snapshot(np.zeros((10, 10, 10), bool))
     with pytest.raises(ValueError, match="start_world"):
