@@ -60,14 +60,14 @@ def _safe_directions(scaled_delta: np.ndarray, fallback: np.ndarray) -> tuple[np
 def first_conflict_step(
     own_pos_world: np.ndarray, neighbours_pos_world: np.ndarray, threshold_m: float, downwash: float
 ) -> int:
-    """Index (0-based, step k = index + 1) of the first predicted conflict, or -1 if none.
+    """Index (0-based) of the first check time with a predicted conflict, or -1 if none.
 
     A conflict at index k is an ellipsoidal distance below ``threshold_m`` to any
     neighbour (on-demand DMPC Sec. 3.4: "the first collision time k_c").
 
     Args:
-        own_pos_world: (K, 3) own previous plan at t_now + k h, k = 1..K [m].
-        neighbours_pos_world: (M, K, 3) neighbours' plans at the same times [m].
+        own_pos_world: (T, 3) own previous plan at T increasing check times [m].
+        neighbours_pos_world: (M, T, 3) neighbours' plans at the same times [m].
         threshold_m: r_min (+ margin) [m].
         downwash: c of Theta = diag(1, 1, c).
     """
@@ -83,9 +83,12 @@ class OnDemandConstraints:
     """Linearised on-demand collision constraints at one step (on-demand DMPC Sec. 3.4).
 
     Attributes:
-        step_index: 0-based index of the conflict step k_c (k_c = step_index + 1),
+        step_index: 0-based index of the first conflicting check time (with
+            check times t_now + k h, k = 1..K, the paper's k_c = step_index + 1),
             -1 when no conflict is predicted (then the arrays are empty).
         neighbour_index: (n,) indices (into the neighbours array) constrained.
+        time_index: (n,) check-time index at which each plane constrains p_i
+            (k_c for the paper's rule; see ``linearise_at``).
         normal: (n, 3) a = nu = omega / sigma of a^T p_i[k_c] + s >= b
             (see :func:`on_demand_constraints`).
         offset: (n,) b [m].
@@ -95,6 +98,7 @@ class OnDemandConstraints:
 
     step_index: int
     neighbour_index: np.ndarray
+    time_index: np.ndarray
     normal: np.ndarray
     offset: np.ndarray
     sigma: np.ndarray
@@ -115,6 +119,7 @@ def on_demand_constraints(
     neighbourhood_factor: float = 3.0,
     own_now_world: np.ndarray | None = None,
     neighbours_now_world: np.ndarray | None = None,
+    linearise_at: str = "first_conflict",
 ) -> OnDemandConstraints:
     """On-demand collision constraints: one soft plane per close neighbour at the first conflict.
 
@@ -140,9 +145,13 @@ def on_demand_constraints(
     so ``sigma`` is 1. Constraints are built for every neighbour whose
     distance at k_c is below ``neighbourhood_factor * r_min``.
 
+    The paper checks at the horizon samples t_now + k h; the caller may pass a
+    finer grid of check times (the QP does, ``conflict_substeps``), and then
+    "p_i[k_c]" is the position at the first conflicting check time.
+
     Args:
-        own_pos_world: (K, 3) own previous plan at t_now + k h, k = 1..K [m].
-        neighbours_pos_world: (M, K, 3) neighbours' plans at the same times [m].
+        own_pos_world: (T, 3) own previous plan at T check times (e.g. t_now + k h, k = 1..K) [m].
+        neighbours_pos_world: (M, T, 3) neighbours' plans at the same times [m].
         r_min: minimum ellipsoidal distance [m].
         downwash: c of Theta = diag(1, 1, c).
         conflict_margin_m: conflict when xi < r_min + margin [m].
@@ -150,21 +159,42 @@ def on_demand_constraints(
         own_now_world: (3,) current own position, used for the plane direction
             when the predicted positions coincide (optional).
         neighbours_now_world: (M, 3) neighbours' current positions (same use).
+        linearise_at: ``"first_conflict"`` (the paper: every plane at k_c) or
+            ``"closest_approach"``: a neighbour that conflicts at k_c is
+            constrained at the deepest point (minimum distance) of its conflict
+            run that starts at k_c. Reason: at k_c the separation is almost
+            along the relative velocity, so the plane is met by a tiny delay and
+            the plan passes through the neighbour just after k_c; the conflict
+            then creeps towards the present round after round until it cannot
+            be avoided (observed in the head-on swap). At the closest approach
+            the plane is across the relative velocity and resolves the encounter.
     """
-    empty = OnDemandConstraints(-1, np.zeros(0, int), np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0))
-    k_c = first_conflict_step(own_pos_world, neighbours_pos_world, r_min + conflict_margin_m, downwash)
+    empty = OnDemandConstraints(
+        -1, np.zeros(0, int), np.zeros(0, int), np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0)
+    )
+    threshold = r_min + conflict_margin_m
+    k_c = first_conflict_step(own_pos_world, neighbours_pos_world, threshold, downwash)
     if k_c < 0:
         return empty
     theta_inv = np.array([1.0, 1.0, 1.0 / downwash])
-    delta = own_pos_world[k_c][None] - neighbours_pos_world[:, k_c]  # p̄_i - p_j, (M, 3)
+    dist = ellipsoidal_distance(own_pos_world[None] - neighbours_pos_world, downwash)  # (M, T)
+    close = np.flatnonzero(dist[:, k_c] < neighbourhood_factor * r_min)
+    time_index = np.full(close.size, k_c)
+    if linearise_at == "closest_approach":
+        for n, j in enumerate(close):
+            if dist[j, k_c] < threshold:
+                run_end = k_c + int(np.argmax(np.append(dist[j, k_c:] >= threshold, True)))
+                time_index[n] = k_c + int(np.argmin(dist[j, k_c:run_end]))  # deepest point of the conflict
+    elif linearise_at != "first_conflict":
+        raise ValueError(f"linearise_at={linearise_at!r}: one of first_conflict, closest_approach")
+    own_c = own_pos_world[time_index]  # p̄_i at the constrained times, (n, 3)
+    delta = own_c - neighbours_pos_world[close, time_index]  # p̄_i - p_j
     xi = ellipsoidal_distance(delta, downwash)
-    close = np.flatnonzero(xi < neighbourhood_factor * r_min)
-    delta, xi = delta[close], xi[close]
     fallback = _fallback_direction(close, own_now_world, neighbours_now_world) * theta_inv
     unit_scaled, _ = _safe_directions(delta * theta_inv, fallback)  # Theta^-1 (p̄_i - p_j) / xi
     normal = unit_scaled * theta_inv  # nu = Theta^-2 (p̄_i - p_j) / xi
-    offset = r_min - xi + np.einsum("nd,d->n", normal, own_pos_world[k_c])  # b = r_min - xi + nu^T p̄_i
-    return OnDemandConstraints(k_c, close, normal, offset, np.ones(close.size), xi)
+    offset = r_min - xi + np.einsum("nd,nd->n", normal, own_c)  # b = r_min - xi + nu^T p̄_i
+    return OnDemandConstraints(k_c, close, time_index, normal, offset, np.ones(close.size), xi)
 
 
 def _fallback_direction(

@@ -50,7 +50,11 @@ class DmpcConfig:
             [s^4/m^2] (double) or [s^6/m^2] (triple) (chosen: 1.0, which keeps
             plans bang-bang free at h = 0.2 s).
         weight_slack_quadratic: zeta, quadratic slack penalty in [1/m^2]
-            (online_dmpc ``quad_coll_penalty = 1``).
+            (chosen: 1e4. online_dmpc uses ``quad_coll_penalty = 1``, but with
+            OSQP that leaves the slack's curvature 1e4 times below its linear
+            price and ADMM then hit the iteration limit in 56 of 300 solves of
+            the 8-drone swap; 1e4 keeps the linear (exact-penalty) term and
+            converges).
         weight_slack_linear: xi, linear slack penalty in [1/m]
             (online_dmpc ``lin_coll_penalty = -5e4`` on a non-positive slack).
         slack_max_m: upper bound on one slack (relaxation) in [m]
@@ -76,6 +80,19 @@ class DmpcConfig:
             conflict step (on-demand DMPC Sec. 3.4 and online_dmpc: 3).
         conflict_margin_m: a conflict is predicted when the distance is below
             ``r_min + conflict_margin_m`` in [m] (online_dmpc ``check_horizon``: 0.05).
+        on_demand_time: where each on-demand plane constrains the plan:
+            ``"first_conflict"`` (the paper: all at the first conflict k_c) or
+            ``"closest_approach"`` (chosen default: at the deepest point of each
+            neighbour's conflict starting at k_c; see
+            :func:`planners.dmpc.collision.on_demand_constraints` for why).
+        conflict_substeps: S, the previous plans are checked for conflicts at S
+            times per step and the on-demand plane constrains the position at the
+            first conflicting time (exact: within a step the position is affine in
+            U too). S = 1 is the paper's sample-only check. Chosen: 4, because two
+            drones at v_max = 2 m/s head-on move 0.8 m relative per step of
+            0.2 s, more than 2 r_min, so a sample-only check lets them pass
+            through each other between samples ("tunnelling"; observed in the
+            8-drone swap with S = 1).
         max_neighbours: number of neighbour slots in the QP (fixed sparsity);
             more neighbours than this are cut to the nearest ones (chosen: 8).
         max_obstacle_planes: number of static-obstacle half-space slots per
@@ -96,7 +113,7 @@ class DmpcConfig:
     weight_goal: float = 100.0
     weight_formation: float = 10.0
     weight_smoothness: float = 1.0
-    weight_slack_quadratic: float = 1.0
+    weight_slack_quadratic: float = 1.0e4
     weight_slack_linear: float = 5.0e4
     slack_max_m: float = 10.0
     pos_min_world: tuple[float, float, float] = (-20.0, -20.0, 0.2)
@@ -109,6 +126,8 @@ class DmpcConfig:
     collision_mode: str = "on_demand"
     neighbourhood_factor: float = 3.0
     conflict_margin_m: float = 0.05
+    on_demand_time: str = "closest_approach"
+    conflict_substeps: int = 4
     max_neighbours: int = 8
     max_obstacle_planes: int = 0
     terminal_halt: bool = False
@@ -144,6 +163,10 @@ class DmpcConfig:
         if self.neighbourhood_factor < 1.0:
             raise ValueError(f"neighbourhood_factor={self.neighbourhood_factor!r}: a number >= 1")
         _non_negative("conflict_margin_m", self.conflict_margin_m)
+        if self.on_demand_time not in ("first_conflict", "closest_approach"):
+            raise ValueError(f"on_demand_time={self.on_demand_time!r}: one of first_conflict, closest_approach")
+        if not isinstance(self.conflict_substeps, (int, np.integer)) or self.conflict_substeps < 1:
+            raise ValueError(f"conflict_substeps={self.conflict_substeps!r}: an integer >= 1")
         if not isinstance(self.max_neighbours, (int, np.integer)) or self.max_neighbours < 1:
             raise ValueError(f"max_neighbours={self.max_neighbours!r}: an integer >= 1")
         if not isinstance(self.max_obstacle_planes, (int, np.integer)) or self.max_obstacle_planes < 0:

@@ -26,7 +26,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PredictionMatrices", "discrete_model", "prediction_matrices", "rollout", "stacked_state_matrices"]
+__all__ = [
+    "PredictionMatrices",
+    "discrete_model",
+    "fine_position_matrices",
+    "prediction_matrices",
+    "rollout",
+    "stacked_state_matrices",
+]
 
 
 def discrete_model(model: str, step_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -139,6 +146,43 @@ def prediction_matrices(model: str, step_s: float, horizon_steps: int) -> Predic
         A=A,
         B=B,
     )
+
+
+def fine_position_matrices(
+    model: str, step_s: float, horizon_steps: int, substeps: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Positions at S = ``substeps`` times per step: p(t_now + j h / S), j = 1..K S.
+
+    Inside step k (from t_k to t_k+1) the position at t_k + tau is, exactly
+    under the zero-order hold, C [A(tau) x[k] + B(tau) u[k]] with A(tau), B(tau)
+    the one-step matrices for step tau; x[k] is itself affine in x0 and U, so
+
+        p_fine = A0_fine x0 + Lambda_fine U.
+
+    With S = 1 this is (A0_pos, Lambda_pos).
+
+    Returns:
+        A0_fine (3 K S, n) and Lambda_fine (3 K S, 3K).
+    """
+    K, S = int(horizon_steps), int(substeps)
+    A, B = discrete_model(model, step_s)
+    n = A.shape[0]
+    A0_x, Lambda_x = stacked_state_matrices(A, B, K)
+    A0_x = np.vstack([np.eye(n), A0_x])  # x[0..K]
+    Lambda_x = np.vstack([np.zeros((n, 3 * K)), Lambda_x])
+    A0_fine = np.zeros((3 * K * S, n))
+    Lambda_fine = np.zeros((3 * K * S, 3 * K))
+    for s in range(1, S + 1):
+        A_tau, B_tau = discrete_model(model, step_s * s / S)
+        CA, CB = A_tau[:3], B_tau[:3]
+        for k in range(K):
+            j = k * S + (s - 1)  # fine index of t_k + s h / S
+            rows = slice(3 * j, 3 * j + 3)
+            # p(t_k + tau) = C A(tau) x[k] + C B(tau) u[k]
+            A0_fine[rows] = CA @ A0_x[k * n : (k + 1) * n]
+            Lambda_fine[rows] = CA @ Lambda_x[k * n : (k + 1) * n]
+            Lambda_fine[rows, 3 * k : 3 * k + 3] += CB
+    return A0_fine, Lambda_fine
 
 
 def rollout(model: str, step_s: float, x0: np.ndarray, inputs: np.ndarray) -> np.ndarray:

@@ -10,7 +10,7 @@ P = A0_p x0 + Lambda_p U (on-demand DMPC Eq. 10, :mod:`planners.dmpc.model`)::
        + sum_{k=0}^{K-1} q_Theta ||u[k] - u[k-1]||^2                          (F_Theta, smoothness)
        + sum_m zeta s_m^2 + xi s_m                                            (F_v, slack)
     s.t. p_min <= p[k] <= p_max,  |v[k]| <= v_max,  |a| <= a_max  (|j| <= j_max)   (box, per axis)
-         on demand: a_m^T p[k_c] + s_m >= b_m,  0 <= s_m <= s_max                  (Sec. 3.4)
+         on demand: a_m^T p(t_c) + s_m >= b_m,  0 <= s_m <= s_max                  (Sec. 3.4)
          bvc:       a_mk^T p[k] >= b_mk  for every neighbour m and step k            (Eq. 15)
          obstacles: n_ok^T p[k] >= c_ok                                             (half-spaces)
          optional terminal halt: v[K] = 0 (a[K] = 0)                                (DMPC-Swarm Eq. 13e)
@@ -41,7 +41,7 @@ import scipy.sparse as sp
 from perception.types import NeighborPrediction
 from planners.dmpc.collision import bvc_planes, ellipsoidal_distance, on_demand_constraints
 from planners.dmpc.config import DmpcConfig
-from planners.dmpc.model import prediction_matrices, stacked_state_matrices
+from planners.dmpc.model import fine_position_matrices, prediction_matrices, stacked_state_matrices
 from planners.dmpc.types import DmpcPlan
 
 __all__ = ["DmpcProblem", "DmpcResult", "DmpcSolveError", "QpSnapshot"]
@@ -106,7 +106,8 @@ class DmpcResult:
         osqp_solve_time_s: OSQP's own solve-phase time [s] (C code only).
         update_time_s: time [s] spent building constraints and updating the QP data.
         n_collision_constraints: active collision rows (on demand: planes at k_c; bvc: K x neighbours).
-        conflict_step: on demand: 1-based conflict step k_c, 0 if none; bvc: 0.
+        conflict_time_s: on demand: absolute time [s] of the first predicted
+            conflict that was constrained (NaN if none, and always for bvc).
         slack: (n_collision_constraints,) on-demand slacks s = -alpha [m] (empty for bvc).
     """
 
@@ -122,7 +123,7 @@ class DmpcResult:
     osqp_solve_time_s: float
     update_time_s: float
     n_collision_constraints: int
-    conflict_step: int
+    conflict_time_s: float
     slack: np.ndarray
 
 
@@ -171,7 +172,10 @@ class DmpcProblem:
         self._n_slack = M if cfg.collision_mode == "on_demand" else 0
         n = self._n_u + self._n_slack
         self._Lambda_pos_blocks = mats.Lambda_pos.reshape(K, 3, 3 * K)
-        self._A0_pos_blocks = mats.A0_pos.reshape(K, 3, -1)
+        S = cfg.conflict_substeps
+        A0_fine, Lambda_fine = fine_position_matrices(cfg.model, cfg.step_s, K, S)
+        self._A0_fine_blocks = A0_fine.reshape(K * S, 3, -1)  # p(t_now + j h / S), j = 1..K S
+        self._Lambda_fine_blocks = Lambda_fine.reshape(K * S, 3, 3 * K)
         lower = np.arange(3 * K)[None, :] < 3 * (np.arange(K)[:, None] + 1)  # (K, 3K): inputs 0..k-1 reach p[k]
         self._lower_mask = lower
 
@@ -321,10 +325,13 @@ class DmpcProblem:
         if x0.shape != (cfg.state_dim,):
             raise ValueError(f"x0 shape {x0.shape}: expected ({cfg.state_dim},) for model {cfg.model!r}")
         goal = np.asarray(goal, float).reshape(3)
-        t_s = float(t_now_s) + h * np.arange(1, K + 1)
-        own_prev = self._own_previous(t_s, x0, previous_plan)
+        S = cfg.conflict_substeps
+        t_fine = float(t_now_s) + (h / S) * np.arange(1, K * S + 1)  # check times; every S-th is a sample
+        own_prev_fine = self._own_previous(t_fine, x0, previous_plan)
+        own_prev = own_prev_fine[S - 1 :: S]
         nb_ids = [p.neighbor_id for p in neighbour_plans]
-        nb_pos = np.array([p.position(t_s) for p in neighbour_plans]).reshape(-1, K, 3)
+        nb_fine = np.array([p.position(t_fine) for p in neighbour_plans]).reshape(-1, K * S, 3)
+        nb_pos = nb_fine[:, S - 1 :: S]  # (M, K, 3) at t_now + k h
         nb_now = np.array([p.position(float(t_now_s)) for p in neighbour_plans]).reshape(-1, 3)
 
         free_pos = (mats.A0_pos @ x0).reshape(K, 3)  # A0_p x0
@@ -351,26 +358,27 @@ class DmpcProblem:
 
         # Collision rows.
         slack_cols = np.arange(self._n_slack)
-        n_coll, conflict_step = 0, 0
+        n_coll, conflict_time_s = 0, float("nan")
         rc = slice(self._row_coll, self._row_coll + self._n_coll_rows)
         l[rc], u[rc] = -_INF, _INF
         if cfg.collision_mode == "on_demand":
             cons = on_demand_constraints(
-                own_prev, nb_pos, cfg.r_min, cfg.downwash, cfg.conflict_margin_m,
-                cfg.neighbourhood_factor, x0[:3], nb_now,
+                own_prev_fine, nb_fine, cfg.r_min, cfg.downwash, cfg.conflict_margin_m,
+                cfg.neighbourhood_factor, x0[:3], nb_now, cfg.on_demand_time,
             )  # fmt: skip
             keep = np.argsort(cons.distance_m)[:M]  # nearest first if more than the slots
             n_coll = keep.size
             coef = np.zeros((M, 3 * K))
             slack_coef = np.zeros(M)
             if n_coll:
-                k_c = cons.step_index
-                conflict_step = k_c + 1
+                conflict_time_s = float(t_fine[cons.step_index])  # first conflicting check time
+                j_c = cons.time_index[keep]  # (n,) constrained check times
                 a = cons.normal[keep]
-                coef[:n_coll] = a @ self._Lambda_pos_blocks[k_c]  # a^T Lambda_p,k_c U
+                coef[:n_coll] = np.einsum("nd,ndc->nc", a, self._Lambda_fine_blocks[j_c])  # a^T Lambda_p(t_c) U
                 slack_coef[:n_coll] = cons.sigma[keep]  # + sigma s  (s = -alpha)
+                free_c = self._A0_fine_blocks[j_c] @ x0  # A0_p(t_c) x0, (n, 3)
                 # a^T Lambda U + s >= b - a^T A0 x0   (on-demand DMPC Sec. 3.4)
-                l[self._row_coll : self._row_coll + n_coll] = cons.offset[keep] - a @ free_pos[k_c]
+                l[self._row_coll : self._row_coll + n_coll] = cons.offset[keep] - np.einsum("nd,nd->n", a, free_c)
             self._set_dynamic(self._coll_slice, coef.ravel())
             self._set_dynamic(self._slack_coef_slice, slack_coef)
             rs = slice(self._row_slack, self._row_slack + M)
@@ -429,7 +437,7 @@ class DmpcProblem:
             raise DmpcSolveError(status, self._snapshot)
         self._x_last = res.x.copy()
         return self._result(
-            res, x0, goal, float(t_now_s), e, form_targets, n_coll, conflict_step,
+            res, x0, goal, float(t_now_s), e, form_targets, n_coll, conflict_time_s,
             t_solve - t_start, t_end - t_solve,
         )  # fmt: skip
 
@@ -466,7 +474,7 @@ class DmpcProblem:
         self._l[rows] = np.where(offsets <= -_INF, -_INF, lo).ravel()
         self._u[rows] = _INF
 
-    def _result(self, res, x0, goal, t_now_s, e, form_targets, n_coll, conflict_step, t_update, t_solve) -> DmpcResult:
+    def _result(self, res, x0, goal, t_now_s, e, form_targets, n_coll, conflict_time_s, t_update, t_solve) -> DmpcResult:
         cfg, mats = self.config, self.matrices
         K = cfg.horizon_steps
         U = res.x[: self._n_u]
@@ -493,5 +501,5 @@ class DmpcProblem:
             plan=plan, pos_world=pos[1:].copy(), vel_world=vel[1:].copy(), acc_world=acc_world,
             inputs=inputs.copy(), cost=float(cost), iterations=int(res.info.iter), status=str(res.info.status),
             solve_time_s=t_solve, osqp_solve_time_s=float(res.info.solve_time), update_time_s=t_update,
-            n_collision_constraints=int(n_coll), conflict_step=int(conflict_step), slack=slack,
+            n_collision_constraints=int(n_coll), conflict_time_s=conflict_time_s, slack=slack,
         )  # fmt: skip
