@@ -9,6 +9,8 @@ ratios against baselines measured in the same run:
 * insertion: the numba voxel traversal (default stride 2, and full resolution)
   against a vectorised numpy baseline that samples every ray at half-voxel
   steps and deduplicates with ``np.unique`` (same hit-wins rule);
+* back-projection: the map's numpy depth -> world points against open3d's
+  ``PointCloud.create_from_depth_image`` (the map keeps numpy);
 * ESDF: the numba Felzenszwalb transform against ``scipy.ndimage.distance_transform_edt``;
 * A*: on voxelised forests (two densities) 10 m x 10 m x 3 m at 0.15 m, random start/goal pairs,
   against scipy's Dijkstra (``scipy.sparse.csgraph``) on the same 26-connected graph.
@@ -156,6 +158,9 @@ def main() -> None:
     for name, ms in res.items():
         print(f"{name:42s} {ms:8.2f} ms   x{base / ms:5.1f} vs numpy baseline")
 
+    print("\n-- depth -> world points only, stride 2 (median ms) --")
+    bench_backprojection(frame)
+
     print("\n-- ESDF over the window (median ms) --")
     m = OccupancyMap()
     m.update(frame)
@@ -175,6 +180,38 @@ def main() -> None:
 
     for density in (0.08, 0.3):
         bench_astar(forest(np.random.default_rng(1), half_m=5.0, density_per_m2=density), density, rng)
+
+
+def bench_backprojection(frame: RgbdFrame) -> None:
+    """The map's numpy back-projection against open3d's ``PointCloud.create_from_depth_image``."""
+    m = OccupancyMap()
+    T = frame.transform_camera_to_world
+
+    def numpy_points() -> np.ndarray:
+        ends_cam, is_hit = m._rays_camera(frame, ())
+        return ends_cam[is_hit] @ T[:3, :3].T + T[:3, 3]
+
+    t_np = median_ms(numpy_points)
+    try:
+        import open3d as o3d
+    except ImportError:
+        print(f"{'numpy (the map)':42s} {t_np:8.2f} ms   (open3d not installed, no comparison)")
+        return
+    K = frame.K
+    intrinsic = o3d.camera.PinholeCameraIntrinsic(W_PX, H_PX, K[0, 0], K[1, 1], K[0, 2], K[1, 2])
+    extrinsic = np.linalg.inv(T)  # open3d takes world -> camera
+
+    def open3d_points() -> np.ndarray:
+        depth = np.nan_to_num(frame.depth_m, nan=0.0)  # open3d skips zero depth
+        pcd = o3d.geometry.PointCloud.create_from_depth_image(
+            o3d.geometry.Image(depth), intrinsic, extrinsic, depth_scale=1.0, depth_trunc=10.0, stride=2
+        )
+        return np.asarray(pcd.points)
+
+    t_o3d = median_ms(open3d_points)
+    n_np, n_o3d = len(numpy_points()), len(open3d_points())
+    print(f"{'numpy (the map)':42s} {t_np:8.2f} ms   x{t_o3d / t_np:5.1f} vs open3d ({n_np} points)")
+    print(f"{'open3d create_from_depth_image':42s} {t_o3d:8.2f} ms   ({n_o3d} points)")
 
 
 def bench_astar(trees: np.ndarray, density: float, rng: np.random.Generator) -> None:

@@ -69,40 +69,52 @@ def _edt_1d(f, d, v, z):
 
 
 @njit(cache=True)
+def _pass(g, axis, f, d, v, z):
+    """Run the 1-D transform along ``axis`` of ``g`` (nx, ny, nz) in place; lines without features are skipped."""
+    nx, ny, nz = g.shape
+    n = g.shape[axis]
+    if axis == 0:
+        na, nb = ny, nz
+    elif axis == 1:
+        na, nb = nx, nz
+    else:
+        na, nb = nx, ny
+    for a in range(na):
+        for b in range(nb):
+            lowest = _BIG
+            for q in range(n):
+                if axis == 0:
+                    f[q] = g[q, a, b]
+                elif axis == 1:
+                    f[q] = g[a, q, b]
+                else:
+                    f[q] = g[a, b, q]
+                lowest = min(lowest, f[q])
+            if lowest >= _BIG:  # no feature on this line yet: it stays "far"
+                continue
+            _edt_1d(f[:n], d[:n], v, z)
+            for q in range(n):
+                if axis == 0:
+                    g[q, a, b] = d[q]
+                elif axis == 1:
+                    g[a, q, b] = d[q]
+                else:
+                    g[a, b, q] = d[q]
+
+
+@njit(cache=True)
 def _squared_edt_numba(feature):
     """Squared distance [voxels^2] from every voxel to the nearest True voxel of ``feature`` (nx, ny, nz)."""
     nx, ny, nz = feature.shape
-    g = np.empty((nx, ny, nz))
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                g[i, j, k] = 0.0 if feature[i, j, k] else _BIG
+    g = np.where(feature, 0.0, _BIG)
     m = max(nx, ny, nz)
     f = np.empty(m)
     d = np.empty(m)
     v = np.empty(m, np.int64)
     z = np.empty(m + 1)
-    for i in range(nx):  # along z
-        for j in range(ny):
-            for k in range(nz):
-                f[k] = g[i, j, k]
-            _edt_1d(f[:nz], d[:nz], v, z)
-            for k in range(nz):
-                g[i, j, k] = d[k]
-    for i in range(nx):  # along y
-        for k in range(nz):
-            for j in range(ny):
-                f[j] = g[i, j, k]
-            _edt_1d(f[:ny], d[:ny], v, z)
-            for j in range(ny):
-                g[i, j, k] = d[j]
-    for j in range(ny):  # along x
-        for k in range(nz):
-            for i in range(nx):
-                f[i] = g[i, j, k]
-            _edt_1d(f[:nx], d[:nx], v, z)
-            for i in range(nx):
-                g[i, j, k] = d[i]
+    _pass(g, 2, f, d, v, z)  # along z (contiguous) first, then y, then x
+    _pass(g, 1, f, d, v, z)
+    _pass(g, 0, f, d, v, z)
     return g
 
 

@@ -19,7 +19,8 @@ on an :class:`perception.types.OccupancySnapshot`:
   neighbour that just became an obstacle) the search may enter a
   non-traversable voxel only from a non-traversable voxel and only if its
   distance is strictly larger, so it can climb out of the band but never
-  crawl along it through a gap narrower than the clearance.
+  crawl along it through a gap narrower than the clearance; the altitude band
+  and a ban on unknown space hold even then.
 
 Goals outside the window are replaced by the point where the straight segment
 start -> goal leaves the window; a goal voxel that is not traversable is
@@ -149,12 +150,13 @@ def search_path(
     v = snapshot.voxel_m
     state = np.ascontiguousarray(snapshot.state, dtype=np.int8).ravel()
     dist = np.ascontiguousarray(snapshot.distance_m, dtype=np.float32).ravel()
-    ok = (state != OccupancySnapshot.OCCUPIED) & (dist >= clearance_m)
-    if not config.allow_unknown:
-        ok &= state != OccupancySnapshot.UNKNOWN
+    # hard limits hold even while escaping the clearance band: altitude band, unknown if forbidden
     z_world = snapshot.origin_world[2] + v * (np.arange(snapshot.shape[2]) + 0.5)
     in_band = (z_world >= config.min_altitude_m) & (z_world <= config.max_altitude_m)
-    ok = (ok.reshape(snapshot.shape) & in_band).ravel()
+    hard_ok = np.broadcast_to(in_band, snapshot.shape).ravel()
+    if not config.allow_unknown:
+        hard_ok = hard_ok & (state != OccupancySnapshot.UNKNOWN)
+    ok = hard_ok & (state != OccupancySnapshot.OCCUPIED) & (dist >= clearance_m)
 
     goal_clipped = not bool(snapshot.contains(goal[None])[0])
     goal_used = _clip_to_window(snapshot, start, goal) if goal_clipped else goal
@@ -170,6 +172,7 @@ def search_path(
         state,
         dist,
         ok,
+        np.ascontiguousarray(hard_ok),
         shape,
         start_idx.astype(np.int64),
         goal_idx.astype(np.int64),
@@ -296,7 +299,7 @@ def _octile(ix, iy, iz, gx, gy, gz):
 
 
 @njit(cache=True)
-def _astar(state, dist, ok, shape, start, goal, voxel_m, unknown_penalty, h_weight, max_expansions):
+def _astar(state, dist, ok, hard_ok, shape, start, goal, voxel_m, unknown_penalty, h_weight, max_expansions):
     """26-connected A*; returns (cells (n, 3), cumulative costs (n,) [m], expanded, code 0 ok / 1 none / 2 limit)."""
     nx, ny, nz = shape[0], shape[1], shape[2]
     n = nx * ny * nz
@@ -346,7 +349,7 @@ def _astar(state, dist, ok, shape, start, goal, voxel_m, unknown_penalty, h_weig
                         continue
                     if not ok[nb]:
                         # escape rule: climb strictly out of the clearance band, never along it
-                        if cur_ok or not dist[nb] > dist[cur]:
+                        if cur_ok or not hard_ok[nb] or not dist[nb] > dist[cur]:
                             continue
                     m = abs(dx) + abs(dy) + abs(dz)
                     step = voxel_m if m == 1 else (voxel_m * _SQRT2 if m == 2 else voxel_m * _SQRT3)
