@@ -162,3 +162,14 @@ def test_map_esdf_matches_distance_to_a_seen_cylinder() -> None:
     assert err.min() >= -(1 + np.sqrt(2)) / 2 * VOXEL_M - 0.01
     assert err.max() <= (np.sqrt(2) - 1) / 2 * VOXEL_M + 0.01
     assert np.abs(err).mean() <= VOXEL_M
+
+
+def test_world_index_round_trip(rng) -> None:
+    snap = sphere_snapshot(np.array([0.3, 0.4, 0.6]), 0.5)
+    idx = np.column_stack([rng.integers(0, n, 50) for n in snap.shape])
+    np.testing.assert_array_equal(snap.world_to_index(snap.index_to_world(idx)), idx)
+    pts = rng.uniform(snap.origin_world, snap.upper_world, (200, 3))
+    assert np.all(np.abs(snap.index_to_world(snap.world_to_index(pts)) - pts) <= 0.5 * VOXEL_M + 1e-12)
+    assert np.all(snap.contains(pts))
+    assert not snap.contains((snap.upper_world + 0.01)[None])[0]
+    np.testing.assert_array_equal(snap.is_verified_free(pts), snap.state_at(pts) == 0)
