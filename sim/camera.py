@@ -172,9 +172,10 @@ def apply_depth_sensor_model(depth_true_m: np.ndarray, rng: np.random.Generator,
     (after noise) and a random ``invalid_pixel_fraction`` are NaN.
     """
     z = np.asarray(depth_true_m, np.float32)
-    sigma = cfg.depth_noise_base_m + cfg.depth_noise_quadratic_per_m * z * z
-    noisy = z + sigma * rng.standard_normal(z.shape, dtype=np.float32)
-    invalid = ~((z >= cfg.depth_min_m) & (z <= cfg.depth_max_m)) | ~np.isfinite(z)
+    invalid = ~((z >= cfg.depth_min_m) & (z <= cfg.depth_max_m))  # also catches inf (sky)
+    z_valid = np.where(invalid, np.float32(0.0), z)
+    sigma = cfg.depth_noise_base_m + cfg.depth_noise_quadratic_per_m * z_valid * z_valid
+    noisy = z_valid + sigma * rng.standard_normal(z.shape, dtype=np.float32)
     if cfg.invalid_pixel_fraction > 0:
         invalid |= rng.random(z.shape, dtype=np.float32) < cfg.invalid_pixel_fraction
     noisy[invalid] = np.nan

@@ -13,7 +13,7 @@ rates Omega, tracking a flat-output reference (x_d, v_d, a_d, yaw_d, yaw_rate_d)
 
 with Omega_d = [0, 0, yaw_rate_d] (the feed-forward of body rates from the
 reference's jerk is neglected: a stated simplification; the tracking test
-bounds its effect). A small integral term (clamped) removes the steady bias of
+bounds its effect). A small integral term (clamped, integrating only near the reference) removes the steady bias of
 unmodelled body drag. The tilt of F_d is limited to ``max_tilt_rad``.
 """
 
@@ -45,6 +45,7 @@ class ControllerGains:
         pos_damping: position loop damping ratio; k_v = 2 zeta m omega_n.
         pos_integral_gain: k_i / m [1/s^3].
         integral_limit_m_s: clamp on each component of int(e_x) [m s].
+        integral_zone_m: a component of e_x integrates only while below this [m].
         att_natural_freq_radps: attitude loop omega_n [rad/s]; k_R = J omega_n^2.
         att_damping: attitude damping ratio; k_W = 2 zeta J omega_n.
         max_tilt_rad: limit on the angle between F_d and world z [rad].
@@ -53,7 +54,8 @@ class ControllerGains:
     pos_natural_freq_radps: float = 4.0
     pos_damping: float = 0.9
     pos_integral_gain: float = 2.0
-    integral_limit_m_s: float = 0.5
+    integral_limit_m_s: float = 0.1
+    integral_zone_m: float = 0.2
     att_natural_freq_radps: float = 22.0
     att_damping: float = 0.8
     max_tilt_rad: float = 0.7
@@ -107,7 +109,9 @@ class SE3Controller:
         e_x = pos_world - ref_pos_world
         e_v = vel_world - ref_vel_world
         lim = self.gains.integral_limit_m_s
-        self.integral = np.clip(self.integral + e_x * dt_s, -lim, lim)
+        # conditional integration (anti-windup): only near the reference
+        near = (np.abs(e_x) < self.gains.integral_zone_m).astype(float)
+        self.integral = np.clip(self.integral + near * e_x * dt_s, -lim, lim)
         e3 = np.array([0.0, 0.0, 1.0])
         # F_d = -k_x e_x - k_v e_v - k_i int e_x + m g e3 + m a_d
         F_d = -self.k_x * e_x - self.k_v * e_v - self.k_i * self.integral + m * GRAVITY_MPS2 * e3 + m * ref_acc_world

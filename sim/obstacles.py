@@ -125,6 +125,8 @@ def generate_obstacles(
 def distance_to_obstacles(points_world: np.ndarray, obstacles: Sequence[ObstacleSpec]) -> np.ndarray:
     """Exact Euclidean distance [m] from points to the nearest obstacle surface.
 
+    Vectorised over points and obstacles: (n, n_obstacles) work per call.
+
     Args:
         points_world: (n, 3) points [m].
         obstacles: the obstacles.
@@ -135,20 +137,29 @@ def distance_to_obstacles(points_world: np.ndarray, obstacles: Sequence[Obstacle
     """
     pts = np.atleast_2d(np.asarray(points_world, float))
     best = np.full(pts.shape[0], np.inf)
-    for ob in obstacles:
-        d_xy = pts[:, :2] - np.asarray(ob.center_xy)
-        if ob.kind == "tree":
-            radial = np.linalg.norm(d_xy, axis=1) - ob.radius_m
-            outside_xy = np.maximum(radial, 0.0)
-            inside = radial < 0
-        else:
-            c, s = np.cos(ob.yaw), np.sin(ob.yaw)
-            local = np.stack([c * d_xy[:, 0] + s * d_xy[:, 1], -s * d_xy[:, 0] + c * d_xy[:, 1]], axis=1)
-            q = np.abs(local) - np.asarray(ob.half_extents_xy)
-            outside_xy = np.linalg.norm(np.maximum(q, 0.0), axis=1)
-            radial = np.where(np.all(q < 0, axis=1), np.max(q, axis=1), outside_xy)
-            inside = np.all(q < 0, axis=1)
-        dz = np.maximum(pts[:, 2] - ob.height_m, 0.0) + np.maximum(-pts[:, 2], 0.0)
-        d = np.where(inside & (dz == 0), radial, np.hypot(outside_xy, dz))
-        best = np.minimum(best, d)
+    trees = [o for o in obstacles if o.kind == "tree"]
+    boxes = [o for o in obstacles if o.kind == "box"]
+    z = pts[:, 2:3]
+    if trees:
+        c = np.array([o.center_xy for o in trees])
+        r = np.array([o.radius_m for o in trees])
+        h = np.array([o.height_m for o in trees])
+        radial = np.linalg.norm(pts[:, None, :2] - c[None], axis=-1) - r  # (n, T)
+        dz = np.maximum(z - h, 0.0) + np.maximum(-z, 0.0)
+        d = np.where((radial < 0) & (dz == 0), radial, np.hypot(np.maximum(radial, 0.0), dz))
+        best = np.minimum(best, d.min(axis=1))
+    if boxes:
+        c = np.array([o.center_xy for o in boxes])
+        he = np.array([o.half_extents_xy for o in boxes])
+        h = np.array([o.height_m for o in boxes])
+        cy, sy = np.cos([o.yaw for o in boxes]), np.sin([o.yaw for o in boxes])
+        dx = pts[:, None, 0] - c[None, :, 0]
+        dy = pts[:, None, 1] - c[None, :, 1]
+        qx = np.abs(cy * dx + sy * dy) - he[:, 0]  # box-local |x| - half extent, (n, B)
+        qy = np.abs(-sy * dx + cy * dy) - he[:, 1]
+        outside_xy = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
+        inside = (qx < 0) & (qy < 0)
+        dz = np.maximum(z - h, 0.0) + np.maximum(-z, 0.0)
+        d = np.where(inside & (dz == 0), np.maximum(qx, qy), np.hypot(outside_xy, dz))
+        best = np.minimum(best, d.min(axis=1))
     return best

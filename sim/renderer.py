@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pybullet as pb
+from numba import njit
 
 from sim.camera import (
     CameraConfig,
@@ -55,15 +56,16 @@ class SceneRenderer:
         build_obstacles(self.client, spec.obstacles, with_collision=False)
         n = spec.n_drones
         self.drone_ids = load_drones(self.client, spec, np.tile(PARKED_POS, (n, 1)), np.tile([0, 0, 0, 1.0], (n, 1)), fixed=True)
-        self.body_to_drone = np.full(max(self.drone_ids, default=0) + 2, -1, np.int16)
+        self.lut_body_to_drone = np.full(max(self.drone_ids, default=0) + 2, -1, np.int16)
         for i, b in enumerate(self.drone_ids):
-            self.body_to_drone[b] = i
+            self.lut_body_to_drone[b + 1] = i
         self.K = intrinsics(camera)
         W, H = camera.width_px, camera.height_px
         self.projection = opengl_projection_from_intrinsics(self.K, W, H, camera.render_near_m, camera.render_far_m)
-        u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
-        # ray directions in the camera frame with unit z: K^-1 [u, v, 1]
-        self.rays_camera = np.stack([(u - self.K[0, 2]) / self.K[0, 0], (v - self.K[1, 2]) / self.K[1, 1], np.ones_like(u)], axis=-1)
+        # ray directions in the camera frame with unit z, K^-1 [u, v, 1], kept separable:
+        # x depends on the column only, y on the row only
+        self.ray_x = ((np.arange(W) - self.K[0, 2]) / self.K[0, 0]).astype(np.float32)[None, :]
+        self.ray_y = ((np.arange(H) - self.K[1, 2]) / self.K[1, 1]).astype(np.float32)[:, None]
 
     def close(self) -> None:
         """Disconnect the client."""
@@ -109,16 +111,13 @@ class SceneRenderer:
         )
         if own_pose is not None:
             pb.resetBasePositionAndOrientation(self.drone_ids[own_drone], own_pose[0], own_pose[1], physicsClientId=self.client)
-        rgb = np.asarray(rgba, np.uint8).reshape(H, W, 4)[:, :, :3].copy()
+        rgb = np.asarray(rgba, np.uint8).reshape(H, W, 4)[:, :, :3]
         depth = depth_buffer_to_depth_m(np.asarray(zbuf).reshape(H, W), cam.render_near_m, cam.render_far_m)
-        seg = np.asarray(seg, np.int64).reshape(H, W)
+        seg = np.asarray(seg).reshape(H, W)
         background = seg < 0
-        mask = np.full((H, W), -1, np.int16)
-        obj = np.where(background, 0, seg & ((1 << 24) - 1))
-        obj = np.clip(obj, 0, self.body_to_drone.size - 1)
-        mask[~background] = self.body_to_drone[obj[~background]]
-        depth[background] = np.inf
-        self._draw_ground_and_sky(rgb, depth, background, transform_camera_to_world, style, light)
+        # segmentation holds PyBullet body ids (-1: nothing); lut[id + 1] is the drone index or -1
+        mask = np.take(self.lut_body_to_drone, seg + 1, mode="clip")
+        rgb, depth = self._draw_ground_and_sky(rgb, depth, background, transform_camera_to_world, style, light)
         return RawRender(rgb=rgb, depth_true_m=depth, drone_index_mask=mask)
 
     def _draw_ground_and_sky(
@@ -129,31 +128,48 @@ class SceneRenderer:
         T_cw: np.ndarray,
         style: RenderStyle,
         light: np.ndarray,
-    ) -> None:
-        """Fill background pixels with the z = 0 ground (ray-plane hit) or the sky.
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Composite the z = 0 ground or the sky into background pixels; see :func:`_ground_kernel`."""
+        shade = style.ambient + style.diffuse * max(light[2], 0.0)
+        light_tile = np.clip(np.asarray(style.ground_rgb) * shade * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        dark_tile = np.clip(np.asarray(style.ground_rgb) * shade * (1.0 - style.ground_checker_contrast) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        sky = np.clip(np.asarray(style.sky_rgb) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        rgb = np.ascontiguousarray(rgb)
+        _ground_kernel(
+            rgb, depth, background, self.ray_x[0], self.ray_y[:, 0], np.ascontiguousarray(T_cw[:3, :3]), np.ascontiguousarray(T_cw[:3, 3]),
+            float(self.camera.render_far_m), light_tile, dark_tile, sky,
+        )
+        return rgb, depth
 
-        For a pixel ray r_c = K^-1 [u, v, 1] (unit optical z), the world ray is
-        R_wc r_c from t_wc; it meets z = 0 at lambda = -t_z / (R_wc r_c)_z, and
-        lambda is the depth along the optical axis.
-        """
-        if not np.any(background):
-            return
-        rays = self.rays_camera[background]  # (n, 3)
-        R, t = T_cw[:3, :3], T_cw[:3, 3]
-        dz = rays @ R[2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            lam = np.where(dz < -1e-9, -t[2] / dz, np.inf)
-        hit = np.isfinite(lam) & (lam <= self.camera.render_far_m)
-        colours = np.empty((rays.shape[0], 3))
-        colours[:] = style.sky_rgb
-        if np.any(hit):
-            xy = t[:2] + lam[hit, None] * (rays[hit] @ R[:2].T)
-            checker = (np.floor(xy[:, 0]).astype(np.int64) + np.floor(xy[:, 1]).astype(np.int64)) & 1
-            shade = style.ambient + style.diffuse * max(light[2], 0.0)
-            base = np.asarray(style.ground_rgb) * shade
-            colours[hit] = base * (1.0 - style.ground_checker_contrast * checker)[:, None]
-        rgb[background] = np.clip(colours * 255.0 + 0.5, 0, 255).astype(np.uint8)
-        d = depth[background]
-        d[hit] = lam[hit]
-        d[~hit] = np.inf
-        depth[background] = d
+
+@njit(cache=True)
+def _ground_kernel(rgb, depth, background, ray_x, ray_y, R, t, far_m, light_tile, dark_tile, sky):  # pragma: no cover - compiled
+    """In place: for each background pixel, hit the ground z = 0 or show the sky.
+
+    The pixel ray r_c = K^-1 [u, v, 1] = [ray_x[u], ray_y[v], 1] (unit optical z)
+    goes along d_w = R_wc r_c from t_wc and meets z = 0 at
+    lambda = -t_z / d_w,z (when d_w,z < 0); lambda is the depth along the
+    optical axis. The ground shows a 1 m checker.
+    """
+    H, W = depth.shape
+    for v in range(H):
+        for u in range(W):
+            if not background[v, u]:
+                continue
+            dx = R[0, 0] * ray_x[u] + R[0, 1] * ray_y[v] + R[0, 2]
+            dy = R[1, 0] * ray_x[u] + R[1, 1] * ray_y[v] + R[1, 2]
+            dz = R[2, 0] * ray_x[u] + R[2, 1] * ray_y[v] + R[2, 2]
+            lam = np.inf
+            if dz < -1e-9:
+                lam = -t[2] / dz
+            if lam <= far_m:
+                gx = t[0] + lam * dx
+                gy = t[1] + lam * dy
+                odd = (int(np.floor(gx)) + int(np.floor(gy))) & 1
+                for c in range(3):
+                    rgb[v, u, c] = dark_tile[c] if odd else light_tile[c]
+                depth[v, u] = lam
+            else:
+                for c in range(3):
+                    rgb[v, u, c] = sky[c]
+                depth[v, u] = np.inf

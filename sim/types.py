@@ -15,6 +15,7 @@ import numpy as np
 __all__ = [
     "FlatOutputReference",
     "GroundTruthSegmentation",
+    "PlanMessage",
     "PoseEstimate",
     "RadioMessage",
     "RgbdFrame",
@@ -126,3 +127,22 @@ class RadioMessage:
     send_time_s: float
     receive_time_s: float
     payload: Any
+
+
+@dataclass(frozen=True)
+class PlanMessage:
+    """A drone's broadcast of its own planned trajectory (the radio payload).
+
+    Attributes:
+        sender_id: the broadcasting drone.
+        time_s: when the plan was sent [s].
+        times_s: (K,) absolute sample times [s].
+        pos_world: (K, 3) planned positions [m].
+        vel_world: (K, 3) planned velocities [m/s].
+    """
+
+    sender_id: int
+    time_s: float
+    times_s: np.ndarray
+    pos_world: np.ndarray
+    vel_world: np.ndarray

@@ -1,0 +1,89 @@
+"""Camera geometry: depth conversion, projection of drones onto their masks, back-projection."""
+
+import numpy as np
+import pytest
+
+from sim.camera import CameraConfig, apply_depth_sensor_model, depth_buffer_to_depth_m, intrinsics
+from sim.camera_rig import CameraRig
+from sim.obstacles import ObstacleSpec
+from sim.renderer import SceneRenderer
+from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
+from sim.scene import SceneSpec
+
+
+def test_depth_buffer_conversion_inverts_the_opengl_z_mapping():
+    near, far = 0.05, 30.0
+    z = np.array([0.05, 0.2, 1.0, 3.3, 9.99, 30.0])
+    # OpenGL: z_ndc = (f + n)/(f - n) - 2 f n / ((f - n) z); d = (z_ndc + 1) / 2
+    d = ((far + near) / (far - near) - 2 * far * near / ((far - near) * z) + 1) / 2
+    assert depth_buffer_to_depth_m(d, near, far) == pytest.approx(z, rel=1e-6)
+
+
+def test_intrinsics_give_the_d435i_field_of_view():
+    cfg = CameraConfig()
+    K = intrinsics(cfg)
+    hfov = 2 * np.degrees(np.arctan((cfg.width_px / 2) / K[0, 0]))
+    vfov = 2 * np.degrees(np.arctan((cfg.height_px / 2) / K[1, 1]))
+    assert (hfov, vfov) == pytest.approx((85.0, 58.0))
+
+
+def test_depth_model_marks_out_of_range_invalid_and_noise_grows_with_range(rng):
+    cfg = CameraConfig()
+    z = np.concatenate([np.full(20000, 1.0), np.full(20000, 6.0), [0.1, 12.0, np.inf]]).astype(np.float32)
+    d = apply_depth_sensor_model(z.reshape(1, -1), rng, cfg)[0]
+    assert np.all(np.isnan(d[-3:]))
+    s1, s6 = np.std(d[:20000] - 1.0), np.std(d[20000:40000] - 6.0)
+    assert s1 == pytest.approx(cfg.depth_noise_base_m + cfg.depth_noise_quadratic_per_m * 1.0, rel=0.05)
+    assert s6 == pytest.approx(cfg.depth_noise_base_m + cfg.depth_noise_quadratic_per_m * 36.0, rel=0.05)
+
+
+@pytest.fixture(scope="module")
+def drone_scene():
+    """A camera drone at the origin looking along +x at three drones; a wall behind them."""
+    wall = ObstacleSpec(kind="box", center_xy=(9.0, 0.0), height_m=4.0, half_extents_xy=(0.2, 6.0))
+    spec = SceneSpec(obstacles=(wall,), n_drones=4)
+    pos = np.array([[0.0, 0.0, 1.5], [2.0, 0.4, 1.6], [4.0, -1.2, 1.2], [6.5, -3.0, 1.9]])
+    quat = np.stack([quat_xyzw_from_yaw(y) for y in (0.0, 0.3, -1.0, 2.0)])
+    renderer = SceneRenderer(spec, CameraConfig())
+    renderer.set_drone_poses(pos, quat)
+    rig = CameraRig(CameraConfig(), seed=0)
+    T_cw = rig.transform_camera_to_world(pos[0], rotation_from_quat_xyzw(quat[0]))
+    raw = renderer.render(T_cw, own_drone=0)
+    yield pos, T_cw, raw, rig.K
+    renderer.close()
+
+
+def test_each_drone_projects_to_the_centroid_of_its_mask_within_2_px(drone_scene):
+    pos, T_cw, raw, K = drone_scene
+    T_wc = np.linalg.inv(T_cw)
+    for i in (1, 2, 3):
+        vs, us = np.nonzero(raw.drone_index_mask == i)
+        assert us.size > 8, f"drone {i} not visible"
+        p_c = T_wc[:3, :3] @ pos[i] + T_wc[:3, 3]
+        uv = (K @ (p_c / p_c[2]))[:2]
+        assert np.hypot(us.mean() - uv[0], vs.mean() - uv[1]) < 2.0, f"drone {i}"
+    assert not np.any(raw.drone_index_mask == 0), "a camera must not see its own drone"
+
+
+def test_back_projecting_the_mask_centroid_with_rendered_depth_recovers_the_position(drone_scene):
+    pos, T_cw, raw, K = drone_scene
+    K_inv = np.linalg.inv(K)
+    for i in (1, 2, 3):
+        vs, us = np.nonzero(raw.drone_index_mask == i)
+        u, v = int(round(us.mean())), int(round(vs.mean()))
+        window = raw.depth_true_m[v - 1 : v + 2, u - 1 : u + 2]
+        d = float(np.median(window[raw.drone_index_mask[v - 1 : v + 2, u - 1 : u + 2] == i]))
+        p_c = d * K_inv @ np.array([u, v, 1.0])  # MP-CDE Eq. 7
+        p_w = T_cw[:3, :3] @ p_c + T_cw[:3, 3]  # MP-CDE Eq. 8
+        rng_m = np.linalg.norm(pos[i] - T_cw[:3, 3])
+        assert np.linalg.norm(p_w - pos[i]) < 0.05 + 0.02 * rng_m, f"drone {i} at {rng_m:.1f} m"
+
+
+def test_rendered_depth_of_a_wall_is_its_distance_along_the_optical_axis(drone_scene):
+    _, T_cw, raw, _ = drone_scene
+    # the wall's front face is the plane x = 8.8 m; depth along the optical axis (world +x) is 8.8 - x_cam
+    col = raw.depth_true_m[:, 60]  # a column through the wall where no drone is
+    rows = np.isfinite(col) & (col > 8.0) & (col < 9.5) & (np.arange(col.size) < col.size // 2)  # above the horizon: no ground
+    assert rows.sum() > 10
+    err = np.abs(col[rows] - (8.8 - T_cw[0, 3]))
+    assert err.max() < 2e-3, f"max error {err.max():.4f} m"
