@@ -264,13 +264,13 @@ def _trilinear(
     inside = c == c_clamped  # (n, 3) axes along which the gradient is not clamped away
     i0 = np.minimum(np.floor(c_clamped).astype(np.int64), n_vox - 2)
     f = c_clamped - i0  # (n, 3) fractions in [0, 1]
-    x0, y0, z0 = i0[:, 0], i0[:, 1], i0[:, 2]
     fx, fy, fz = f[:, 0], f[:, 1], f[:, 2]
-    v = field.astype(np.float64, copy=False)
-    c000, c100 = v[x0, y0, z0], v[x0 + 1, y0, z0]
-    c010, c110 = v[x0, y0 + 1, z0], v[x0 + 1, y0 + 1, z0]
-    c001, c101 = v[x0, y0, z0 + 1], v[x0 + 1, y0, z0 + 1]
-    c011, c111 = v[x0, y0 + 1, z0 + 1], v[x0 + 1, y0 + 1, z0 + 1]
+    ny, nz = field.shape[1], field.shape[2]
+    base = (i0[:, 0] * ny + i0[:, 1]) * nz + i0[:, 2]
+    corner = np.array([0, nz, ny * nz, ny * nz + nz, 1, nz + 1, ny * nz + 1, ny * nz + nz + 1])
+    # corners c_xyz in the order 000, 010, 100, 110, 001, 011, 101, 111, gathered without copying the field
+    c = np.ravel(field)[base[:, None] + corner].astype(np.float64)
+    c000, c010, c100, c110, c001, c011, c101, c111 = c.T
     c00 = c000 + fx * (c100 - c000)
     c10 = c010 + fx * (c110 - c010)
     c01 = c001 + fx * (c101 - c001)
