@@ -148,14 +148,16 @@ def search_path(
         raise ValueError(f"start_world={start.tolist()!r}: allowed inside the map window")
     shape = np.asarray(snapshot.shape, np.int64)
     v = snapshot.voxel_m
-    state = np.ascontiguousarray(snapshot.state, dtype=np.int8).ravel()
-    dist = np.ascontiguousarray(snapshot.distance_m, dtype=np.float32).ravel()
+    # fresh writable arrays, so the compiled search has one signature whether or not the snapshot is read-only
+    state = np.asarray(snapshot.state).ravel()
+    unknown = state == OccupancySnapshot.UNKNOWN
+    dist = np.array(snapshot.distance_m, dtype=np.float32).ravel()
     # hard limits hold even while escaping the clearance band: altitude band, unknown if forbidden
     z_world = snapshot.origin_world[2] + v * (np.arange(snapshot.shape[2]) + 0.5)
     in_band = (z_world >= config.min_altitude_m) & (z_world <= config.max_altitude_m)
     hard_ok = np.broadcast_to(in_band, snapshot.shape).ravel()
     if not config.allow_unknown:
-        hard_ok = hard_ok & (state != OccupancySnapshot.UNKNOWN)
+        hard_ok = hard_ok & ~unknown
     ok = hard_ok & (state != OccupancySnapshot.OCCUPIED) & (dist >= clearance_m)
 
     goal_clipped = not bool(snapshot.contains(goal[None])[0])
@@ -169,7 +171,7 @@ def search_path(
         goal_used = snapshot.index_to_world(goal_idx[None])[0]
 
     cells, costs, n_expanded, code = _astar(
-        state,
+        unknown,
         dist,
         ok,
         np.ascontiguousarray(hard_ok),
@@ -192,7 +194,7 @@ def search_path(
         path_world = np.vstack([start, goal_used])
         cells = np.vstack([cells, cells])
         costs = np.array([0.0, float(np.linalg.norm(goal_used - start))])
-    keep = _shortcut(cells, costs, ok.reshape(snapshot.shape), snapshot.state, v, config.unknown_penalty)
+    keep = _shortcut(cells, costs, ok.reshape(snapshot.shape), unknown.reshape(snapshot.shape), v, config.unknown_penalty)
     waypoints = _split_long(path_world[keep], config.max_segment_m)
     return PathSearchResult("found", waypoints, path_world, int(n_expanded), float(costs[-1]), goal_used, goal_clipped)
 
@@ -299,7 +301,7 @@ def _octile(ix, iy, iz, gx, gy, gz):
 
 
 @njit(cache=True)
-def _astar(state, dist, ok, hard_ok, shape, start, goal, voxel_m, unknown_penalty, h_weight, max_expansions):
+def _astar(unknown, dist, ok, hard_ok, shape, start, goal, voxel_m, unknown_penalty, h_weight, max_expansions):
     """26-connected A*; returns (cells (n, 3), cumulative costs (n,) [m], expanded, code 0 ok / 1 none / 2 limit)."""
     nx, ny, nz = shape[0], shape[1], shape[2]
     n = nx * ny * nz
@@ -353,7 +355,7 @@ def _astar(state, dist, ok, hard_ok, shape, start, goal, voxel_m, unknown_penalt
                             continue
                     m = abs(dx) + abs(dy) + abs(dz)
                     step = voxel_m if m == 1 else (voxel_m * _SQRT2 if m == 2 else voxel_m * _SQRT3)
-                    if state[nb] == -1:
+                    if unknown[nb]:
                         step *= 1.0 + unknown_penalty
                     g_new = g[cur] + step
                     if g_new < g[nb]:
@@ -387,7 +389,7 @@ def _astar(state, dist, ok, hard_ok, shape, start, goal, voxel_m, unknown_penalt
 
 
 @njit(cache=True)
-def _segment_cost(a, b, ok, state, unknown_penalty):
+def _segment_cost(a, b, ok, unknown, unknown_penalty):
     """Penalised cost [voxels] of the straight segment a -> b (voxel-index coordinates), inf if it leaves ``ok``."""
     length = np.sqrt(np.sum((b - a) ** 2))
     n = max(1, int(np.ceil(length * 4.0)))  # samples every quarter voxel
@@ -400,12 +402,12 @@ def _segment_cost(a, b, ok, state, unknown_penalty):
         m = int(np.floor(p[2] + 0.5))
         if not ok[i, j, m]:
             return np.inf
-        cost += step * (1.0 + unknown_penalty) if state[i, j, m] == -1 else step
+        cost += step * (1.0 + unknown_penalty) if unknown[i, j, m] else step
     return cost
 
 
 @njit(cache=True)
-def _shortcut_numba(cells_f, costs_vox, ok, state, unknown_penalty):
+def _shortcut_numba(cells_f, costs_vox, ok, unknown, unknown_penalty):
     """Indices of the path points kept by greedy forward shortcutting."""
     n = cells_f.shape[0]
     keep = np.empty(n, np.int64)
@@ -415,7 +417,7 @@ def _shortcut_numba(cells_f, costs_vox, ok, state, unknown_penalty):
     while i < n - 1:
         j = i + 1
         while j + 1 < n:
-            c = _segment_cost(cells_f[i], cells_f[j + 1], ok, state, unknown_penalty)
+            c = _segment_cost(cells_f[i], cells_f[j + 1], ok, unknown, unknown_penalty)
             if c > costs_vox[j + 1] - costs_vox[i] + 1e-6:
                 break
             j += 1
@@ -426,9 +428,9 @@ def _shortcut_numba(cells_f, costs_vox, ok, state, unknown_penalty):
 
 
 def _shortcut(
-    cells: np.ndarray, costs_m: np.ndarray, ok: np.ndarray, state: np.ndarray, voxel_m: float, unknown_penalty: float
+    cells: np.ndarray, costs_m: np.ndarray, ok: np.ndarray, unknown: np.ndarray, voxel_m: float, unknown_penalty: float
 ) -> np.ndarray:
     """Indices into the path of the points kept after shortcutting (first and last always kept)."""
     return _shortcut_numba(
-        cells.astype(np.float64), costs_m / voxel_m, ok, np.ascontiguousarray(state, np.int8), float(unknown_penalty)
+        cells.astype(np.float64), costs_m / voxel_m, ok, unknown, float(unknown_penalty)
     )
