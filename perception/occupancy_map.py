@@ -28,6 +28,11 @@ A voxel is unknown until a ray touches it, then occupied if
 ``l > log_odds_occupied``, else free. :meth:`OccupancyMap.snapshot` hands out an
 immutable :class:`perception.types.OccupancySnapshot` with the ESDF
 recomputed (see :mod:`perception.esdf`) when the map changed since the last one.
+
+Back-projection is plain numpy: open3d's ``PointCloud.create_from_depth_image``
+was measured (``benchmarks/bench_map.py``) at about the same cost for one
+320 x 240 frame (both under 1 ms, against about 7 ms of ray casting), and it
+offers neither the detection mask nor the clearing rays of invalid pixels.
 """
 
 from __future__ import annotations
