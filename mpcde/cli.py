@@ -1,0 +1,140 @@
+"""The ``mpcde`` command line.
+
+Subcommands: ``fly`` (a headless scenario -> run folder) and
+``eval-tracking`` (tracker evaluation -> results.json). Bad input prints one
+line ``mpcde: error: <field>=<value>: <allowed>`` and exits with status 2,
+having written nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from mpcde.errors import ConfigError, MpcdeError
+
+__all__ = ["main"]
+
+EXIT_BAD_INPUT = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error and exit status 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        sys.stderr.write(f"mpcde: error: {message}\n")
+        raise SystemExit(EXIT_BAD_INPUT)
+
+
+def _seed(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--seed={text!r}: an integer in [0, 2^32)") from None
+    if not 0 <= v < 2**32:
+        raise argparse.ArgumentTypeError(f"--seed={v}: an integer in [0, 2^32)")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of every subcommand."""
+    p = _Parser(prog="mpcde", description="Quadrotor swarms in simulation when the radio cannot be trusted.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    fly = sub.add_parser("fly", help="fly a scenario headless and write a run folder")
+    fly.add_argument("scenario", help="scenario YAML, or a built-in name (crossing, antipodal, forest_sparse, ...)")
+    fly.add_argument("--out", required=True, type=Path, help="output folder (created; must be empty unless --overwrite)")
+    fly.add_argument("--seed", type=_seed, default=None, help="seed of the run (overrides the file's)")
+    fly.add_argument("--duration", type=float, default=None, help="time limit [s] (overrides the file's)")
+    fly.add_argument("--video", action="store_true", help="also write video.mp4 (top view beside each camera)")
+    fly.add_argument("--no-cameras", action="store_true", help="do not render cameras (faster; no video tiles)")
+    fly.add_argument("--overwrite", action="store_true", help="replace an existing non-empty --out")
+    fly.add_argument("--quiet", action="store_true", help="no progress bar")
+    ev = sub.add_parser("eval-tracking", help="evaluate the tracker (AKF vs KF) and write results.json")
+    ev.add_argument("--out", required=True, type=Path)
+    ev.add_argument("--measurements", choices=["synthetic", "pipeline"], nargs="+", default=["synthetic"])
+    ev.add_argument("--seeds", type=int, default=3, help="repeats per row (seeds 0..N-1)")
+    ev.add_argument("--quiet", action="store_true")
+    return p
+
+
+def _cmd_fly(args: argparse.Namespace) -> int:
+    from mpcde.loop import prepare_run, run_scenario
+    from mpcde.run_folder import RunFolder
+    from mpcde.scenario import load_scenario
+    from mpcde.video import VideoWriter
+
+    overrides = {}
+    if args.seed is not None:
+        overrides["seed"] = args.seed
+    if args.duration is not None:
+        overrides["duration_s"] = args.duration
+    cfg = load_scenario(args.scenario, overrides)
+    if args.no_cameras:
+        from dataclasses import replace
+
+        cfg = replace(cfg, run=replace(cfg.run, cameras=False))
+    if args.video and not cfg.run.cameras:
+        raise ConfigError("--video", True, "needs cameras (drop --no-cameras or set run.cameras: true)")
+    prepared = prepare_run(cfg)  # validates everything before anything is written
+    folder = RunFolder(args.out, args.overwrite)
+    video = None
+    try:
+        if args.video:
+            video = VideoWriter(folder.path("video.mp4"), prepared.obstacles, prepared.goals, cfg.world.arena_size_m, cfg.camera.rate_hz, (cfg.camera.width_px, cfg.camera.height_px))
+        result = run_scenario(prepared, frame_sink=video, progress=not args.quiet)
+        if video is not None:
+            video.close()
+            video = None
+        folder.write_result(result)
+        out = folder.publish()
+    except BaseException:
+        if video is not None:
+            video.close()
+        folder.discard()
+        raise
+    m = result.metrics
+    print(
+        f"{cfg.name} seed {cfg.seed}: success={m['success']} collisions={m['collisions']} "
+        f"min_inter_drone={m['min_inter_drone_distance_m']} m min_obstacle={m['min_obstacle_distance_m']} m "
+        f"mission_time={m['mission_time_s']} s real_time_factor={m['real_time_factor']:.2f} -> {out}"
+    )
+    return 0
+
+
+def _cmd_eval_tracking(args: argparse.Namespace) -> int:
+    from mpcde.eval_tracking import format_table, run_eval_tracking
+
+    if args.seeds < 1:
+        raise ConfigError("--seeds", args.seeds, "an integer >= 1")
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ConfigError("--out", str(args.out), f"cannot create ({e.strerror})") from None
+    try:
+        results = run_eval_tracking(args.out, measurements=tuple(args.measurements), seeds=tuple(range(args.seeds)), progress=not args.quiet)
+    except ValueError as e:
+        raise ConfigError("--measurements", args.measurements, str(e)) from None
+    print(format_table(results))
+    print(f"-> {args.out / 'results.json'}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``mpcde`` console script."""
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == "fly":
+            return _cmd_fly(args)
+        if args.command == "eval-tracking":
+            return _cmd_eval_tracking(args)
+    except (MpcdeError, ValueError) as e:
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        sys.stderr.write(f"mpcde: error: {msg}\n")
+        return EXIT_BAD_INPUT
+    return 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

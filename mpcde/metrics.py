@@ -1,0 +1,116 @@
+"""Run metrics from ground truth (DESIGN.md section 4, mpcde: metrics).
+
+Accumulated every physics tick from :class:`sim.ground_truth.TrueState`:
+
+* collisions: drone-drone events (a pair's centre distance falls below
+  2 r_robot; counted once per entry) plus drone-obstacle events (a drone
+  starts touching an obstacle or the ground, from PyBullet's contacts);
+* minimum inter-drone centre distance and minimum obstacle clearance (exact
+  distance from the drone centre to the nearest obstacle surface, minus r_robot);
+* arrival: the first time each drone is within the goal tolerance;
+  success = all arrived before the time limit and no collision;
+  mission_time_s = the time the last drone arrived (null if not all did);
+* path length, mean speed and mean acceleration magnitude (averaged over
+  drones, from the true state);
+* real-time factor = simulated time / wall time of the loop.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+from sim.ground_truth import TrueState, pairwise_distances
+from sim.obstacles import ObstacleSpec, distance_to_obstacles
+
+__all__ = ["MetricsAccumulator"]
+
+
+class MetricsAccumulator:
+    """Collects metrics tick by tick; :meth:`update`, then :meth:`result`."""
+
+    def __init__(self, goals_world: np.ndarray, obstacles: Sequence[ObstacleSpec], robot_radius_m: float, goal_tolerance_m: float) -> None:
+        self.goals = np.asarray(goals_world, float)
+        n = self.goals.shape[0]
+        self.obstacles = tuple(obstacles)
+        self.r = robot_radius_m
+        self.tol = goal_tolerance_m
+        self.min_pair = np.inf
+        self.min_obstacle = np.inf
+        self.in_collision = np.zeros((n, n), bool)
+        self.in_contact = np.zeros(n, bool)
+        self.drone_drone_collisions = 0
+        self.drone_obstacle_collisions = 0
+        self.arrival_time = np.full(n, np.nan)
+        self.path_length = np.zeros(n)
+        self.prev_pos: np.ndarray | None = None
+        self.prev_vel: np.ndarray | None = None
+        self.speed_sum = np.zeros(n)
+        self.acc_sum = np.zeros(n)
+        self.ticks = 0
+        self.time_s = 0.0
+        self.min_pair_series: list[tuple[float, float]] = []
+
+    def update(self, s: TrueState, dt_s: float) -> None:
+        """Account for one tick of duration ``dt_s`` [s] ending in state ``s``."""
+        n = s.pos_world.shape[0]
+        self.time_s = s.time_s
+        if n > 1:
+            d = pairwise_distances(s.pos_world)
+            m = float(d.min())
+            self.min_pair = min(self.min_pair, m)
+            close = d < 2 * self.r
+            iu = np.triu(close & ~self.in_collision, 1)
+            self.drone_drone_collisions += int(iu.sum())
+            self.in_collision = close
+            self.min_pair_series.append((s.time_s, m))
+        if self.obstacles:
+            clearance = distance_to_obstacles(s.pos_world, self.obstacles) - self.r
+            self.min_obstacle = min(self.min_obstacle, float(clearance.min()))
+        new_contact = s.obstacle_contact & ~self.in_contact
+        self.drone_obstacle_collisions += int(new_contact.sum())
+        self.in_contact = s.obstacle_contact.copy()
+        arrived = (np.linalg.norm(s.pos_world - self.goals, axis=1) <= self.tol) & np.isnan(self.arrival_time)
+        self.arrival_time[arrived] = s.time_s
+        if self.prev_pos is not None:
+            self.path_length += np.linalg.norm(s.pos_world - self.prev_pos, axis=1)
+            self.acc_sum += np.linalg.norm(s.vel_world - self.prev_vel, axis=1) / dt_s
+        self.speed_sum += np.linalg.norm(s.vel_world, axis=1)
+        self.prev_pos, self.prev_vel = s.pos_world.copy(), s.vel_world.copy()
+        self.ticks += 1
+
+    @property
+    def all_arrived(self) -> bool:
+        """Whether every drone has reached its goal at some point."""
+        return not np.any(np.isnan(self.arrival_time))
+
+    def result(self, wall_time_s: float, failed: np.ndarray, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+        """The metrics dictionary written to ``metrics.json``."""
+        collisions = self.drone_drone_collisions + self.drone_obstacle_collisions
+        arrived = self.all_arrived
+        ticks = max(self.ticks, 1)
+
+        def finite(x: float) -> float | None:
+            return float(x) if np.isfinite(x) else None
+
+        out = {
+            "success": bool(arrived and collisions == 0),
+            "collisions": int(collisions),
+            "drone_drone_collisions": int(self.drone_drone_collisions),
+            "drone_obstacle_collisions": int(self.drone_obstacle_collisions),
+            "min_inter_drone_distance_m": finite(self.min_pair),
+            "min_obstacle_distance_m": finite(self.min_obstacle),
+            "mission_time_s": float(np.max(self.arrival_time)) if arrived else None,
+            "arrived": int(np.sum(~np.isnan(self.arrival_time))),
+            "n_drones": int(self.goals.shape[0]),
+            "failed_drones": [int(i) for i in np.flatnonzero(failed)],
+            "path_length_m": float(self.path_length.mean()),
+            "mean_speed_mps": float((self.speed_sum / ticks).mean()),
+            "mean_accel_mps2": float((self.acc_sum / max(ticks - 1, 1)).mean()),
+            "sim_time_s": float(self.time_s),
+            "wall_time_s": float(wall_time_s),
+            "real_time_factor": float(self.time_s / wall_time_s) if wall_time_s > 0 else None,
+        }
+        out.update(extra or {})
+        return out

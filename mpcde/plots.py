@@ -1,0 +1,81 @@
+"""Plots of a run: top-down trajectories with obstacles, minimum distance, yaw."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.patches import Circle, Polygon  # noqa: E402
+
+from sim.obstacles import ObstacleSpec  # noqa: E402
+
+__all__ = ["box_corners_xy", "plot_min_distance", "plot_top_down", "plot_yaw"]
+
+
+def box_corners_xy(ob: ObstacleSpec) -> np.ndarray:
+    """(4, 2) footprint corners [m] of a box obstacle."""
+    hx, hy = ob.half_extents_xy
+    c, s = np.cos(ob.yaw), np.sin(ob.yaw)
+    local = np.array([[hx, hy], [-hx, hy], [-hx, -hy], [hx, -hy]])
+    return local @ np.array([[c, s], [-s, c]]) + np.asarray(ob.center_xy)
+
+
+def plot_top_down(path: Path, obstacles: Sequence[ObstacleSpec], pos_world: np.ndarray, starts: np.ndarray, goals: np.ndarray, arena_size_m: tuple[float, float], title: str) -> None:
+    """Top view: obstacles, each drone's true path (T, N, 3), starts (o) and goals (x)."""
+    fig, ax = plt.subplots(figsize=(7, 7))
+    for ob in obstacles:
+        if ob.kind == "tree":
+            ax.add_patch(Circle(ob.center_xy, ob.radius_m, color="saddlebrown", alpha=0.7))
+        else:
+            ax.add_patch(Polygon(box_corners_xy(ob), closed=True, color="slategray", alpha=0.7))
+    colours = plt.cm.tab10(np.arange(pos_world.shape[1]) % 10)
+    for i in range(pos_world.shape[1]):
+        ax.plot(pos_world[:, i, 0], pos_world[:, i, 1], color=colours[i], lw=1.5, label=f"drone {i}")
+        ax.plot(*starts[i, :2], "o", color=colours[i])
+        ax.plot(*goals[i, :2], "x", color=colours[i], ms=9, mew=2)
+    ax.set_xlim(-arena_size_m[0] / 2, arena_size_m[0] / 2)
+    ax.set_ylim(-arena_size_m[1] / 2, arena_size_m[1] / 2)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(title)
+    ax.legend(loc="upper right", fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_min_distance(path: Path, time_s: np.ndarray, pos_world: np.ndarray, collision_distance_m: float) -> None:
+    """Minimum inter-drone centre distance over time, with the collision threshold."""
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    if pos_world.shape[1] > 1:
+        d = np.linalg.norm(pos_world[:, :, None, :] - pos_world[:, None, :, :], axis=-1)
+        n = pos_world.shape[1]
+        d[:, np.arange(n), np.arange(n)] = np.inf
+        ax.plot(time_s, d.min(axis=(1, 2)), label="min inter-drone distance")
+    ax.axhline(collision_distance_m, color="r", ls="--", label=f"collision ({collision_distance_m:.2f} m)")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("distance [m]")
+    ax.set_ylim(bottom=0)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_yaw(path: Path, time_s: np.ndarray, yaw: np.ndarray) -> None:
+    """Each drone's heading (T, N) [rad] over time, in degrees."""
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    for i in range(yaw.shape[1]):
+        ax.plot(time_s, np.degrees(np.unwrap(yaw[:, i])), label=f"drone {i}")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("yaw [deg]")
+    ax.legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,287 @@
+"""Scenario configuration: frozen, validated dataclasses read from YAML.
+
+A scenario file is a mapping whose top-level keys are the fields of
+:class:`ScenarioConfig`; every field has a default, a unit and a docstring.
+Component settings reuse the components' own config types (camera, radio,
+pose estimate, physics) so there is one definition of each field.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from mpcde.config_io import from_dict, load_yaml
+from mpcde.errors import ConfigError
+from sim.camera import CameraConfig
+from sim.obstacles import ObstacleSpec, distance_to_obstacles, generate_obstacles
+from sim.pose_estimate import PoseEstimateConfig
+from sim.radio import RadioConfig
+from sim.world import PhysicsConfig
+
+__all__ = [
+    "SCENARIO_DIR",
+    "DronesConfig",
+    "ObstacleEntry",
+    "PlannerConfig",
+    "RunOptions",
+    "ScenarioConfig",
+    "WorldConfig",
+    "build_layout",
+    "load_scenario",
+    "resolve_obstacles",
+]
+
+SCENARIO_DIR = Path(__file__).resolve().parents[1] / "data" / "scenarios"
+
+
+@dataclass(frozen=True)
+class ObstacleEntry:
+    """An obstacle placed by hand in the scenario file.
+
+    Attributes:
+        kind: ``"tree"`` (vertical cylinder) or ``"box"``.
+        center_xy: ground position [m].
+        height_m: height [m].
+        radius_m: tree radius [m].
+        half_extents_xy: box half sizes [m].
+        yaw: box heading [rad].
+    """
+
+    kind: Literal["tree", "box"] = "tree"
+    center_xy: tuple[float, float] = (0.0, 0.0)
+    height_m: float = 4.0
+    radius_m: float = 0.25
+    half_extents_xy: tuple[float, float] = (0.5, 0.5)
+    yaw: float = 0.0
+
+    def to_spec(self) -> ObstacleSpec:
+        """As the world's obstacle type."""
+        return ObstacleSpec(self.kind, self.center_xy, self.height_m, self.radius_m, self.half_extents_xy, self.yaw)
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """Arena and obstacles.
+
+    Attributes:
+        arena_size_m: (x, y) extent of the arena [m], centred on the origin.
+        obstacle_density_per_100m2: random obstacles per 100 m^2 of arena.
+        box_fraction: share of boxes among random obstacles, in [0, 1].
+        clear_radius_m: no random obstacle within this of a start or goal [m].
+        obstacles: obstacles placed by hand (in addition to random ones).
+    """
+
+    arena_size_m: tuple[float, float] = (20.0, 20.0)
+    obstacle_density_per_100m2: float = 0.0
+    box_fraction: float = 0.25
+    clear_radius_m: float = 1.5
+    obstacles: tuple[ObstacleEntry, ...] = ()
+
+    def __post_init__(self) -> None:
+        if min(self.arena_size_m) <= 0:
+            raise ConfigError("arena_size_m", self.arena_size_m, "two sizes > 0 [m]")
+        if not 0 <= self.obstacle_density_per_100m2 <= 40:
+            raise ConfigError("obstacle_density_per_100m2", self.obstacle_density_per_100m2, "in [0, 40] per 100 m^2")
+        if not 0 <= self.box_fraction <= 1:
+            raise ConfigError("box_fraction", self.box_fraction, "in [0, 1]")
+        if self.clear_radius_m < 0:
+            raise ConfigError("clear_radius_m", self.clear_radius_m, ">= 0 [m]")
+
+
+@dataclass(frozen=True)
+class DronesConfig:
+    """Where the drones start and where they go.
+
+    Attributes:
+        layout: ``"explicit"`` (``starts`` and ``goals`` given), ``"antipodal"``
+            (``count`` drones evenly on a circle of ``radius_m`` fly to the
+            opposite point) or ``"mirror"`` (a column of ``count`` drones at
+            x = -radius_m, spaced ``spacing_m`` in y, flies to the
+            origin-symmetric points: every path crosses the centre region).
+        count: number of drones (antipodal, mirror).
+        radius_m: circle radius / half the start-goal distance [m].
+        spacing_m: lateral spacing of the mirror layout [m].
+        altitude_m: flight altitude of generated layouts [m].
+        starts: explicit start positions [m].
+        goals: explicit goal positions [m].
+    """
+
+    layout: Literal["explicit", "antipodal", "mirror"] = "explicit"
+    count: int = 2
+    radius_m: float = 4.0
+    spacing_m: float = 1.5
+    altitude_m: float = 1.5
+    starts: tuple[tuple[float, float, float], ...] = ((-4.0, 0.0, 1.5), (0.0, -4.0, 1.5))
+    goals: tuple[tuple[float, float, float], ...] = ((4.0, 0.0, 1.5), (0.0, 4.0, 1.5))
+
+    def __post_init__(self) -> None:
+        if self.layout == "explicit":
+            if not self.starts or len(self.starts) != len(self.goals):
+                raise ConfigError("goals", self.goals, f"one goal per start ({len(self.starts)} starts), at least one")
+        elif not 1 <= self.count <= 32:
+            raise ConfigError("count", self.count, "an integer in [1, 32]")
+        if self.radius_m <= 0 or self.spacing_m <= 0:
+            raise ConfigError("radius_m", self.radius_m, "radius_m and spacing_m must be > 0 [m]")
+        if not 0.3 <= self.altitude_m <= 20:
+            raise ConfigError("altitude_m", self.altitude_m, "in [0.3, 20] m")
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Onboard planning.
+
+    Attributes:
+        kind: ``"min_jerk_line"``, the placeholder (a straight minimum-jerk
+            line to the goal, blind to obstacles and neighbours) until MINCO
+            and DMPC are wired in.
+        cruise_speed_mps: peak speed along the line [m/s] (MP-CDE flights: 1 m/s).
+        start_delay_s: hover time before departure [s].
+    """
+
+    kind: Literal["min_jerk_line"] = "min_jerk_line"
+    cruise_speed_mps: float = 1.0
+    start_delay_s: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not 0 < self.cruise_speed_mps <= 10:
+            raise ConfigError("cruise_speed_mps", self.cruise_speed_mps, "in (0, 10] m/s")
+        if self.start_delay_s < 0:
+            raise ConfigError("start_delay_s", self.start_delay_s, ">= 0 s")
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How the simulation runs (not what it simulates).
+
+    Attributes:
+        cameras: render every drone's camera at ``camera.rate_hz``.
+        render_workers: render processes; -1 uses one per CPU core, 0 renders
+            in the main process.
+        log_rate_hz: rate of the state log and plots [Hz].
+        stop_when_arrived: end the run 1 s after every drone reached its goal.
+        goal_tolerance_m: a drone has arrived within this of its goal [m].
+    """
+
+    cameras: bool = True
+    render_workers: int = -1
+    log_rate_hz: float = 20.0
+    stop_when_arrived: bool = True
+    goal_tolerance_m: float = 0.3
+
+    def __post_init__(self) -> None:
+        if self.render_workers < -1 or self.render_workers > 16:
+            raise ConfigError("render_workers", self.render_workers, "-1 (one per core), 0 (in-process) or 1-16")
+        if not 0 < self.log_rate_hz <= 240:
+            raise ConfigError("log_rate_hz", self.log_rate_hz, "in (0, 240] Hz")
+        if not self.goal_tolerance_m > 0:
+            raise ConfigError("goal_tolerance_m", self.goal_tolerance_m, "> 0 m")
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    """A complete scenario.
+
+    Attributes:
+        name: scenario name (reports).
+        seed: seed of every random choice of the run (obstacles, noise, radio).
+        duration_s: time limit of the run [s].
+        world: arena and obstacles.
+        drones: starts and goals.
+        camera: the forward RGB-D camera of every drone.
+        radio: the broadcast channel.
+        pose_estimate: self-localisation error.
+        physics: physics rate, airframe and controller.
+        planner: onboard planning.
+        run: simulation options.
+    """
+
+    name: str = "scenario"
+    seed: int = 0
+    duration_s: float = 30.0
+    world: WorldConfig = field(default_factory=WorldConfig)
+    drones: DronesConfig = field(default_factory=DronesConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    radio: RadioConfig = field(default_factory=RadioConfig)
+    pose_estimate: PoseEstimateConfig = field(default_factory=PoseEstimateConfig)
+    physics: PhysicsConfig = field(default_factory=PhysicsConfig)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    run: RunOptions = field(default_factory=RunOptions)
+
+    def __post_init__(self) -> None:
+        if not 0 < self.duration_s <= 3600:
+            raise ConfigError("duration_s", self.duration_s, "in (0, 3600] s")
+        if not 0 <= self.seed < 2**32:
+            raise ConfigError("seed", self.seed, "an integer in [0, 2^32)")
+
+
+def build_layout(drones: DronesConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Start and goal positions, (N, 3) each [m]."""
+    if drones.layout == "explicit":
+        return np.asarray(drones.starts, float), np.asarray(drones.goals, float)
+    n, r, z = drones.count, drones.radius_m, drones.altitude_m
+    if drones.layout == "antipodal":
+        a = 2 * np.pi * np.arange(n) / n
+        starts = np.stack([r * np.cos(a), r * np.sin(a), np.full(n, z)], axis=1)
+        return starts, starts * np.array([-1.0, -1.0, 1.0])
+    y = (np.arange(n) - (n - 1) / 2) * drones.spacing_m
+    starts = np.stack([np.full(n, -r), y, np.full(n, z)], axis=1)
+    return starts, starts * np.array([-1.0, -1.0, 1.0])
+
+
+def resolve_obstacles(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> tuple[ObstacleSpec, ...]:
+    """Hand-placed plus seeded random obstacles, clear of starts and goals."""
+    explicit = [o.to_spec() for o in cfg.world.obstacles]
+    rng = np.random.default_rng([cfg.seed, 0x0B57])
+    keep = np.concatenate([starts[:, :2], goals[:, :2]])
+    placed = generate_obstacles(
+        rng, cfg.world.arena_size_m, cfg.world.obstacle_density_per_100m2, keep, cfg.world.clear_radius_m, box_fraction=cfg.world.box_fraction
+    )
+    # drop random obstacles that overlap hand-placed ones
+    placed = [p for p in placed if all(np.hypot(*np.subtract(p.center_xy, e.center_xy)) > p.footprint_radius_m + e.footprint_radius_m + 0.5 for e in explicit)]
+    return tuple(explicit + placed)
+
+
+def check_layout(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray, obstacles: tuple[ObstacleSpec, ...]) -> None:
+    """Reject starts or goals inside obstacles and goals or starts closer than the safety distance."""
+    r = cfg.physics.quadrotor.robot_radius_m
+    for name, pts in (("drones.starts", starts), ("drones.goals", goals)):
+        if obstacles:
+            d = distance_to_obstacles(pts, obstacles)
+            bad = np.flatnonzero(d < r)
+            if bad.size:
+                i = int(bad[0])
+                raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], f"inside or within {r} m of an obstacle")
+        if np.any(pts[:, 2] < r):
+            i = int(np.flatnonzero(pts[:, 2] < r)[0])
+            raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], f"z must be >= robot radius {r} m")
+        dist = np.linalg.norm(pts[:, None] - pts[None], axis=-1) + np.eye(len(pts)) * 1e9
+        if np.any(dist < 2 * r + 0.1):
+            i, j = np.unravel_index(np.argmin(dist), dist.shape)
+            raise ConfigError(f"{name}[{j}]", [round(float(v), 3) for v in pts[j]], f"closer than the safety distance {2 * r + 0.1:.2f} m to {name}[{i}]")
+
+
+def load_scenario(path_or_name: str | Path, overrides: dict | None = None) -> ScenarioConfig:
+    """Read a scenario file (or the name of a built-in one in ``data/scenarios``).
+
+    Args:
+        path_or_name: a YAML path, or a built-in name such as ``"crossing"``.
+        overrides: top-level fields replacing the file's (e.g. ``{"seed": 3}``).
+    """
+    p = Path(path_or_name)
+    if not p.exists() and (SCENARIO_DIR / f"{path_or_name}.yaml").exists():
+        p = SCENARIO_DIR / f"{path_or_name}.yaml"
+    if not p.exists():
+        builtins = ", ".join(sorted(q.stem for q in SCENARIO_DIR.glob("*.yaml")))
+        raise ConfigError("scenario", str(path_or_name), f"no such file; built-in scenarios: {builtins}")
+    data = load_yaml(p)
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError("scenario", str(p), "must be a YAML mapping of fields")
+    data = {**data, **(overrides or {})}
+    data.setdefault("name", p.stem)
+    return from_dict(ScenarioConfig, data)
