@@ -270,9 +270,13 @@ class DmpcProblem:
         """The QP and solution of the last :meth:`solve` (None before the first)."""
         return self._snapshot
 
-    def _own_previous(self, t_s: np.ndarray, x0: np.ndarray, previous_plan: DmpcPlan | None) -> np.ndarray:
+    @staticmethod
+    def _own_previous(
+        t_s: np.ndarray, t_now_s: float, x0: np.ndarray, previous_plan: DmpcPlan | None
+    ) -> np.ndarray:
+        """Own previous plan at times ``t_s`` (n,) -> (n, 3); constant velocity from x0 without one."""
         if previous_plan is None:
-            return x0[:3] + x0[3:6] * (t_s - t_s[0] + self.config.step_s)[:, None]  # constant velocity
+            return x0[:3] + x0[3:6] * (t_s - t_now_s)[:, None]
         return previous_plan.position(t_s)
 
     def _previous_input(self, t_now_s: float, previous_plan: DmpcPlan | None) -> np.ndarray:
@@ -327,7 +331,7 @@ class DmpcProblem:
         goal = np.asarray(goal, float).reshape(3)
         S = cfg.conflict_substeps
         t_fine = float(t_now_s) + (h / S) * np.arange(1, K * S + 1)  # check times; every S-th is a sample
-        own_prev_fine = self._own_previous(t_fine, x0, previous_plan)
+        own_prev_fine = self._own_previous(t_fine, float(t_now_s), x0, previous_plan)
         own_prev = own_prev_fine[S - 1 :: S]
         nb_ids = [p.neighbor_id for p in neighbour_plans]
         nb_fine = np.array([p.position(t_fine) for p in neighbour_plans]).reshape(-1, K * S, 3)

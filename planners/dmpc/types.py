@@ -92,8 +92,10 @@ class DmpcPlan:
         vel[before] = v[0]
         mid = ~(tail | before)
         if np.any(mid):
-            i = np.clip(np.floor((t[mid] - self.t0_s) / h).astype(int), 0, K - 1)
-            s = ((t[mid] - self.t0_s) / h - i)[:, None]
+            u = (t[mid] - self.t0_s) / h
+            # Right limit at a sample time: round u up to an integer within 1e-9 before flooring.
+            i = np.clip(np.floor(u + 1e-9).astype(int), 0, K - 1)
+            s = np.clip(u - i, 0.0, 1.0)[:, None]
             p0, p1, v0, v1 = p[i], p[i + 1], v[i], v[i + 1]
             # Cubic Hermite: p(s) = h00 p0 + h10 h v0 + h01 p1 + h11 h v1, s in [0, 1)
             pos[mid] = (2 * s**3 - 3 * s**2 + 1) * p0 + (s**3 - 2 * s**2 + s) * h * v0

@@ -1,0 +1,216 @@
+"""The DMPC QP: KKT conditions of OSQP's solutions, constraint geometry, fixed sparsity, errors, config validation."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from planners.dmpc.collision import ellipsoidal_distance, on_demand_constraints
+from planners.dmpc.config import DmpcConfig
+from planners.dmpc.model import rollout
+from planners.dmpc.qp import DmpcProblem, DmpcSolveError, QpSnapshot
+from planners.dmpc.types import DmpcPlan
+
+TIGHT = dict(osqp_eps_abs=1e-8, osqp_eps_rel=1e-8, osqp_polish=True, osqp_max_iter=100000)
+
+
+def _x0(cfg: DmpcConfig, pos=(0.0, 0.0, 1.5), vel=(1.5, 0.0, 0.0)) -> np.ndarray:
+    x0 = np.zeros(cfg.state_dim)
+    x0[:3], x0[3:6] = pos, vel
+    return x0
+
+
+def _hover_neighbour(pos, neighbor_id: int = 1, cfg: DmpcConfig | None = None):
+    cfg = cfg or DmpcConfig()
+    return DmpcPlan.hover(0.0, cfg.step_s, cfg.horizon_steps, pos).as_neighbor_prediction(neighbor_id, 0.0)
+
+
+def assert_kkt(snap: QpSnapshot, tol: float = 1e-5) -> None:
+    """Stationarity, primal feasibility, dual feasibility and complementarity (OSQP sign convention)."""
+    x, y = snap.x, snap.y
+    P_full = snap.P + snap.P.T - sp.diags(snap.P.diagonal())
+    Ax = snap.A @ x
+    scale = max(1.0, np.abs(snap.q).max(), np.abs(P_full @ x).max())
+    # Stationarity: P x + q + A^T y = 0.
+    assert np.abs(P_full @ x + snap.q + snap.A.T @ y).max() <= tol * scale
+    # Primal feasibility: l <= A x <= u.
+    assert np.all(Ax >= snap.l - tol) and np.all(Ax <= snap.u + tol)
+    # Dual feasibility and complementarity: y+ only on active upper bounds, y- only on active lower bounds.
+    y_up, y_lo = np.maximum(y, 0.0), np.maximum(-y, 0.0)
+    upper_gap = np.where(snap.u < 1e29, snap.u - Ax, np.inf)
+    lower_gap = np.where(snap.l > -1e29, Ax - snap.l, np.inf)
+    assert np.all(y_up[np.isinf(upper_gap)] <= tol * scale)
+    assert np.all(y_lo[np.isinf(lower_gap)] <= tol * scale)
+    fin_u, fin_l = np.isfinite(upper_gap), np.isfinite(lower_gap)
+    assert np.abs(y_up[fin_u] * upper_gap[fin_u]).max(initial=0.0) <= tol * scale
+    assert np.abs(y_lo[fin_l] * lower_gap[fin_l]).max(initial=0.0) <= tol * scale
+
+
+CASES = {
+    "on_demand_double": dict(collision_mode="on_demand", model="double"),
+    "on_demand_triple": dict(collision_mode="on_demand", model="triple"),
+    "bvc_double": dict(collision_mode="bvc", model="double"),
+    "bvc_triple_halt": dict(collision_mode="bvc", model="triple", terminal_halt=True),
+    "on_demand_formation_obstacles": dict(collision_mode="on_demand", max_obstacle_planes=2, terminal_halt=True),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_solution_satisfies_its_constraints_and_the_kkt_conditions(case: str) -> None:
+    cfg = DmpcConfig(max_neighbours=3, **CASES[case], **TIGHT)
+    problem = DmpcProblem(cfg)
+    x0 = _x0(cfg)
+    neighbours = [_hover_neighbour([2.0, 0.05, 1.5], 1), _hover_neighbour([1.0, 3.0, 1.5], 2)]
+    kwargs = {}
+    if "formation" in case:
+        kwargs = dict(formation_offsets={2: np.array([0.0, 2.0, 0.0])}, obstacles=[(np.array([0.0, 1.0, 0.0]), -0.3)])
+    # BVC needs collision-free previous plans (hover here); on demand, the constant-velocity
+    # guess (no previous plan) runs into neighbour 1, so a plane is built.
+    previous = DmpcPlan.hover(0.0, cfg.step_s, cfg.horizon_steps, x0[:3]) if cfg.collision_mode == "bvc" else None
+    result = problem.solve(x0, [4.0, 0.0, 1.5], neighbours, previous, t_now_s=0.0, **kwargs)
+    assert result.status == "solved"
+    assert result.n_collision_constraints >= 1
+    assert_kkt(problem.snapshot())
+    # The returned trajectory is the model's response to the returned inputs.
+    states = rollout(cfg.model, cfg.step_s, x0, result.inputs)
+    np.testing.assert_allclose(result.pos_world, states[1:, :3], atol=1e-9)
+    np.testing.assert_allclose(result.vel_world, states[1:, 3:6], atol=1e-9)
+    # Box limits.
+    tol = 1e-6
+    assert np.all(np.abs(result.vel_world) <= cfg.v_max + tol)
+    assert np.all(np.abs(result.acc_world) <= cfg.a_max + tol)
+    assert np.all(result.pos_world >= np.asarray(cfg.pos_min_world) - tol)
+    if cfg.model == "triple":
+        assert np.all(np.abs(result.inputs) <= cfg.j_max + tol)
+    if cfg.terminal_halt:
+        np.testing.assert_allclose(result.vel_world[-1], 0.0, atol=1e-6)
+    if "obstacles" in kwargs:
+        assert np.all(result.pos_world[:, 1] >= -0.3 - tol)
+    if cfg.collision_mode == "bvc":
+        # Previous plans 2 m apart: the midway plane keeps every sample >= (r_min + 2) / 2 away.
+        d = ellipsoidal_distance(result.pos_world - np.array([2.0, 0.05, 1.5]), cfg.downwash)
+        assert d.min() >= (cfg.r_min + 2.0) / 2 - 1e-6
+    else:
+        # Re-derive the on-demand plane independently and check the plan meets it (with its slack).
+        S, K, h = cfg.conflict_substeps, cfg.horizon_steps, cfg.step_s
+        t_fine = (h / S) * np.arange(1, K * S + 1)
+        own_guess = x0[:3] + x0[3:6] * t_fine[:, None]
+        nb = np.stack([n.position(t_fine) for n in neighbours])
+        cons = on_demand_constraints(own_guess, nb, cfg.r_min, cfg.downwash, cfg.conflict_margin_m, 3.0,
+                                     linearise_at=cfg.on_demand_time)  # fmt: skip
+        assert cons.count == result.n_collision_constraints
+        p = result.plan.position(t_fine[cons.time_index])
+        lhs = np.einsum("nd,nd->n", cons.normal, p) + result.slack
+        assert np.all(lhs >= cons.offset - 1e-6)
+        assert result.conflict_time_s == pytest.approx(t_fine[cons.step_index])
+
+
+def test_without_neighbours_the_plan_reaches_the_goal_and_stops() -> None:
+    cfg = DmpcConfig(terminal_halt=True, **TIGHT)
+    problem = DmpcProblem(cfg)
+    x0 = _x0(cfg, vel=(0.0, 0.0, 0.0))
+    result = problem.solve(x0, [1.0, -0.5, 2.0], [], None, t_now_s=3.0)
+    assert result.n_collision_constraints == 0 and np.isnan(result.conflict_time_s)
+    np.testing.assert_allclose(result.pos_world[-1], [1.0, -0.5, 2.0], atol=3e-2)  # goal vs smoothness trade-off
+    assert result.plan.t0_s == 3.0
+    np.testing.assert_allclose(result.plan.pos_world[0], x0[:3])
+    assert_kkt(problem.snapshot())
+
+
+def test_formation_term_pulls_towards_the_desired_offset() -> None:
+    cfg = DmpcConfig(weight_formation=1000.0, **TIGHT)
+    problem = DmpcProblem(cfg)
+    neighbour = _hover_neighbour([5.0, 5.0, 1.5], neighbor_id=7)
+    x0 = _x0(cfg, vel=(0.0, 0.0, 0.0))
+    free = problem.solve(x0, [0.0, 0.0, 1.5], [neighbour], None, t_now_s=0.0)
+    held = problem.solve(x0, [0.0, 0.0, 1.5], [neighbour], None, {7: np.array([3.0, 3.0, 0.0])}, t_now_s=0.0)
+    target = np.array([2.0, 2.0, 1.5])  # p_j - d_ij
+    assert np.linalg.norm(held.pos_world[-1] - target) < 0.5 * np.linalg.norm(free.pos_world[-1] - target)
+    assert_kkt(problem.snapshot())
+
+
+def test_sparsity_pattern_is_fixed_across_rounds() -> None:
+    for mode in ("on_demand", "bvc"):
+        cfg = DmpcConfig(collision_mode=mode, max_neighbours=3)
+        problem = DmpcProblem(cfg)
+        x0 = _x0(cfg, vel=(0.0, 0.0, 0.0))
+        problem.solve(x0, [4.0, 0, 1.5], [], None, t_now_s=0.0)
+        a0 = problem.snapshot().A
+        result = problem.solve(x0, [4.0, 0, 1.5], [_hover_neighbour([0.3, 0.0, 1.5])], None, t_now_s=0.0)
+        assert result.n_collision_constraints >= 1
+        a1 = problem.snapshot().A
+        assert a0.nnz == a1.nnz
+        np.testing.assert_array_equal(a0.indices, a1.indices)
+        np.testing.assert_array_equal(a0.indptr, a1.indptr)
+
+
+def test_infeasible_problem_raises_with_the_problem_attached() -> None:
+    cfg = DmpcConfig()
+    problem = DmpcProblem(cfg)
+    x0 = _x0(cfg, pos=(0.0, 0.0, -5.0), vel=(0.0, 0.0, 0.0))  # far below the box, cannot climb in time
+    with pytest.raises(DmpcSolveError) as info:
+        problem.solve(x0, [0.0, 0.0, 1.0], [], None, t_now_s=0.0)
+    assert "infeasible" in info.value.status
+    assert isinstance(info.value.snapshot, QpSnapshot) and info.value.snapshot.A.shape[1] == 45 + cfg.max_neighbours
+    # The caller falls back and the problem keeps working.
+    ok = problem.solve(_x0(cfg), [1.0, 0.0, 1.5], [], None, t_now_s=0.0)
+    assert ok.status == "solved"
+
+
+def test_bad_inputs_are_rejected() -> None:
+    cfg = DmpcConfig()
+    problem = DmpcProblem(cfg)
+    with pytest.raises(ValueError, match="x0"):
+        problem.solve(np.zeros(9), [0, 0, 1], [], None, t_now_s=0.0)
+    with pytest.raises(ValueError, match="max_obstacle_planes=0"):
+        problem.solve(_x0(cfg), [0, 0, 1], [], None, t_now_s=0.0, obstacles=[(np.array([1.0, 0, 0]), 0.0)])
+    limited = DmpcProblem(DmpcConfig(max_obstacle_planes=1))
+    plane = (np.array([1.0, 0, 0]), 0.0)
+    with pytest.raises(ValueError, match="max_obstacle_planes=1"):
+        limited.solve(_x0(cfg), [0, 0, 1], [], None, t_now_s=0.0, obstacles=[plane, plane])
+
+
+INVALID = [
+    ("horizon_steps", 1),
+    ("step_s", 0.0),
+    ("step_s", float("nan")),
+    ("model", "quadruple"),
+    ("goal_steps", 0),
+    ("goal_steps", 16),
+    ("weight_goal", -1.0),
+    ("weight_smoothness", -0.1),
+    ("weight_slack_quadratic", 0.0),
+    ("pos_min_world", (0.0, 0.0)),
+    ("pos_max_world", (-30.0, 0.0, 1.0)),
+    ("v_max", 0.0),
+    ("a_max", -4.0),
+    ("r_min", 0.0),
+    ("downwash", 0.5),
+    ("collision_mode", "voronoi"),
+    ("neighbourhood_factor", 0.5),
+    ("on_demand_time", "last"),
+    ("conflict_substeps", 0),
+    ("max_neighbours", 0),
+    ("max_obstacle_planes", -1),
+    ("terminal_halt", "yes"),
+    ("osqp_max_iter", 0),
+]
+
+
+@pytest.mark.parametrize(("field", "value"), INVALID)
+def test_invalid_parameters_are_rejected_with_a_one_line_message(field: str, value: object) -> None:
+    with pytest.raises(ValueError) as info:
+        DmpcConfig(**{field: value})
+    message = str(info.value)
+    assert "\n" not in message and field in message and ":" in message
+
+
+def test_defaults_follow_the_paper() -> None:
+    cfg = DmpcConfig()
+    assert (cfg.horizon_steps, cfg.step_s, cfg.a_max, cfg.neighbourhood_factor) == (15, 0.2, 4.0, 3.0)
+    assert dataclasses.is_dataclass(cfg) and cfg.state_dim == 6 and cfg.horizon_s == pytest.approx(3.0)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.r_min = 1.0  # type: ignore[misc]
