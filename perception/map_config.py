@@ -28,13 +28,20 @@ class MapConfig:
             the simulated camera's range).
         clear_invalid_m: range [m] up to which a ray through an invalid (NaN)
             pixel is cleared as free; 0 skips such rays. The simulated camera
-            reports NaN only for surfaces beyond ``max_range_m`` or nearer than
-            ``min_range_m``; a surface that near is inside the drone's own
-            collision radius (a collision has already happened), so clearing
-            loses nothing the planner could still act on, while it lets open
-            sky and open corridors become verified free (default 10 m; values
-            above ``max_range_m`` act as ``max_range_m``). Set 0 for a sensor
-            whose NaNs also mean dropouts.
+            reports NaN for surfaces beyond ``max_range_m`` (open sky, open
+            corridors: clearing lets them become verified free), for surfaces
+            nearer than ``min_range_m`` (inside the drone's own collision
+            radius: a collision has already happened, clearing loses nothing
+            the planner could still act on) and for random stereo holes
+            (``sim.camera.CameraConfig.invalid_pixel_fraction``). A hole must
+            not clear through the surface around it, so a NaN ray is cleared
+            only up to the nearest valid depth within
+            ``invalid_neighborhood_px`` pixels, less one voxel (default 10 m;
+            values above ``max_range_m`` act as ``max_range_m``).
+        invalid_neighborhood_px: half-width [px] of the square neighbourhood
+            whose nearest valid depth bounds the clearing of a NaN pixel
+            (default 3, i.e. 7 x 7 px: an isolated hole of up to 6 px is never
+            cleared through; 0 clears every NaN ray to ``clear_invalid_m``).
         pixel_stride: integrate every ``pixel_stride``-th pixel in u and v
             (1 = full resolution; default 2, i.e. a quarter of the rays; at
             0.15 m voxels and 320 x 240 px the skipped rays are redundant beyond
@@ -59,6 +66,7 @@ class MapConfig:
     min_range_m: float = 0.2
     max_range_m: float = 10.0
     clear_invalid_m: float = 10.0
+    invalid_neighborhood_px: int = 3
     pixel_stride: int = 2
     detection_margin_px: int = 4
     log_odds_hit: float = 0.847
@@ -80,6 +88,8 @@ class MapConfig:
             raise ValueError(f"max_range_m={self.max_range_m!r}: allowed finite > min_range_m")
         if not (np.isfinite(self.clear_invalid_m) and self.clear_invalid_m >= 0.0):
             raise ValueError(f"clear_invalid_m={self.clear_invalid_m!r}: allowed finite >= 0 (0 = skip invalid pixels)")
+        if not (isinstance(self.invalid_neighborhood_px, (int, np.integer)) and self.invalid_neighborhood_px >= 0):
+            raise ValueError(f"invalid_neighborhood_px={self.invalid_neighborhood_px!r}: allowed integer >= 0")
         if not (isinstance(self.pixel_stride, (int, np.integer)) and self.pixel_stride >= 1):
             raise ValueError(f"pixel_stride={self.pixel_stride!r}: allowed integer >= 1")
         if not (isinstance(self.detection_margin_px, (int, np.integer)) and self.detection_margin_px >= 0):

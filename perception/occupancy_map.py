@@ -13,10 +13,11 @@ section 4, perception: "Map"):
 3. each ray camera -> ``p_w`` is traversed voxel by voxel (Amanatides & Woo
    1987, compiled with numba): the voxels it passes through get a miss, the
    voxel of a valid end point (``min_range_m <= d <= max_range_m``) a hit.
-   Readings beyond ``max_range_m`` and invalid (NaN) pixels clear their ray up
-   to ``max_range_m`` / ``clear_invalid_m`` without a hit (see
-   :class:`MapConfig` for why NaN may be cleared); readings nearer than
-   ``min_range_m`` are skipped;
+   Readings beyond ``max_range_m`` clear their ray up to ``max_range_m``
+   without a hit; invalid (NaN) pixels clear theirs up to ``clear_invalid_m``
+   but never beyond the nearest valid depth around them (a stereo hole does
+   not see through the surface it sits in; see :class:`MapConfig`); readings
+   nearer than ``min_range_m`` are skipped;
 4. within one frame a voxel is updated once, and a hit wins over a miss
    (OctoMap's rule), so a wall seen at grazing angles is not eroded by the
    rays that pass next to it; the log-odds ``l`` is updated
@@ -41,6 +42,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from numba import njit
+from scipy.ndimage import minimum_filter
 
 from perception.esdf import compute_esdf
 from perception.map_config import MapConfig
@@ -158,8 +160,14 @@ class OccupancyMap:
         finite = np.isfinite(d)
         hit = finite & (d >= cfg.min_range_m) & (d <= cfg.max_range_m)
         far = finite & (d > cfg.max_range_m)
-        clear_nan = min(cfg.clear_invalid_m, cfg.max_range_m)
-        nan_ray = ~finite if clear_nan > 0.0 else np.zeros_like(finite)
+        clear_nan = np.full(d.shape, min(cfg.clear_invalid_m, cfg.max_range_m))
+        if cfg.invalid_neighborhood_px > 0 and not finite.all():
+            # a hole in a surface clears only up to the surface around it, less one voxel
+            near = minimum_filter(
+                np.where(np.isfinite(depth_m), depth_m, np.inf), size=2 * cfg.invalid_neighborhood_px + 1, mode="nearest"
+            )[np.ix_(v_px, u_px)]
+            clear_nan = np.minimum(clear_nan, near - cfg.voxel_m)
+        nan_ray = ~finite & (clear_nan > cfg.voxel_m)
         use = keep & (hit | far | nan_ray)
         depth_end = np.where(hit, d, np.where(far, cfg.max_range_m, clear_nan))[use]
         K_inv = np.linalg.inv(np.asarray(frame.K, float))

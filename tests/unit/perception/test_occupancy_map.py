@@ -138,6 +138,23 @@ def test_invalid_pixels_are_cleared_only_when_configured(wall_scene) -> None:
     assert skipped.snapshot().state_at(probe[None])[0] == -1
 
 
+def test_stereo_holes_do_not_clear_through_the_wall(wall_scene) -> None:
+    K, T, depth = wall_scene
+    holes = np.random.default_rng(3).random(depth.shape) < 0.1  # 10 % random dropouts
+    holey = np.where(holes, np.nan, depth).astype(np.float32)
+    rays = pixel_rays_world(K, T)
+    v, u = np.meshgrid(np.arange(60, 180, 5), np.arange(80, 240, 5), indexing="ij")
+    behind = (CAM_POS + (depth[v, u] + 0.6)[..., None] * rays[v, u]).reshape(-1, 3)
+    guarded = OccupancyMap()
+    guarded.update(make_frame(K, T, holey))
+    naive = OccupancyMap(MapConfig(invalid_neighborhood_px=0))
+    naive.update(make_frame(K, T, holey))
+    inside = guarded.snapshot().contains(behind)
+    assert np.all(guarded.snapshot().state_at(behind[inside]) == -1)
+    assert np.all(guarded.snapshot().state_at(wall_voxel_centres(K, T, margin_px=8)) == 1)
+    assert np.any(naive.snapshot().state_at(behind[inside]) == 0)  # without the guard holes see through
+
+
 def test_detection_box_keeps_its_voxels_from_becoming_occupied(wall_scene) -> None:
     K, T, depth = wall_scene
     box = np.array([120.0, 80.0, 200.0, 160.0])
@@ -221,7 +238,8 @@ def test_snapshot_is_cached_and_read_only(wall_scene) -> None:
 @pytest.mark.parametrize(
     ("field", "value"),
     [("voxel_m", 0.05), ("window_size_m", (10.0, 10.0, 0.1)), ("pixel_stride", 0), ("log_odds_miss", 0.2),
-     ("min_range_m", 20.0), ("esdf_max_m", 0.0), ("clear_invalid_m", -1.0)],
+     ("min_range_m", 20.0), ("esdf_max_m", 0.0), ("clear_invalid_m", -1.0),
+     ("invalid_neighborhood_px", -1)],
 )
 def test_map_config_rejects_bad_values(field: str, value: object) -> None:
     with pytest.raises(ValueError, match=f"^{field}="):
