@@ -101,6 +101,7 @@ def adapt_acc_cov_batch(
     dt_s: np.ndarray,
     alpha: float,
     acc_var_max: float,
+    scale: float = 1.0,
 ) -> np.ndarray:
     """Adaptive acceleration covariance by covariance matching, MP-CDE Eq. 11 (reading in the module doc).
 
@@ -118,6 +119,7 @@ def adapt_acc_cov_batch(
         dt_s: (n,) time since the previous update [s], > 0.
         alpha: EMA factor (MP-CDE Table I: 0.3).
         acc_var_max: cap on the trace of ``A_hat`` [m^2/s^4].
+        scale: factor ``c`` on ``A_hat`` [-] (``TrackerConfig.adapt_scale``).
 
     Returns:
         (n, 3, 3) the smoothed ``A_k``.
@@ -130,7 +132,7 @@ def adapt_acc_cov_batch(
     q = np.einsum("ni,ni->n", innovation, np.linalg.solve(M, innovation[..., None])[..., 0])  # q = nu^T M^-1 nu
     w = (gain[:, 3:, :] @ innovation[..., None])[..., 0]  # w = K_v nu
     # D+ = max(0, 1 - 1/q) nu nu^T  (Eq. 11: [nu nu^T - H F P F^T H^T - R]_+);  A_hat = K_v D+ K_v^T / dt^2
-    coef = np.maximum(0.0, 1.0 - 1.0 / np.maximum(q, 1e-300)) / (dt * dt)
+    coef = scale * np.maximum(0.0, 1.0 - 1.0 / np.maximum(q, 1e-300)) / (dt * dt)
     tr = coef * np.einsum("ni,ni->n", w, w)
     coef = np.where(tr > acc_var_max, acc_var_max / np.maximum(tr, 1e-300), 1.0) * coef  # cap trace(A_hat)
     A_hat = coef[:, None, None] * (w[:, :, None] * w[:, None, :])
@@ -204,6 +206,8 @@ class KalmanCV:
             (stays zero unless ``adaptive``).
         time_s: time [s] of the current state.
         last_update_s: time [s] of the last measurement update (or of birth).
+        n_updates: measurements absorbed so far, the birth one included; the
+            adaptation runs from the update at which ``n_updates >= adapt_after``.
     """
 
     def __init__(
@@ -216,6 +220,8 @@ class KalmanCV:
         adaptive: bool,
         alpha: float = 0.3,
         sigma_acc_max_mps2: float = 20.0,
+        adapt_scale: float = 1.0,
+        adapt_after: int = 1,
     ) -> None:
         """Start a track at ``pos_world`` (3,) [m] with covariance ``pos_cov_world`` (3, 3) and zero velocity."""
         self.kf = KalmanFilter(dim_x=6, dim_z=3)
@@ -232,6 +238,9 @@ class KalmanCV:
         self.sigma_acc_max_mps2 = float(sigma_acc_max_mps2)
         self.adaptive = bool(adaptive)
         self.alpha = float(alpha)
+        self.adapt_scale = float(adapt_scale)
+        self.adapt_after = int(adapt_after)
+        self.n_updates = 1  # the birth measurement
         self.time_s = float(time_s)
         self.last_update_s = float(time_s)
 
@@ -260,7 +269,7 @@ class KalmanCV:
         """Correct with a measured position ``pos_world`` (3,) [m] of covariance ``cov_world`` (3, 3) (Eq. 10-11)."""
         P_prev_post = self.kf.P_post.copy()
         self.kf.update(np.asarray(pos_world, float).reshape(3, 1), R=np.asarray(cov_world, float))
-        if self.adaptive:
+        if self.adaptive and self.n_updates >= self.adapt_after:
             dt = self.time_s - self.last_update_s
             if dt > 0:
                 self.acc_cov = adapt_acc_cov_batch(
@@ -272,5 +281,7 @@ class KalmanCV:
                     np.array([dt]),
                     self.alpha,
                     self.sigma_acc_max_mps2**2,
+                    self.adapt_scale,
                 )[0]
         self.last_update_s = self.time_s
+        self.n_updates += 1

@@ -10,7 +10,8 @@ MP-CDE Sec. IV-B. Each frame (25 Hz) the tracker
    distance ``d2 = nu^T S^-1 nu``, ``S = H P^- H^T + R``; pairs with
    ``d2 > gate_chi2`` cost a large constant and are rejected after assignment;
 3. updates matched tracks (Eq. 10, adaptive Q by Eq. 11 for ``"akf"``);
-4. births a ``tentative`` track from every unmatched measurement; a track with
+4. births a ``tentative`` track from every unmatched measurement farther
+   than ``birth_gate_chi2`` from every live track; a track with
    ``confirm_hits`` associated measurements is ``confirmed``; a confirmed track
    unseen for more than ``t_hold_s`` is ``coasting``; any track unseen for more
    than ``t_drop_s`` (tentative: ``tentative_drop_s``) is pruned.
@@ -134,20 +135,23 @@ class _NumpyBank:
         acc = self.acc_cov + self.cfg.sigma_acc_mps2**2 * np.eye(3)
         self.x, self.P = predict_batch(self.x, self.P, dt_s, acc, extra_cov)
 
-    def update(self, idx: np.ndarray, z: np.ndarray, R: np.ndarray, time_s: float, S_inv: np.ndarray) -> None:
+    def update(
+        self, idx: np.ndarray, z: np.ndarray, R: np.ndarray, time_s: float, S_inv: np.ndarray, adapt: np.ndarray
+    ) -> None:
         x_post, P_post, y, K = update_batch(self.x[idx], self.P[idx], z, R, S_inv)
         if self.cfg.adaptive:
             dt = time_s - self.last_update_s[idx]
-            ok = dt > 0
+            ok = (dt > 0) & adapt
             if ok.all():
                 self.acc_cov[idx] = adapt_acc_cov_batch(
-                    self.acc_cov[idx], y, K, self.P_post[idx], R, dt, self.cfg.alpha_ema, self.cfg.sigma_acc_max_mps2**2
-                )
+                    self.acc_cov[idx], y, K, self.P_post[idx], R, dt,
+                    self.cfg.alpha_ema, self.cfg.sigma_acc_max_mps2**2, self.cfg.adapt_scale,
+                )  # fmt: skip
             elif ok.any():
                 sel = idx[ok]
                 self.acc_cov[sel] = adapt_acc_cov_batch(
                     self.acc_cov[sel], y[ok], K[ok], self.P_post[sel], R[ok], dt[ok],
-                    self.cfg.alpha_ema, self.cfg.sigma_acc_max_mps2**2,
+                    self.cfg.alpha_ema, self.cfg.sigma_acc_max_mps2**2, self.cfg.adapt_scale,
                 )  # fmt: skip
         self.x[idx], self.P[idx], self.P_post[idx] = x_post, P_post, P_post
         self.last_update_s[idx] = time_s
@@ -189,7 +193,9 @@ class _FilterpyBank:
         for i, f in enumerate(self.filters):
             f.predict(f.time_s + dt_s, None if extra_cov is None else extra_cov[i])
 
-    def update(self, idx: np.ndarray, z: np.ndarray, R: np.ndarray, time_s: float, S_inv: np.ndarray) -> None:
+    def update(
+        self, idx: np.ndarray, z: np.ndarray, R: np.ndarray, time_s: float, S_inv: np.ndarray, adapt: np.ndarray
+    ) -> None:
         for j, i in enumerate(idx):
             self.filters[i].update(z[j], R[j])
 
@@ -197,7 +203,7 @@ class _FilterpyBank:
         c = self.cfg
         for zj, Rj in zip(z, R):
             self.filters.append(
-                KalmanCV(zj, Rj, time_s, c.init_vel_std_mps, c.sigma_acc_mps2, c.adaptive, c.alpha_ema, c.sigma_acc_max_mps2)
+                KalmanCV(zj, Rj, time_s, c.init_vel_std_mps, c.sigma_acc_mps2, c.adaptive, c.alpha_ema, c.sigma_acc_max_mps2, c.adapt_scale, c.adapt_after_hits)
             )
 
     def keep(self, mask: np.ndarray) -> None:
@@ -275,6 +281,7 @@ class MultiTargetTracker:
         R = np.array([mm.cov_world for mm in measurements], float).reshape(m, 3, 3)
 
         rows = cols = np.zeros(0, dtype=np.int64)
+        unmatched = np.ones(m, dtype=bool)
         if n and m:
             x, P = self._bank.states()
             nu = z[None, :, :] - x[:, None, :3]  # (n, m, 3) nu = z - H x
@@ -284,8 +291,10 @@ class MultiTargetTracker:
             rows, cols = linear_sum_assignment(cost)
             ok = d2[rows, cols] <= cfg.gate_chi2
             rows, cols = rows[ok], cols[ok]
+            unmatched &= ~np.any(d2 <= cfg.birth_gate_chi2, axis=0)  # no births near live tracks
         if rows.size:
-            self._bank.update(rows, z[cols], R[cols], t, S_inv[rows, cols])  # Eq. 10-11
+            adapt = self._hits[rows] >= cfg.adapt_after_hits
+            self._bank.update(rows, z[cols], R[cols], t, S_inv[rows, cols], adapt)  # Eq. 10-11
             self._hits[rows] += 1
             self._last_seen_s[rows] = t
             self._confirmed[rows] |= self._hits[rows] >= cfg.confirm_hits
@@ -299,7 +308,6 @@ class MultiTargetTracker:
             self._ids, self._hits = self._ids[keep], self._hits[keep]
             self._last_seen_s, self._confirmed = self._last_seen_s[keep], self._confirmed[keep]
 
-        unmatched = np.ones(m, dtype=bool)
         unmatched[cols] = False
         born = np.flatnonzero(unmatched)
         if born.size:
