@@ -25,7 +25,8 @@ The gradient by ``T_i`` collects the growth of the sample spacing, the motion of
 the sample along the piece, and (swarm term only) the dependence of the
 neighbour's position and radius on the absolute sample time, which moves with
 every ``T_k``, ``k <= i``. The kernels are numba-compiled; the distance field is
-called once per evaluation on all samples.
+called once per evaluation on all samples (an ``OccupancySnapshot`` is read
+directly by a compiled copy of its trilinear interpolation, tested equal to it).
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from perception.types import DistanceField, NeighborPrediction
+from perception.types import DistanceField, NeighborPrediction, OccupancySnapshot
 
 __all__ = ["NeighborTable", "PenaltyParameters", "PenaltyTerms", "TrajectoryCost"]
 
@@ -69,11 +70,11 @@ class PenaltyParameters:
     swarm_z_scale: float = 2.0
     clearance_margin_m: float = 0.1
     uncertainty_sigma: float = 1.0
-    max_uncertainty_inflation_m: float = 1.0
-    weight_vel: float = 1.0e4
-    weight_acc: float = 1.0e4
-    weight_obstacle: float = 1.0e4
-    weight_swarm: float = 1.0e4
+    max_uncertainty_inflation_m: float = 0.5
+    weight_vel: float = 1.0e5
+    weight_acc: float = 1.0e5
+    weight_obstacle: float = 1.0e5
+    weight_swarm: float = 1.0e5
     samples_per_piece: int = 16
 
     def __post_init__(self) -> None:
@@ -176,19 +177,59 @@ def _sample_positions(coeffs, T, K):
 
 
 @njit(cache=True)
-def _neighbor_state(ts, ps, vs, lo, hi, t, out_p, out_v):
-    """Cubic Hermite position and its time derivative of one neighbour (NeighborPrediction.position)."""
-    if t <= ts[lo] or hi - lo == 1:
+def _grid_trilinear(field, origin, voxel_m, pts):
+    """Trilinear ESDF value (n,) and gradient (n, 3) on a voxel-centre grid, as OccupancySnapshot computes it."""
+    n = pts.shape[0]
+    nx, ny, nz = field.shape
+    dims = (nx, ny, nz)
+    d = np.empty(n)
+    g = np.zeros((n, 3))
+    i0 = np.empty(3, np.int64)
+    fr = np.empty(3)
+    inside = np.empty(3, np.bool_)
+    for k in range(n):
+        for a in range(3):
+            c = (pts[k, a] - origin[a]) / voxel_m - 0.5  # continuous index of the voxel-centre lattice
+            cc = min(max(c, 0.0), dims[a] - 1.0)
+            inside[a] = c == cc
+            i0[a] = min(int(np.floor(cc)), dims[a] - 2)
+            fr[a] = cc - i0[a]
+        x0, y0, z0 = i0[0], i0[1], i0[2]
+        fx, fy, fz = fr[0], fr[1], fr[2]
+        c000, c100 = field[x0, y0, z0], field[x0 + 1, y0, z0]
+        c010, c110 = field[x0, y0 + 1, z0], field[x0 + 1, y0 + 1, z0]
+        c001, c101 = field[x0, y0, z0 + 1], field[x0 + 1, y0, z0 + 1]
+        c011, c111 = field[x0, y0 + 1, z0 + 1], field[x0 + 1, y0 + 1, z0 + 1]
+        c00 = c000 + fx * (c100 - c000)
+        c10 = c010 + fx * (c110 - c010)
+        c01 = c001 + fx * (c101 - c001)
+        c11 = c011 + fx * (c111 - c011)
+        c0 = c00 + fy * (c10 - c00)
+        c1 = c01 + fy * (c11 - c01)
+        d[k] = c0 + fz * (c1 - c0)
+        if inside[0]:
+            g[k, 0] = (
+                (1 - fy) * (1 - fz) * (c100 - c000)
+                + fy * (1 - fz) * (c110 - c010)
+                + (1 - fy) * fz * (c101 - c001)
+                + fy * fz * (c111 - c011)
+            ) / voxel_m
+        if inside[1]:
+            g[k, 1] = ((1 - fz) * (c10 - c00) + fz * (c11 - c01)) / voxel_m
+        if inside[2]:
+            g[k, 2] = (c1 - c0) / voxel_m
+    return d, g
+
+
+@njit(cache=True)
+def _neighbor_state(ts, ps, vs, lo, hi, t):
+    """Cubic Hermite position (px, py, pz) and its time derivative (vx, vy, vz) of one neighbour,
+    as NeighborPrediction.position (constant velocity outside the samples)."""
+    if t <= ts[lo] or t >= ts[hi - 1]:
         k = lo if t <= ts[lo] else hi - 1
-        for d in range(3):
-            out_p[d] = ps[k, d] + vs[k, d] * (t - ts[k])
-            out_v[d] = vs[k, d]
-        return
-    if t >= ts[hi - 1]:
-        for d in range(3):
-            out_p[d] = ps[hi - 1, d] + vs[hi - 1, d] * (t - ts[hi - 1])
-            out_v[d] = vs[hi - 1, d]
-        return
+        dt = t - ts[k]
+        return (ps[k, 0] + vs[k, 0] * dt, ps[k, 1] + vs[k, 1] * dt, ps[k, 2] + vs[k, 2] * dt,
+                vs[k, 0], vs[k, 1], vs[k, 2])  # fmt: skip
     i = lo
     while ts[i + 1] < t:
         i += 1
@@ -198,16 +239,22 @@ def _neighbor_state(ts, ps, vs, lo, hi, t, out_p, out_v):
     s3 = s2 * s
     h00, h10, h01, h11 = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2
     d00, d10, d01, d11 = 6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s
-    for d in range(3):
-        out_p[d] = h00 * ps[i, d] + h10 * h * vs[i, d] + h01 * ps[i + 1, d] + h11 * h * vs[i + 1, d]
-        out_v[d] = (d00 * ps[i, d] + d01 * ps[i + 1, d]) / h + d10 * vs[i, d] + d11 * vs[i + 1, d]
+    p0 = h00 * ps[i, 0] + h10 * h * vs[i, 0] + h01 * ps[i + 1, 0] + h11 * h * vs[i + 1, 0]
+    p1 = h00 * ps[i, 1] + h10 * h * vs[i, 1] + h01 * ps[i + 1, 1] + h11 * h * vs[i + 1, 1]
+    p2 = h00 * ps[i, 2] + h10 * h * vs[i, 2] + h01 * ps[i + 1, 2] + h11 * h * vs[i + 1, 2]
+    v0 = (d00 * ps[i, 0] + d01 * ps[i + 1, 0]) / h + d10 * vs[i, 0] + d11 * vs[i + 1, 0]
+    v1 = (d00 * ps[i, 1] + d01 * ps[i + 1, 1]) / h + d10 * vs[i, 1] + d11 * vs[i + 1, 1]
+    v2 = (d00 * ps[i, 2] + d01 * ps[i + 1, 2]) / h + d10 * vs[i, 2] + d11 * vs[i + 1, 2]
+    return p0, p1, p2, v0, v1, v2
 
 
 @njit(cache=True)
 def _penalty_kernel(
-    coeffs, T, K, t0, prm, dist, dist_grad, use_field, nb_t, nb_p, nb_v, nb_off, nb_tlast, nb_cov, gdc, gdt, out
+    coeffs, T, K, t0, prm, dist, dist_grad, use_field, nb_t, nb_p, nb_v, nb_off, nb_tlast, nb_cov, gdc, gdt, out, stats
 ):
     """Add the penalty partial gradients to gdc (6M, 3), gdt (M,); write terms and statistics to out (8,).
+
+    With ``stats`` False the minimum swarm margin (out[7]) is not recorded, which lets far samples skip early.
 
     prm = (v_max, a_max, C_o + margin, C_s + margin, 1/c, n_sigma, r_max, w_v, w_a, w_o, w_s).
     """
@@ -217,9 +264,8 @@ def _penalty_kernel(
     n_nb = nb_tlast.shape[0]
     vmax2 = v_max * v_max
     amax2 = a_max * a_max
+    far2 = (c_sw + r_max) * (c_sw + r_max)
     piece_tgrad = np.zeros(m)
-    pn = np.empty(3)
-    vn = np.empty(3)
     pos = np.empty(3)
     vel = np.empty(3)
     acc = np.empty(3)
@@ -228,15 +274,13 @@ def _penalty_kernel(
     g_v = np.empty(3)
     g_a = np.empty(3)
     beta0 = np.empty(6)
-    beta1 = np.empty(6)
-    beta2 = np.empty(6)
-    for k in range(8):
-        out[k] = 0.0
-    out[6] = np.inf
-    out[7] = np.inf
+    f_vel = f_acc = f_obs = f_sw = 0.0
+    max_v2 = max_a2 = 0.0
+    min_dist = min_margin = np.inf
     t_start = t0
     for i in range(m):
         step = T[i] / K
+        r0 = 6 * i
         for j in range(K + 1):
             s1 = j * step
             alpha = j / K
@@ -244,99 +288,107 @@ def _penalty_kernel(
             beta0[0] = 1.0
             for r in range(1, 6):
                 beta0[r] = beta0[r - 1] * s1
-            beta1[0] = 0.0
-            beta2[0] = 0.0
-            beta2[1] = 0.0
-            for r in range(1, 6):
-                beta1[r] = r * beta0[r - 1]
-            for r in range(2, 6):
-                beta2[r] = r * (r - 1) * beta0[r - 2]
             for d in range(3):
-                c = coeffs[6 * i : 6 * i + 6, d]
-                pos[d] = c[0] + s1 * (c[1] + s1 * (c[2] + s1 * (c[3] + s1 * (c[4] + s1 * c[5]))))
-                vel[d] = c[1] + s1 * (2 * c[2] + s1 * (3 * c[3] + s1 * (4 * c[4] + s1 * 5 * c[5])))
-                acc[d] = 2 * c[2] + s1 * (6 * c[3] + s1 * (12 * c[4] + s1 * 20 * c[5]))
-                jer[d] = 6 * c[3] + s1 * (24 * c[4] + s1 * 60 * c[5])
+                c0, c1, c2 = coeffs[r0, d], coeffs[r0 + 1, d], coeffs[r0 + 2, d]
+                c3, c4, c5 = coeffs[r0 + 3, d], coeffs[r0 + 4, d], coeffs[r0 + 5, d]
+                pos[d] = c0 + s1 * (c1 + s1 * (c2 + s1 * (c3 + s1 * (c4 + s1 * c5))))
+                vel[d] = c1 + s1 * (2.0 * c2 + s1 * (3.0 * c3 + s1 * (4.0 * c4 + s1 * 5.0 * c5)))
+                acc[d] = 2.0 * c2 + s1 * (6.0 * c3 + s1 * (12.0 * c4 + s1 * 20.0 * c5))
+                jer[d] = 6.0 * c3 + s1 * (24.0 * c4 + s1 * 60.0 * c5)
                 g_p[d] = 0.0
                 g_v[d] = 0.0
                 g_a[d] = 0.0
             node = 0.0
-            g_t = 0.0  # d node / d t_abs (explicit)
+            g_t = 0.0  # d node / d t_abs (explicit time dependence, swarm term)
             v2 = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]
             a2 = acc[0] * acc[0] + acc[1] * acc[1] + acc[2] * acc[2]
-            out[4] = max(out[4], np.sqrt(v2))
-            out[5] = max(out[5], np.sqrt(a2))
+            max_v2 = max(max_v2, v2)
+            max_a2 = max(max_a2, a2)
             viol = v2 - vmax2  # ||v||^2 - v_max^2
             if viol > 0.0 and w_v > 0.0:
                 pen = w_v * viol * viol * viol
                 node += pen
-                out[0] += omg * step * pen
+                f_vel += omg * step * pen
+                gv = w_v * 6.0 * viol * viol
                 for d in range(3):
-                    g_v[d] += w_v * 3.0 * viol * viol * 2.0 * vel[d]
+                    g_v[d] += gv * vel[d]
             viol = a2 - amax2  # ||a||^2 - a_max^2
             if viol > 0.0 and w_a > 0.0:
                 pen = w_a * viol * viol * viol
                 node += pen
-                out[1] += omg * step * pen
+                f_acc += omg * step * pen
+                gv = w_a * 6.0 * viol * viol
                 for d in range(3):
-                    g_a[d] += w_a * 3.0 * viol * viol * 2.0 * acc[d]
+                    g_a[d] += gv * acc[d]
             if use_field:
                 idx = i * (K + 1) + j
-                if not dist[idx] == dist[idx]:  # NaN from the field poisons the cost (the optimiser raises)
-                    out[2] = np.nan
-                out[6] = min(out[6], dist[idx])
-                viol = c_obs - dist[idx]  # (C_o + margin) - d(p)
+                dist_k = dist[idx]
+                if not dist_k == dist_k:  # NaN from the field poisons the cost (the optimiser raises)
+                    f_obs = np.nan
+                min_dist = min(min_dist, dist_k)
+                viol = c_obs - dist_k  # (C_o + margin) - d(p)
                 if viol > 0.0 and w_o > 0.0:
                     pen = w_o * viol * viol * viol
                     node += pen
-                    out[2] += omg * step * pen
+                    f_obs += omg * step * pen
+                    gv = w_o * 3.0 * viol * viol
                     for d in range(3):
-                        g_p[d] -= w_o * 3.0 * viol * viol * dist_grad[idx, d]
+                        g_p[d] -= gv * dist_grad[idx, d]
             t_abs = t_start + s1
             for n in range(n_nb):
-                _neighbor_state(nb_t, nb_p, nb_v, nb_off[n], nb_off[n + 1], t_abs, pn, vn)
+                px, py, pz, vx, vy, vz = _neighbor_state(nb_t, nb_p, nb_v, nb_off[n], nb_off[n + 1], t_abs)
+                dx = pos[0] - px
+                dy = pos[1] - py
+                dz = pos[2] - pz
+                ell2 = dx * dx + dy * dy + dz * dz * inv_c  # ||E^{1/2}(p - p_n)||^2
+                if ell2 >= far2 and not stats:  # beyond C_s + margin + r_max: no penalty, nothing to record
+                    continue
                 dt = t_abs - nb_tlast[n]
                 r = 0.0
                 dr = 0.0
-                if dt > 0.0 and n_sig > 0.0:
-                    tr = nb_cov[n, 0] + nb_cov[n, 1] * dt + nb_cov[n, 2] * dt * dt
-                    if tr > 0.0:
-                        r = n_sig * np.sqrt(tr)  # r_n = n_sigma sqrt(tr P_pos(t))
-                        dr = n_sig * (nb_cov[n, 1] + 2.0 * nb_cov[n, 2] * dt) / (2.0 * np.sqrt(tr))
-                elif n_sig > 0.0:
-                    r = n_sig * np.sqrt(max(nb_cov[n, 0], 0.0))
-                if r > r_max:
-                    r = r_max
-                    dr = 0.0
-                dx = pos[0] - pn[0]
-                dy = pos[1] - pn[1]
-                dz = pos[2] - pn[2]
-                ell2 = dx * dx + dy * dy + dz * dz * inv_c  # ||E^{1/2}(p - p_n)||^2
-                out[7] = min(out[7], np.sqrt(ell2) - r)
+                if n_sig > 0.0:
+                    if dt > 0.0:
+                        tr = nb_cov[n, 0] + nb_cov[n, 1] * dt + nb_cov[n, 2] * dt * dt
+                        if tr > 0.0:
+                            sq = np.sqrt(tr)
+                            r = n_sig * sq  # r_n = n_sigma sqrt(tr P_pos(t))
+                            dr = n_sig * (nb_cov[n, 1] + 2.0 * nb_cov[n, 2] * dt) / (2.0 * sq)
+                    else:
+                        r = n_sig * np.sqrt(max(nb_cov[n, 0], 0.0))
+                    if r > r_max:
+                        r = r_max
+                        dr = 0.0
+                if stats:
+                    min_margin = min(min_margin, np.sqrt(ell2) - r)
                 clr = c_sw + r
                 viol = clr * clr - ell2  # MP-CDE Eq. 16
                 if viol > 0.0 and w_s > 0.0:
                     pen = w_s * viol * viol * viol
                     node += pen
-                    out[3] += omg * step * pen
+                    f_sw += omg * step * pen
                     gv = w_s * 3.0 * viol * viol
                     g_p[0] -= gv * 2.0 * dx
                     g_p[1] -= gv * 2.0 * dy
                     g_p[2] -= gv * 2.0 * dz * inv_c
                     # d viol / d t_abs = 2 clr dr/dt + 2 (E d) . v_n
-                    g_t += gv * (2.0 * clr * dr + 2.0 * (dx * vn[0] + dy * vn[1] + dz * inv_c * vn[2]))
+                    g_t += gv * (2.0 * clr * dr + 2.0 * (dx * vx + dy * vy + dz * inv_c * vz))
             if node == 0.0 and g_t == 0.0:
                 continue
             w = omg * step
             for r in range(6):
+                b0 = beta0[r]
+                b1 = r * beta0[r - 1] if r >= 1 else 0.0
+                b2 = r * (r - 1) * beta0[r - 2] if r >= 2 else 0.0
                 for d in range(3):
-                    gdc[6 * i + r, d] += w * (beta0[r] * g_p[d] + beta1[r] * g_v[d] + beta2[r] * g_a[d])
+                    gdc[r0 + r, d] += w * (b0 * g_p[d] + b1 * g_v[d] + b2 * g_a[d])
             chain = g_p[0] * vel[0] + g_p[1] * vel[1] + g_p[2] * vel[2]
             chain += g_v[0] * acc[0] + g_v[1] * acc[1] + g_v[2] * acc[2]
             chain += g_a[0] * jer[0] + g_a[1] * jer[1] + g_a[2] * jer[2]
             gdt[i] += omg * node / K + w * alpha * (chain + g_t)
             piece_tgrad[i] += w * g_t
         t_start += T[i]
+    out[0], out[1], out[2], out[3] = f_vel, f_acc, f_obs, f_sw
+    out[4], out[5], out[6], out[7] = np.sqrt(max_v2), np.sqrt(max_a2), min_dist, min_margin
     acc_t = 0.0  # t_abs of piece i moves with every T_k, k < i
     for i in range(m - 1, 0, -1):
         acc_t += piece_tgrad[i]
@@ -364,6 +416,15 @@ class TrajectoryCost:
         self.t0_s = float(t0_s)
         self.distance_field = distance_field
         self.neighbors = NeighborTable(list(neighbors))
+        #: (distance (nx, ny, nz) float64 [m], origin (3,) [m], voxel [m]) when the field is an
+        #: OccupancySnapshot: its trilinear ESDF is then evaluated by a compiled kernel (same formula)
+        self.grid = None
+        if isinstance(distance_field, OccupancySnapshot):
+            self.grid = (
+                np.ascontiguousarray(distance_field.distance_m, dtype=np.float64),
+                np.ascontiguousarray(distance_field.origin_world, dtype=np.float64),
+                float(distance_field.voxel_m),
+            )
         p = params
         #: (11,) kernel parameters (v_max, a_max, C_o + margin, C_s + margin, 1/c, n_sigma, r_max, w_v, w_a, w_o, w_s)
         self.parameter_vector = np.array(
@@ -389,14 +450,19 @@ class TrajectoryCost:
         """(M (K+1), 3) sample positions [m] for coefficients (6M, 3) and durations (M,) [s]."""
         return _sample_positions(coeffs, durations, self.params.samples_per_piece)
 
+    def distance_and_gradient(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Field distance (n,) [m] and gradient (n, 3) at ``points_world`` (n, 3); requires a field."""
+        if self.grid is not None:
+            return _grid_trilinear(self.grid[0], self.grid[1], self.grid[2], points_world)
+        d, gd = self.distance_field.distance_and_gradient(points_world)
+        return np.ascontiguousarray(d, dtype=float), np.ascontiguousarray(gd, dtype=float)
+
     def accumulate(self, coeffs: np.ndarray, durations: np.ndarray, gdc: np.ndarray, gdt: np.ndarray) -> np.ndarray:
         """Add partial gradients into ``gdc`` (6M, 3) and ``gdt`` (M,); return (8,) [vel, acc, obstacle, swarm,
         max speed, max acc, min obstacle distance, min swarm margin]."""
         K = self.params.samples_per_piece
         if self.distance_field is not None:
-            d, gd = self.distance_field.distance_and_gradient(_sample_positions(coeffs, durations, K))
-            d = np.ascontiguousarray(d, dtype=float)
-            gd = np.ascontiguousarray(gd, dtype=float)
+            d, gd = self.distance_and_gradient(_sample_positions(coeffs, durations, K))
             use_field = True
         else:
             d, gd, use_field = self._no_dist, self._no_grad, False
@@ -404,7 +470,7 @@ class TrajectoryCost:
         _penalty_kernel(
             coeffs, durations, K, self.t0_s, self.parameter_vector, d, gd, use_field,
             nb.times_s, nb.pos_world, nb.vel_world, nb.offsets, nb.t_last_s, nb.cov_trace_poly,
-            gdc, gdt, self._out,
+            gdc, gdt, self._out, True,
         )  # fmt: skip
         return self._out.copy()
 

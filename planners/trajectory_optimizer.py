@@ -28,7 +28,13 @@ from scipy.optimize import minimize
 
 from perception.types import DistanceField, NeighborPrediction
 from planners.minco import MincoTrajectory, _energy, _energy_grad, _propagate_grad, _set_parameters
-from planners.trajectory_cost import PenaltyParameters, TrajectoryCost, _penalty_kernel, _sample_positions
+from planners.trajectory_cost import (
+    PenaltyParameters,
+    TrajectoryCost,
+    _grid_trilinear,
+    _penalty_kernel,
+    _sample_positions,
+)
 
 __all__ = [
     "TrajectoryOptimizationError",
@@ -54,17 +60,17 @@ class TrajectoryOptimizerConfig:
         swarm_z_scale: c of E = diag(1, 1, 1/c) [-], >= 1; default 2.0 (not given in the paper).
         clearance_margin_m: margin added to both clearances inside the penalties [m]; default 0.1.
         uncertainty_sigma: n_sigma of the neighbour uncertainty inflation [-]; default 1.0.
-        max_uncertainty_inflation_m: cap on that inflation [m]; default 1.0.
-        weight_vel: weight of the speed penalty [-]; default 1e4.
-        weight_acc: weight of the acceleration penalty [-]; default 1e4.
-        weight_obstacle: weight of the obstacle penalty [-]; default 1e4.
-        weight_swarm: weight of the swarm penalty w_s [-]; default 1e4.
+        max_uncertainty_inflation_m: cap on that inflation [m]; default 0.5.
+        weight_vel: weight of the speed penalty [-]; default 1e5.
+        weight_acc: weight of the acceleration penalty [-]; default 1e5.
+        weight_obstacle: weight of the obstacle penalty [-]; default 1e5.
+        weight_swarm: weight of the swarm penalty w_s [-]; default 1e5.
         samples_per_piece: K penalty samples per piece [-]; default 16.
-        max_piece_length_m: front-end segments longer than this are split evenly [m]; default 2.0.
+        max_piece_length_m: front-end segments longer than this are split evenly [m]; default 3.0.
         initial_speed_fraction: initial durations are segment length / (fraction v_max) [-]; default 0.6.
         max_iterations: L-BFGS iteration limit [-]; default 200.
         gradient_tolerance: stop when ||g||_inf <= tol max(1, ||x||_inf) [-]; default 1e-5.
-        relative_cost_tolerance: stop when the cost fell by less than this fraction over 3 iterations [-]; default 1e-5.
+        relative_cost_tolerance: stop when the cost fell by less than this fraction over 3 iterations [-]; default 1e-4.
         lbfgs_memory: number of correction pairs [-]; default 16.
         solver: ``"lbfgs"`` (ours) or ``"scipy"`` (L-BFGS-B); default ``"lbfgs"``.
     """
@@ -78,17 +84,17 @@ class TrajectoryOptimizerConfig:
     swarm_z_scale: float = 2.0
     clearance_margin_m: float = 0.1
     uncertainty_sigma: float = 1.0
-    max_uncertainty_inflation_m: float = 1.0
-    weight_vel: float = 1.0e4
-    weight_acc: float = 1.0e4
-    weight_obstacle: float = 1.0e4
-    weight_swarm: float = 1.0e4
+    max_uncertainty_inflation_m: float = 0.5
+    weight_vel: float = 1.0e5
+    weight_acc: float = 1.0e5
+    weight_obstacle: float = 1.0e5
+    weight_swarm: float = 1.0e5
     samples_per_piece: int = 16
-    max_piece_length_m: float = 2.0
+    max_piece_length_m: float = 3.0
     initial_speed_fraction: float = 0.6
     max_iterations: int = 200
     gradient_tolerance: float = 1e-5
-    relative_cost_tolerance: float = 1e-5
+    relative_cost_tolerance: float = 1e-4
     lbfgs_memory: int = 16
     solver: str = "lbfgs"
 
@@ -170,7 +176,7 @@ def _forward(head, tail, x, n_q, K):
 
 @njit(cache=True)
 def _backward(
-    x, n_q, T, coeffs, ab, K, t0, prm, dist, dist_grad, use_field, nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, w_e, w_t, out
+    x, n_q, T, coeffs, ab, K, t0, prm, dist, dist_grad, use_field, nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, w_e, w_t, out, stats
 ):
     """Eq. 15 cost and its gradient by x, given the forward pass; out (9,) gets penalty terms/statistics and energy."""
     m = T.shape[0]
@@ -183,7 +189,7 @@ def _backward(
     gdt += w_t  # d(w_t sum T) / dT
     terms = out[:8]
     _penalty_kernel(
-        coeffs, T, K, t0, prm, dist, dist_grad, use_field, nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, gdc, gdt, terms
+        coeffs, T, K, t0, prm, dist, dist_grad, use_field, nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, gdc, gdt, terms, stats
     )
     out[8] = energy
     gq, gT = _propagate_grad(ab, coeffs, T, gdc, gdt)
@@ -237,8 +243,12 @@ class TrajectoryProblem:
         n_q = 3 * (self.num_pieces - 1)
         return x[:n_q].reshape(-1, 3).copy(), _tau_to_time(np.ascontiguousarray(x[n_q:], dtype=float))
 
-    def cost_and_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray]:
-        """Total cost (MP-CDE Eq. 15) and its gradient (3(M-1) + M,) by x (3(M-1) + M,)."""
+    def cost_and_gradient(self, x: np.ndarray, stats: bool = False) -> tuple[float, np.ndarray]:
+        """Total cost (MP-CDE Eq. 15) and its gradient (3(M-1) + M,) by x (3(M-1) + M,).
+
+        ``last_terms`` then holds the penalty terms and sample statistics; the minimum
+        swarm margin (``last_terms[7]``) only when ``stats`` is True.
+        """
         cfg = self.config
         cost = self.cost
         nb = cost.neighbors
@@ -247,16 +257,14 @@ class TrajectoryProblem:
         n_q = 3 * (self.num_pieces - 1)
         T, coeffs, ab, pts = _forward(self.start_pva, self.goal_pva, x, n_q, K)
         if self.distance_field is not None:
-            d, gd = self.distance_field.distance_and_gradient(pts)
-            d = np.ascontiguousarray(d, dtype=float)
-            gd = np.ascontiguousarray(gd, dtype=float)
+            d, gd = cost.distance_and_gradient(pts)
             use_field = True
         else:
             d, gd, use_field = self._no_dist, self._no_grad, False
         f, g = _backward(
             x, n_q, T, coeffs, ab, K, cost.t0_s, cost.parameter_vector, d, gd, use_field,
             nb.times_s, nb.pos_world, nb.vel_world, nb.offsets, nb.t_last_s, nb.cov_trace_poly,
-            cfg.weight_energy, cfg.weight_time, self.last_terms,
+            cfg.weight_energy, cfg.weight_time, self.last_terms, stats,
         )  # fmt: skip
         self.evaluations += 1
         self.last_coefficients = coeffs
@@ -371,63 +379,183 @@ def _two_loop(g, S, Y, rho, count, newest):
     return d
 
 
-def _lbfgs(problem: TrajectoryProblem) -> tuple[np.ndarray, float, int, str]:
-    """Own L-BFGS with a Lewis-Overton weak-Wolfe line search (c1 = 1e-4, c2 = 0.9)."""
-    cfg = problem.config
-    fun = problem.cost_and_gradient
-    x = problem.x0.copy()
-    f, g = fun(x)
+@njit(cache=True)
+def _lbfgs_direction(g, x, S, Y, rho, count, newest, g_tol):
+    """Convergence test ||g||_inf <= g_tol max(1, ||x||_inf), then the search direction d and g.d
+    (steepest descent and count = 0 when the quasi-Newton direction is not a descent direction)."""
+    if np.max(np.abs(g)) <= g_tol * max(1.0, np.max(np.abs(x))):
+        return True, g, 0.0, count
+    d = _two_loop(g, S, Y, rho, count, newest)
+    dg0 = g @ d
+    if not dg0 < 0.0:
+        return False, -g, -(g @ g), 0
+    return False, d, dg0, count
+
+
+@njit(cache=True)
+def _lbfgs_store(x, xn, g, gn, S, Y, rho, count, newest):
+    """Push the pair s = xn - x, y = gn - g into the ring buffers if s.y > 0; returns (count, newest)."""
+    mem = S.shape[0]
+    s = xn - x
+    y = gn - g
+    sy = s @ y
+    if sy > 1e-12 * (y @ y):
+        newest = (newest + 1) % mem
+        S[newest] = s
+        Y[newest] = y
+        rho[newest] = 1.0 / sy
+        count = min(count + 1, mem)
+    return count, newest
+
+
+@njit(cache=True)
+def _line_search_step(fn, gn, d, f, dg0, step, lo, hi):
+    """Lewis-Overton weak-Wolfe bracketing (c1 = 1e-4, c2 = 0.9): (accepted, give_up, next step, lo, hi)."""
+    if not fn <= f + 1e-4 * step * dg0:  # sufficient decrease fails (or NaN)
+        hi = step
+    elif gn @ d < 0.9 * dg0:  # curvature condition fails
+        lo = step
+    else:
+        return True, False, step, lo, hi
+    step = 0.5 * (lo + hi) if hi < np.inf else 2.0 * step
+    return False, hi - lo < 1e-16 * max(1.0, hi), step, lo, hi
+
+
+@njit(cache=True)
+def _first_step(g, count):
+    """Initial trial step: 1 with curvature pairs, else 1 / ||g|| (at most 1)."""
+    return 1.0 if count > 0 else min(1.0, 1.0 / max(np.sqrt(g @ g), 1e-12))
+
+
+@njit(cache=True)
+def _delta_test(past, it, f, rel_tol):
+    """Record f and test whether the cost fell by at most rel_tol max(1, |f|) over the last 3 iterations."""
+    past[it % 4] = f
+    return it >= 3 and past[(it - 3) % 4] - f <= rel_tol * max(1.0, abs(f))
+
+
+def _lbfgs_loop(fun, args, x0, mem, max_iterations, g_tol, rel_tol):
+    """L-BFGS (GCOPTER ``lbfgs.hpp`` style) calling ``fun(x, args) -> (f, g)`` from Python (any DistanceField).
+
+    Stops when ||g||_inf <= g_tol max(1, ||x||_inf) or by the delta test (:func:`_delta_test`).
+    Returns (x, f, iterations, code, evaluations), code 0 converged, 1 iteration limit,
+    2 line search stalled, 3 non-finite initial cost. :func:`_lbfgs_compiled` is the same
+    driver with the compiled cost called directly (numba cannot cache a function argument).
+    """
+    x = x0.copy()
+    f, g = fun(x, args)
     if not (np.isfinite(f) and np.all(np.isfinite(g))):
-        raise TrajectoryOptimizationError(f"non-finite initial cost {f!r}", problem)
-    mem = cfg.lbfgs_memory
-    S = np.zeros((mem, x.size))
-    Y = np.zeros((mem, x.size))
-    rho = np.zeros(mem)
-    count, newest = 0, -1
-    history = [f]
-    status = "max_iterations"
-    k = 0
-    for k in range(1, cfg.max_iterations + 1):
-        if np.max(np.abs(g)) <= cfg.gradient_tolerance * max(1.0, float(np.max(np.abs(x)))):
-            status = "converged"
-            k -= 1
+        return x, f, 0, 3, 1
+    S, Y, rho, past = np.zeros((mem, x.size)), np.zeros((mem, x.size)), np.zeros(mem), np.full(4, np.inf)
+    past[0] = f
+    count, newest, code, k, evals = 0, mem - 1, 1, 0, 1
+    for it in range(1, max_iterations + 1):
+        k = it
+        done, d, dg0, count = _lbfgs_direction(g, x, S, Y, rho, count, newest, g_tol)
+        if done:
+            code, k = 0, it - 1
             break
-        d = _two_loop(g, S, Y, rho, count, newest % mem)
-        dg0 = float(g @ d)
-        if not dg0 < 0.0:  # not a descent direction: restart from steepest descent
-            count = 0
-            d, dg0 = -g, -float(g @ g)
-        step = 1.0 if count else min(1.0, 1.0 / max(float(np.sqrt(g @ g)), 1e-12))
-        lo, hi = 0.0, np.inf
-        accepted = False
+        step, lo, hi = _first_step(g, count), 0.0, np.inf
+        accepted, give_up = False, False
+        xn, fn, gn = x, f, g
         for _ in range(40):
             xn = x + step * d
-            fn, gn = fun(xn)
-            if not fn <= f + 1e-4 * step * dg0:  # sufficient decrease fails (or NaN)
-                hi = step
-            elif gn @ d < 0.9 * dg0:  # curvature condition fails
-                lo = step
-            else:
-                accepted = True
-                break
-            step = 0.5 * (lo + hi) if hi < np.inf else 2.0 * step
-            if hi - lo < 1e-16 * max(1.0, hi):
+            fn, gn = fun(xn, args)
+            evals += 1
+            accepted, give_up, step, lo, hi = _line_search_step(fn, gn, d, f, dg0, step, lo, hi)
+            if accepted or give_up:
                 break
         if not accepted:
-            status = "line_search_stalled"
+            code = 2
             break
-        s, y = xn - x, gn - g
-        sy = float(s @ y)
-        if sy > 1e-12 * float(y @ y):
-            newest = (newest + 1) % mem
-            S[newest], Y[newest], rho[newest] = s, y, 1.0 / sy
-            count = min(count + 1, mem)
+        count, newest = _lbfgs_store(x, xn, g, gn, S, Y, rho, count, newest)
         x, f, g = xn, fn, gn
-        history.append(f)
-        if len(history) > 3 and history[-4] - f <= cfg.relative_cost_tolerance * max(1.0, abs(f)):
-            status = "converged"
+        if _delta_test(past, it, f, rel_tol):
+            code = 0
             break
-    return x, f, k, status
+    return x, f, k, code, evals
+
+
+@njit(cache=True)
+def _lbfgs_compiled(args, x0, mem, max_iterations, g_tol, rel_tol):
+    """:func:`_lbfgs_loop` with :func:`_compiled_cost`, compiled end to end."""
+    x = x0.copy()
+    f, g = _compiled_cost(x, args)
+    if not (np.isfinite(f) and np.all(np.isfinite(g))):
+        return x, f, 0, 3, 1
+    S, Y, rho, past = np.zeros((mem, x.size)), np.zeros((mem, x.size)), np.zeros(mem), np.full(4, np.inf)
+    past[0] = f
+    count, newest, code, k, evals = 0, mem - 1, 1, 0, 1
+    for it in range(1, max_iterations + 1):
+        k = it
+        done, d, dg0, count = _lbfgs_direction(g, x, S, Y, rho, count, newest, g_tol)
+        if done:
+            code, k = 0, it - 1
+            break
+        step, lo, hi = _first_step(g, count), 0.0, np.inf
+        accepted, give_up = False, False
+        xn, fn, gn = x, f, g
+        for _ in range(40):
+            xn = x + step * d
+            fn, gn = _compiled_cost(xn, args)
+            evals += 1
+            accepted, give_up, step, lo, hi = _line_search_step(fn, gn, d, f, dg0, step, lo, hi)
+            if accepted or give_up:
+                break
+        if not accepted:
+            code = 2
+            break
+        count, newest = _lbfgs_store(x, xn, g, gn, S, Y, rho, count, newest)
+        x, f, g = xn, fn, gn
+        if _delta_test(past, it, f, rel_tol):
+            code = 0
+            break
+    return x, f, k, code, evals
+
+
+@njit(cache=True)
+def _compiled_cost(x, args):
+    """Eq. 15 cost and gradient with everything compiled (OccupancySnapshot field or none)."""
+    head, tail, n_q, K, t0, prm, grid, grid_origin, voxel_m, use_field, nb, w_e, w_t, out = args
+    T, coeffs, ab, pts = _forward(head, tail, x, n_q, K)
+    if use_field:
+        d, gd = _grid_trilinear(grid, grid_origin, voxel_m, pts)
+    else:
+        d, gd = np.zeros(0), np.zeros((0, 3))
+    nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov = nb
+    return _backward(
+        x, n_q, T, coeffs, ab, K, t0, prm, d, gd, use_field, nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, w_e, w_t, out, False
+    )
+
+
+def _python_cost(x, problem):
+    return problem.cost_and_gradient(x)
+
+
+_STATUS = ("converged", "max_iterations", "line_search_stalled")
+
+
+def _lbfgs(problem: TrajectoryProblem) -> tuple[np.ndarray, float, int, str]:
+    """Our L-BFGS: compiled end to end for an OccupancySnapshot or no field, Python loop otherwise."""
+    cfg = problem.config
+    cost = problem.cost
+    opts = (cfg.lbfgs_memory, cfg.max_iterations, cfg.gradient_tolerance, cfg.relative_cost_tolerance)
+    if problem.distance_field is None or cost.grid is not None:
+        nb = cost.neighbors
+        grid = cost.grid if cost.grid is not None else (np.zeros((2, 2, 2)), np.zeros(3), 1.0)
+        args = (
+            problem.start_pva, problem.goal_pva, 3 * (problem.num_pieces - 1), cost.params.samples_per_piece,
+            cost.t0_s, cost.parameter_vector, grid[0], grid[1], grid[2], cost.grid is not None,
+            (nb.times_s, nb.pos_world, nb.vel_world, nb.offsets, nb.t_last_s, nb.cov_trace_poly),
+            float(cfg.weight_energy), float(cfg.weight_time), np.zeros(9),
+        )  # fmt: skip
+        x, f, k, code, evals = _lbfgs_compiled(args, problem.x0, *opts)
+        problem.evaluations += int(evals)
+    else:
+        x, f, k, code, _ = _lbfgs_loop(_python_cost, problem, problem.x0, *opts)
+    if code == 3:
+        raise TrajectoryOptimizationError(f"non-finite initial cost {f!r}", problem)
+    return x, float(f), int(k), _STATUS[code]
 
 
 def _scipy(problem: TrajectoryProblem) -> tuple[np.ndarray, float, int, str]:
@@ -456,7 +584,7 @@ def solve(problem: TrajectoryProblem) -> TrajectoryOptimizerResult:
     problem.evaluations = 0
     cfg = problem.config
     x, _, iterations, status = _lbfgs(problem) if cfg.solver == "lbfgs" else _scipy(problem)
-    f, _ = problem.cost_and_gradient(x)  # leaves coefficients and terms at x
+    f, _ = problem.cost_and_gradient(x, stats=True)  # leaves coefficients, terms and statistics at x
     if not np.isfinite(f):
         raise TrajectoryOptimizationError(f"non-finite final cost {f!r}", problem)
     terms = problem.last_terms

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from perception.types import NeighborPrediction
+from perception.types import NeighborPrediction, OccupancySnapshot
 from planners.minco import MincoS3
 from planners.trajectory_cost import NeighborTable, PenaltyParameters, TrajectoryCost, _neighbor_state
 
@@ -66,10 +66,10 @@ def cost():
 def test_neighbor_kernel_matches_neighbor_prediction():
     nbs = _neighbors(10.0)
     table = NeighborTable(nbs)
-    p, v = np.empty(3), np.empty(3)
     for n, nb in enumerate(nbs):
         for t in (9.0, 10.0, 10.3, 11.1, 12.0, 13.5, 15.0):
-            _neighbor_state(table.times_s, table.pos_world, table.vel_world, table.offsets[n], table.offsets[n + 1], t, p, v)
+            state = _neighbor_state(table.times_s, table.pos_world, table.vel_world, table.offsets[n], table.offsets[n + 1], t)
+            p, v = np.array(state[:3]), np.array(state[3:])
             np.testing.assert_allclose(p, nb.position(t), atol=1e-12)
             h = 1e-6
             np.testing.assert_allclose(v, (nb.position(t + h) - nb.position(t - h)) / (2 * h), atol=1e-5)
@@ -157,3 +157,17 @@ def test_penalties_vanish_inside_the_limits():
 def test_invalid_parameters_raise_one_line_value_error(field, value):
     with pytest.raises(ValueError, match=field):
         PenaltyParameters(**{field: value})
+
+
+def test_compiled_snapshot_interpolation_equals_occupancy_snapshot():
+    rng = np.random.default_rng(11)
+    shape = (9, 7, 5)
+    dist = rng.normal(size=shape).astype(np.float32)
+    state = np.zeros(shape, np.int8)
+    snap = OccupancySnapshot(0.0, np.array([-1.0, 2.0, 0.0]), 0.2, state, dist, np.abs(dist))
+    cost = TrajectoryCost(PenaltyParameters(), 0.0, snap, [])
+    pts = np.array([-1.0, 2.0, 0.0]) + rng.uniform(-0.3, 2.2, size=(400, 3))  # inside and outside the window
+    d_ref, g_ref = snap.distance_and_gradient(pts)
+    d, g = cost.distance_and_gradient(pts)
+    np.testing.assert_allclose(d, d_ref, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(g, g_ref, rtol=1e-12, atol=1e-12)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from perception.types import NeighborPrediction
+from perception.types import NeighborPrediction, OccupancySnapshot
 from planners.trajectory_optimizer import (
     TrajectoryOptimizationError,
     TrajectoryOptimizerConfig,
@@ -51,7 +51,7 @@ def _dense(traj, n=4000):
 
 
 def _crossing_neighbor(t0):
-    """A neighbour that flies across the straight line x = 5 m when the drone would pass there."""
+    """A neighbour that flies across the straight line at x = 5 m."""
     return NeighborPrediction.constant_velocity(4, "radio", t0, [5.0, -3.0, 1.0], [0.0, 1.0, 0.0], np.zeros((6, 6)))
 
 
@@ -127,8 +127,12 @@ def test_speed_and_acceleration_limits_hold_after_optimisation():
 def test_crossing_neighbor_is_avoided_by_the_swarm_clearance_under_the_ellipsoid_metric(solver):
     t0 = 100.0
     cfg = TrajectoryOptimizerConfig(solver=solver)
-    nb = _crossing_neighbor(t0)
     plain = solve(build_trajectory_problem(START, GOAL, STRAIGHT, None, [], t0, cfg))
+    # a neighbour flying across the line at 1 m/s that would meet the drone at x = 5 m
+    t, pos, _, _ = _dense(plain.trajectory)
+    t_meet = t[np.argmin(np.abs(pos[:, 0] - 5.0))]
+    meet = plain.trajectory.pos(t_meet)
+    nb = NeighborPrediction.constant_velocity(4, "radio", t0, meet - [0.0, t_meet, 0.0], [0.0, 1.0, 0.0], np.zeros((6, 6)))
     result = solve(build_trajectory_problem(START, GOAL, STRAIGHT, None, [nb], t0, cfg))
     scale = np.array([1.0, 1.0, 1.0 / np.sqrt(cfg.swarm_z_scale)])  # E^{1/2}
 
@@ -136,7 +140,7 @@ def test_crossing_neighbor_is_avoided_by_the_swarm_clearance_under_the_ellipsoid
         t, pos, _, _ = _dense(res.trajectory)
         return np.linalg.norm((pos - nb.position(t0 + t)) * scale, axis=1).min()
 
-    assert ellipsoid_distance(plain) < 0.6 * cfg.swarm_clearance_m  # without the neighbour term: far inside C_s
+    assert ellipsoid_distance(plain) < 0.05  # without the neighbour term they would collide
     assert ellipsoid_distance(result) >= cfg.swarm_clearance_m
     assert result.min_swarm_margin_m >= cfg.swarm_clearance_m and result.feasible
 
@@ -192,3 +196,41 @@ def test_invalid_config_raises_one_line_value_error(field, value):
 def test_bad_waypoints_raise_value_error():
     with pytest.raises(ValueError, match="waypoints_world"):
         build_trajectory_problem(START, GOAL, np.zeros((1, 3)), None, [], 0.0)
+
+
+class _PlainField:
+    """Hides an OccupancySnapshot behind the bare protocol, forcing the Python L-BFGS driver."""
+
+    def __init__(self, snapshot):
+        self.snapshot = snapshot
+
+    def distance_and_gradient(self, points_world):
+        return self.snapshot.distance_and_gradient(points_world)
+
+
+def _cylinder_snapshot():
+    voxel = 0.2
+    origin = np.array([-1.0, -3.0, 0.0])
+    shape = (60, 30, 12)
+    centres = origin + voxel * (np.indices(shape).reshape(3, -1).T + 0.5)
+    occupied = np.zeros(shape[0] * shape[1] * shape[2], bool)
+    for c, r in (([3.0, 0.3], 0.35), ([6.5, -0.3], 0.4)):
+        occupied |= np.linalg.norm(centres[:, :2] - np.array(c), axis=1) <= r
+    occupied = occupied.reshape(shape)
+    from scipy.ndimage import distance_transform_edt
+
+    dist = (distance_transform_edt(~occupied) - distance_transform_edt(occupied)) * voxel
+    return OccupancySnapshot(0.0, origin, voxel, np.where(occupied, 1, 0).astype(np.int8), dist.astype(np.float32), dist.astype(np.float32))
+
+
+def test_compiled_and_python_lbfgs_drivers_agree():
+    snapshot = _cylinder_snapshot()
+    nb = _crossing_neighbor(0.0)
+    results = []
+    for field in (snapshot, _PlainField(snapshot)):
+        results.append(solve(build_trajectory_problem(START, GOAL, STRAIGHT, field, [nb], 0.0, TrajectoryOptimizerConfig())))
+    compiled, python = results
+    assert compiled.cost == pytest.approx(python.cost, rel=1e-6)
+    assert abs(compiled.iterations - python.iterations) <= 2
+    t = np.linspace(0.0, compiled.trajectory.total_duration, 200)
+    np.testing.assert_allclose(compiled.trajectory.pos(t), python.trajectory.pos(t), atol=1e-4)
