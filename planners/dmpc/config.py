@@ -102,7 +102,12 @@ class DmpcConfig:
             candidate, i.e. recursive feasibility of the BVC problem.
         osqp_eps_abs: OSQP absolute tolerance (chosen: 1e-4).
         osqp_eps_rel: OSQP relative tolerance (chosen: 1e-4).
-        osqp_max_iter: OSQP iteration limit (chosen: 4000).
+        osqp_max_iter: OSQP iteration limit (chosen: 10000; the hardest
+            on-demand rounds of the 8-drone swap, with large slacks, need ~2000).
+        osqp_check_termination: OSQP checks its residuals every this many
+            iterations (chosen: 5 instead of OSQP's 25: a warm-started round
+            typically converges in 5-10 iterations; measured in
+            benchmarks/bench_dmpc.py, median solve 0.20 -> 0.14 ms on demand).
         osqp_polish: run OSQP's solution polishing (exact active-set solve).
     """
 
@@ -133,7 +138,8 @@ class DmpcConfig:
     terminal_halt: bool = False
     osqp_eps_abs: float = 1e-4
     osqp_eps_rel: float = 1e-4
-    osqp_max_iter: int = 4000
+    osqp_max_iter: int = 10000
+    osqp_check_termination: int = 5
     osqp_polish: bool = False
 
     def __post_init__(self) -> None:
@@ -177,6 +183,8 @@ class DmpcConfig:
         _positive("osqp_eps_rel", self.osqp_eps_rel)
         if not isinstance(self.osqp_max_iter, (int, np.integer)) or self.osqp_max_iter < 1:
             raise ValueError(f"osqp_max_iter={self.osqp_max_iter!r}: an integer >= 1")
+        if not isinstance(self.osqp_check_termination, (int, np.integer)) or self.osqp_check_termination < 1:
+            raise ValueError(f"osqp_check_termination={self.osqp_check_termination!r}: an integer >= 1")
         if not isinstance(self.osqp_polish, bool):
             raise ValueError(f"osqp_polish={self.osqp_polish!r}: True or False")
 

@@ -102,9 +102,12 @@ class DmpcResult:
         cost: J at the solution (all terms, constants included).
         iterations: OSQP iterations.
         status: OSQP status string ("solved" or "solved inaccurate").
-        solve_time_s: wall time [s] of the OSQP solve call (warm-started).
-        osqp_solve_time_s: OSQP's own solve-phase time [s] (C code only).
-        update_time_s: time [s] spent building constraints and updating the QP data.
+        solve_time_s: wall time [s] of everything OSQP does this round: the data
+            update (including the KKT refactorisation when A or P changed),
+            the warm start and the solve.
+        osqp_solve_time_s: OSQP's own solve-phase time [s] (C code only, no refactorisation).
+        update_time_s: wall time [s] spent in Python building this round's
+            constraints and cost (before handing them to OSQP).
         n_collision_constraints: active collision rows (on demand: planes at k_c; bvc: K x neighbours).
         conflict_time_s: on demand: absolute time [s] of the first predicted
             conflict that was constrained (NaN if none, and always for bvc).
@@ -172,6 +175,7 @@ class DmpcProblem:
         self._n_slack = M if cfg.collision_mode == "on_demand" else 0
         n = self._n_u + self._n_slack
         self._Lambda_pos_blocks = mats.Lambda_pos.reshape(K, 3, 3 * K)
+        self._state_matrices = stacked_state_matrices(mats.A, mats.B, K)  # x[1..K] for the result
         S = cfg.conflict_substeps
         A0_fine, Lambda_fine = fine_position_matrices(cfg.model, cfg.step_s, K, S)
         self._A0_fine_blocks = A0_fine.reshape(K * S, 3, -1)  # p(t_now + j h / S), j = 1..K S
@@ -222,6 +226,7 @@ class DmpcProblem:
         self._n_rows = row
         A, self._A_coo_to_csc = pat.to_csc((row, n))
         self._Ax = A.data.copy()
+        self._Ax_sent = A.data.copy()  # what OSQP holds
 
         # Cost Hessian pieces (on U), P = 2 (goal + formation + smoothness) + slack.
         goal_rows = slice(3 * (K - cfg.goal_steps), 3 * K)
@@ -243,7 +248,7 @@ class DmpcProblem:
             P, np.zeros(n), A, self._l, self._u,
             verbose=False, eps_abs=cfg.osqp_eps_abs, eps_rel=cfg.osqp_eps_rel,
             max_iter=cfg.osqp_max_iter, polishing=cfg.osqp_polish,
-            adaptive_rho_interval=25, warm_starting=True,
+            adaptive_rho_interval=25, warm_starting=True, check_termination=cfg.osqp_check_termination,
         )  # fmt: skip
         self._P, self._A = P, A
         self._q = np.zeros(n)
@@ -334,9 +339,10 @@ class DmpcProblem:
         own_prev_fine = self._own_previous(t_fine, float(t_now_s), x0, previous_plan)
         own_prev = own_prev_fine[S - 1 :: S]
         nb_ids = [p.neighbor_id for p in neighbour_plans]
-        nb_fine = np.array([p.position(t_fine) for p in neighbour_plans]).reshape(-1, K * S, 3)
+        t_eval = np.r_[float(t_now_s), t_fine]
+        nb_all = np.array([p.position(t_eval) for p in neighbour_plans]).reshape(-1, K * S + 1, 3)
+        nb_now, nb_fine = nb_all[:, 0], nb_all[:, 1:]
         nb_pos = nb_fine[:, S - 1 :: S]  # (M, K, 3) at t_now + k h
-        nb_now = np.array([p.position(float(t_now_s)) for p in neighbour_plans]).reshape(-1, 3)
 
         free_pos = (mats.A0_pos @ x0).reshape(K, 3)  # A0_p x0
         l, u = self._l, self._u
@@ -419,18 +425,21 @@ class DmpcProblem:
         q[: self._n_u] = q_u
         q[self._n_u :] = cfg.weight_slack_linear  # F_v linear part
 
-        update = {"q": q, "l": l, "u": u, "Ax": self._Ax}
+        update = {"q": q, "l": l, "u": u}
+        if not np.array_equal(self._Ax, self._Ax_sent):  # unchanged A (no conflicts twice): no refactorisation
+            update["Ax"] = self._Ax
+            self._Ax_sent = self._Ax.copy()
         if form_targets.shape[0] != self._n_form:
             self._n_form = form_targets.shape[0]
             self._P = self._assemble_P(self._n_form)
             update["Px"] = self._P.data
+        t_solve = time.perf_counter()
         self._osqp.update(**update)
         x_ws = np.zeros(self._n_u + self._n_slack)
         if self._x_last is not None:
             x_ws[: self._n_u - 3] = self._x_last[3 : self._n_u]  # shift by one step
             x_ws[self._n_u - 3 : self._n_u] = self._x_last[self._n_u - 3 : self._n_u]
         self._osqp.warm_start(x=x_ws)
-        t_solve = time.perf_counter()
         res = self._osqp.solve(raise_error=False)
         t_end = time.perf_counter()
         A = sp.csc_matrix((self._Ax.copy(), self._A.indices, self._A.indptr), shape=self._A.shape)
@@ -483,7 +492,7 @@ class DmpcProblem:
         K = cfg.horizon_steps
         U = res.x[: self._n_u]
         s = res.x[self._n_u :]
-        A0_x, Lambda_x = stacked_state_matrices(mats.A, mats.B, K)
+        A0_x, Lambda_x = self._state_matrices
         states = np.vstack([x0, (A0_x @ x0 + Lambda_x @ U).reshape(K, -1)])  # x[0..K]
         inputs = U.reshape(K, 3)
         pos, vel = states[:, :3], states[:, 3:6]
