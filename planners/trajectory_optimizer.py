@@ -20,7 +20,7 @@ line search as in GCOPTER's ``lbfgs.hpp``); ``solver="scipy"`` runs
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from numba import njit
@@ -117,22 +117,8 @@ class TrajectoryOptimizerConfig:
         self.penalty_parameters()  # validates the penalty fields (ValueError, one line)
 
     def penalty_parameters(self) -> PenaltyParameters:
-        """The penalty part of this config."""
-        return PenaltyParameters(
-            v_max_mps=self.v_max_mps,
-            a_max_mps2=self.a_max_mps2,
-            obstacle_clearance_m=self.obstacle_clearance_m,
-            swarm_clearance_m=self.swarm_clearance_m,
-            swarm_z_scale=self.swarm_z_scale,
-            clearance_margin_m=self.clearance_margin_m,
-            uncertainty_sigma=self.uncertainty_sigma,
-            max_uncertainty_inflation_m=self.max_uncertainty_inflation_m,
-            weight_vel=self.weight_vel,
-            weight_acc=self.weight_acc,
-            weight_obstacle=self.weight_obstacle,
-            weight_swarm=self.weight_swarm,
-            samples_per_piece=self.samples_per_piece,
-        )
+        """The penalty part of this config (the fields shared with :class:`PenaltyParameters`)."""
+        return PenaltyParameters(**{f.name: getattr(self, f.name) for f in fields(PenaltyParameters)})
 
 
 @njit(cache=True)
@@ -220,14 +206,10 @@ class TrajectoryProblem:
         t0_s: float,
         config: TrajectoryOptimizerConfig,
     ):
-        self.start_pva = start_pva
-        self.goal_pva = goal_pva
-        self.initial_points = initial_points
-        self.initial_durations = initial_durations
-        self.t0_s = float(t0_s)
-        self.config = config
-        self.distance_field = distance_field
-        self.neighbors = list(neighbors)
+        self.start_pva, self.goal_pva = start_pva, goal_pva
+        self.initial_points, self.initial_durations = initial_points, initial_durations
+        self.t0_s, self.config = float(t0_s), config
+        self.distance_field, self.neighbors = distance_field, list(neighbors)
         self.cost = TrajectoryCost(config.penalty_parameters(), t0_s, distance_field, self.neighbors)
         self.num_pieces = int(initial_durations.shape[0])
         self.x0 = np.concatenate([initial_points.ravel(), _time_to_tau(initial_durations)])
@@ -235,8 +217,7 @@ class TrajectoryProblem:
         self.last_terms = np.zeros(9)  # penalty terms, statistics (TrajectoryCost.accumulate), energy
         self.last_coefficients = np.zeros((6 * self.num_pieces, 3))
         self.last_durations = initial_durations.copy()
-        self._no_dist = np.zeros(0)
-        self._no_grad = np.zeros((0, 3))
+        self._no_dist, self._no_grad = np.zeros(0), np.zeros((0, 3))
 
     def unpack(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Inner points (M-1, 3) [m] and durations (M,) [s] from the decision vector x (3(M-1) + M,)."""
@@ -249,12 +230,9 @@ class TrajectoryProblem:
         ``last_terms`` then holds the penalty terms and sample statistics; the minimum
         swarm margin (``last_terms[7]``) only when ``stats`` is True.
         """
-        cfg = self.config
-        cost = self.cost
-        nb = cost.neighbors
-        K = cost.params.samples_per_piece
+        cfg, cost, nb = self.config, self.cost, self.cost.neighbors
+        K, n_q = cost.params.samples_per_piece, 3 * (self.num_pieces - 1)
         x = np.ascontiguousarray(x, dtype=float)
-        n_q = 3 * (self.num_pieces - 1)
         T, coeffs, ab, pts = _forward(self.start_pva, self.goal_pva, x, n_q, K)
         if self.distance_field is not None:
             d, gd = cost.distance_and_gradient(pts)
@@ -267,8 +245,7 @@ class TrajectoryProblem:
             cfg.weight_energy, cfg.weight_time, self.last_terms, stats,
         )  # fmt: skip
         self.evaluations += 1
-        self.last_coefficients = coeffs
-        self.last_durations = T
+        self.last_coefficients, self.last_durations = coeffs, T
         return f, g
 
 
