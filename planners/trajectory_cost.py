@@ -277,10 +277,38 @@ def _penalty_kernel(
     f_vel = f_acc = f_obs = f_sw = 0.0
     max_v2 = max_a2 = 0.0
     min_dist = min_margin = np.inf
+    pos_buf = np.empty((K + 1, 3))
+    box = np.empty((2, 3))
+    skip = np.zeros(n_nb, np.bool_)
     t_start = t0
     for i in range(m):
         step = T[i] / K
         r0 = 6 * i
+        # sample positions of the piece and their bounding box
+        box[0, :] = np.inf
+        box[1, :] = -np.inf
+        for j in range(K + 1):
+            s1 = j * step
+            for d in range(3):
+                p_d = coeffs[r0 + 5, d]
+                for r in range(4, -1, -1):
+                    p_d = p_d * s1 + coeffs[r0 + r, d]
+                pos_buf[j, d] = p_d
+                box[0, d] = min(box[0, d], p_d)
+                box[1, d] = max(box[1, d], p_d)
+        # a constant-velocity neighbour whose segment over the piece's time window stays farther than
+        # C_s + margin + r_max from the box (ellipsoid metric) cannot be penalised on this piece
+        for n in range(n_nb):
+            skip[n] = False
+            if not stats and nb_off[n + 1] - nb_off[n] == 1:
+                k = nb_off[n]
+                gap2 = 0.0
+                for d in range(3):
+                    a = nb_p[k, d] + nb_v[k, d] * (t_start - nb_t[k])
+                    b = nb_p[k, d] + nb_v[k, d] * (t_start + T[i] - nb_t[k])
+                    gap = max(0.0, min(a, b) - box[1, d], box[0, d] - max(a, b))
+                    gap2 += gap * gap * (inv_c if d == 2 else 1.0)
+                skip[n] = gap2 >= far2
         for j in range(K + 1):
             s1 = j * step
             alpha = j / K
@@ -289,9 +317,9 @@ def _penalty_kernel(
             for r in range(1, 6):
                 beta0[r] = beta0[r - 1] * s1
             for d in range(3):
-                c0, c1, c2 = coeffs[r0, d], coeffs[r0 + 1, d], coeffs[r0 + 2, d]
+                c1, c2 = coeffs[r0 + 1, d], coeffs[r0 + 2, d]
                 c3, c4, c5 = coeffs[r0 + 3, d], coeffs[r0 + 4, d], coeffs[r0 + 5, d]
-                pos[d] = c0 + s1 * (c1 + s1 * (c2 + s1 * (c3 + s1 * (c4 + s1 * c5))))
+                pos[d] = pos_buf[j, d]
                 vel[d] = c1 + s1 * (2.0 * c2 + s1 * (3.0 * c3 + s1 * (4.0 * c4 + s1 * 5.0 * c5)))
                 acc[d] = 2.0 * c2 + s1 * (6.0 * c3 + s1 * (12.0 * c4 + s1 * 20.0 * c5))
                 jer[d] = 6.0 * c3 + s1 * (24.0 * c4 + s1 * 60.0 * c5)
@@ -336,6 +364,8 @@ def _penalty_kernel(
                         g_p[d] -= gv * dist_grad[idx, d]
             t_abs = t_start + s1
             for n in range(n_nb):
+                if skip[n]:
+                    continue
                 px, py, pz, vx, vy, vz = _neighbor_state(nb_t, nb_p, nb_v, nb_off[n], nb_off[n + 1], t_abs)
                 dx = pos[0] - px
                 dy = pos[1] - py
@@ -457,9 +487,12 @@ class TrajectoryCost:
         d, gd = self.distance_field.distance_and_gradient(points_world)
         return np.ascontiguousarray(d, dtype=float), np.ascontiguousarray(gd, dtype=float)
 
-    def accumulate(self, coeffs: np.ndarray, durations: np.ndarray, gdc: np.ndarray, gdt: np.ndarray) -> np.ndarray:
+    def accumulate(
+        self, coeffs: np.ndarray, durations: np.ndarray, gdc: np.ndarray, gdt: np.ndarray, stats: bool = True
+    ) -> np.ndarray:
         """Add partial gradients into ``gdc`` (6M, 3) and ``gdt`` (M,); return (8,) [vel, acc, obstacle, swarm,
-        max speed, max acc, min obstacle distance, min swarm margin]."""
+        max speed, max acc, min obstacle distance, min swarm margin]. With ``stats`` False the last entry is
+        not computed (inf), which lets far neighbours be skipped; the penalties are the same."""
         K = self.params.samples_per_piece
         if self.distance_field is not None:
             d, gd = self.distance_and_gradient(_sample_positions(coeffs, durations, K))
@@ -470,7 +503,7 @@ class TrajectoryCost:
         _penalty_kernel(
             coeffs, durations, K, self.t0_s, self.parameter_vector, d, gd, use_field,
             nb.times_s, nb.pos_world, nb.vel_world, nb.offsets, nb.t_last_s, nb.cov_trace_poly,
-            gdc, gdt, self._out, True,
+            gdc, gdt, self._out, stats,
         )  # fmt: skip
         return self._out.copy()
 

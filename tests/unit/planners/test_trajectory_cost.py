@@ -171,3 +171,27 @@ def test_compiled_snapshot_interpolation_equals_occupancy_snapshot():
     d, g = cost.distance_and_gradient(pts)
     np.testing.assert_allclose(d, d_ref, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(g, g_ref, rtol=1e-12, atol=1e-12)
+
+
+def test_skipping_far_neighbors_changes_neither_penalties_nor_gradients():
+    """The bounding-box pruning (active without statistics) must be exact."""
+    rng = np.random.default_rng(8)
+    t0 = 10.0
+    nbs = [
+        NeighborPrediction.constant_velocity(k, "perception", t0, p, v, np.eye(6) * 0.01)
+        for k, (p, v) in enumerate(zip(rng.uniform([0, -4, 0.5], [8, 4, 1.5], (8, 3)), rng.normal(scale=0.8, size=(8, 3))))
+    ] + _neighbors(t0)
+    cost = TrajectoryCost(PenaltyParameters(samples_per_piece=8), t0, None, nbs)
+    head, tail, q, T = _problem()
+    minco = MincoS3()
+    minco.set_conditions(head, tail, T.size)
+    minco.set_parameters(q, T)
+    outs = []
+    for stats in (True, False):
+        gdc, gdt = np.zeros((6 * T.size, 3)), np.zeros(T.size)
+        outs.append((cost.accumulate(minco.coefficients, T, gdc, gdt, stats=stats), gdc, gdt))
+    (o1, c1, t1), (o2, c2, t2) = outs
+    assert o1[3] > 0
+    np.testing.assert_array_equal(o1[:7], o2[:7])
+    np.testing.assert_array_equal(c1, c2)
+    np.testing.assert_array_equal(t1, t2)
