@@ -72,6 +72,7 @@ _F_DT = np.zeros((6, 6))
 _F_DT[_POS_IDX, _VEL_IDX] = 1.0  # F(dt) = I + dt _F_DT
 _G_POS = np.vstack([_I3, np.zeros((3, 3))])  # G(dt) = dt^2/2 _G_POS + dt _G_VEL
 _G_VEL = np.vstack([np.zeros((3, 3)), _I3])
+_H_VEL = np.hstack([np.zeros((3, 3)), _I3])  # H F(dt) = H + dt _H_VEL
 
 
 def transition_matrix(dt_s: float) -> np.ndarray:
@@ -125,16 +126,13 @@ def adapt_acc_cov_batch(
         (n, 3, 3) the smoothed ``A_k``.
     """
     dt = np.asarray(dt_s, float)
-    d3 = dt[:, None, None]
-    Ppv = P_prev_post[:, :3, 3:]
-    M = P_prev_post[:, :3, :3] + d3 * (Ppv + np.swapaxes(Ppv, 1, 2)) + d3 * d3 * P_prev_post[:, 3:, 3:] + R
-    # M = H F P F^T H^T + R
+    HF = _H + dt[:, None, None] * _H_VEL  # H F(dt) = [I, dt I]
+    M = HF @ P_prev_post @ np.swapaxes(HF, 1, 2) + R  # M = H F P F^T H^T + R
     q = np.einsum("ni,ni->n", innovation, np.linalg.solve(M, innovation[..., None])[..., 0])  # q = nu^T M^-1 nu
     w = (gain[:, 3:, :] @ innovation[..., None])[..., 0]  # w = K_v nu
-    # D+ = max(0, 1 - 1/q) nu nu^T  (Eq. 11: [nu nu^T - H F P F^T H^T - R]_+);  A_hat = K_v D+ K_v^T / dt^2
-    coef = scale * np.maximum(0.0, 1.0 - 1.0 / np.maximum(q, 1e-300)) / (dt * dt)
-    tr = coef * np.einsum("ni,ni->n", w, w)
-    coef = np.where(tr > acc_var_max, acc_var_max / np.maximum(tr, 1e-300), 1.0) * coef  # cap trace(A_hat)
+    # D+ = max(0, 1 - 1/q) nu nu^T  (Eq. 11: [nu nu^T - H F P F^T H^T - R]_+);  A_hat = c K_v D+ K_v^T / dt^2
+    coef = scale * (1.0 - 1.0 / np.maximum(q, 1.0)) / (dt * dt)  # max(0, 1 - 1/q) c / dt^2
+    coef = np.minimum(coef, acc_var_max / (np.einsum("ni,ni->n", w, w) + 1e-300))  # cap trace(A_hat)
     A_hat = coef[:, None, None] * (w[:, :, None] * w[:, None, :])
     return alpha * A_hat + (1.0 - alpha) * acc_cov  # A_k = alpha A_hat + (1 - alpha) A_{k-1}
 

@@ -138,23 +138,28 @@ class _NumpyBank:
     def update(
         self, idx: np.ndarray, z: np.ndarray, R: np.ndarray, time_s: float, S_inv: np.ndarray, adapt: np.ndarray
     ) -> None:
-        x_post, P_post, y, K = update_batch(self.x[idx], self.P[idx], z, R, S_inv)
+        full = idx.size == self.x.shape[0]  # every track matched: idx is 0..n-1 (sorted by the assignment)
+        sel = slice(None) if full else idx
+        x_post, P_post, y, K = update_batch(self.x[sel], self.P[sel], z, R, S_inv)
         if self.cfg.adaptive:
-            dt = time_s - self.last_update_s[idx]
+            dt = time_s - self.last_update_s[sel]
             ok = (dt > 0) & adapt
             if ok.all():
-                self.acc_cov[idx] = adapt_acc_cov_batch(
-                    self.acc_cov[idx], y, K, self.P_post[idx], R, dt,
+                self.acc_cov[sel] = adapt_acc_cov_batch(
+                    self.acc_cov[sel], y, K, self.P_post[sel], R, dt,
                     self.cfg.alpha_ema, self.cfg.sigma_acc_max_mps2**2, self.cfg.adapt_scale,
                 )  # fmt: skip
             elif ok.any():
-                sel = idx[ok]
-                self.acc_cov[sel] = adapt_acc_cov_batch(
-                    self.acc_cov[sel], y[ok], K[ok], self.P_post[sel], R[ok], dt[ok],
+                part = idx[ok]
+                self.acc_cov[part] = adapt_acc_cov_batch(
+                    self.acc_cov[part], y[ok], K[ok], self.P_post[part], R[ok], dt[ok],
                     self.cfg.alpha_ema, self.cfg.sigma_acc_max_mps2**2, self.cfg.adapt_scale,
                 )  # fmt: skip
-        self.x[idx], self.P[idx], self.P_post[idx] = x_post, P_post, P_post
-        self.last_update_s[idx] = time_s
+        if full:  # P and P_post may share memory until the next predict, which makes a new P
+            self.x, self.P, self.P_post = x_post, P_post, P_post
+        else:
+            self.x[idx], self.P[idx], self.P_post[idx] = x_post, P_post, P_post
+        self.last_update_s[sel] = time_s
 
     def add(self, z: np.ndarray, R: np.ndarray, time_s: float) -> None:
         m = z.shape[0]
@@ -301,8 +306,12 @@ class MultiTargetTracker:
         self._last_pairs = (self._ids[rows], cols)
 
         unseen = t - self._last_seen_s
-        drop = np.where(self._confirmed, unseen > cfg.t_drop_s + _TIME_EPS_S, unseen > cfg.tentative_drop_s + _TIME_EPS_S)
-        if np.any(drop):
+        if unseen.size and unseen.max() > min(cfg.t_drop_s, cfg.tentative_drop_s) + _TIME_EPS_S:
+            limit = np.where(self._confirmed, cfg.t_drop_s, cfg.tentative_drop_s) + _TIME_EPS_S
+            drop = unseen > limit
+        else:
+            drop = None
+        if drop is not None and drop.any():
             keep = ~drop
             self._bank.keep(keep)
             self._ids, self._hits = self._ids[keep], self._hits[keep]
