@@ -60,7 +60,8 @@ def swap_solve_times(mode: str, seed: int, n_drones: int = 8, radius_m: float = 
         for i, plan in enumerate(new_plans):
             state[i, :3], state[i, 3:6] = plan.pos_world[1], plan.vel_world[1]
         plans = new_plans
-        if np.all(np.linalg.norm(state[:, :3] - goal, axis=1) < 0.1) and np.all(np.linalg.norm(state[:, 3:6], axis=1) < 0.1):
+        at_goal = np.linalg.norm(state[:, :3] - goal, axis=1) < 0.1
+        if np.all(at_goal) and np.all(np.linalg.norm(state[:, 3:6], axis=1) < 0.1):
             rounds = r + 1
             break
     return dict(wall=np.array(wall), osqp=np.array(osqp_s), update=np.array(update_s), iters=np.array(iters),
@@ -81,8 +82,9 @@ def main() -> None:
     elapsed = time.perf_counter() - t0
     stats = {}
     print(f"8-drone antipodal swap, {args.seeds} seeds per mode, {elapsed:.1f} s total")
-    print(f"{'mode':<10} {'solves':>6} {'median ms':>10} {'p95 ms':>8} {'mean ms':>8} {'median of seed medians':>23} "
-          f"{'osqp-only median':>17} {'update ms':>10} {'iters med/p95':>14} {'rows':>5} {'fails':>5} {'rounds':>7}")  # fmt: skip
+    print(f"{'mode':<10} {'solves':>6} {'median ms':>10} {'p95 ms':>8} {'mean ms':>8} "
+          f"{'median of seed medians':>23} {'osqp-only median':>17} {'update ms':>10} "
+          f"{'iters med/p95':>14} {'rows':>5} {'fails':>5} {'rounds':>7}")  # fmt: skip
     for mode in modes:
         wall = np.concatenate([r["wall"] for r in runs[mode]]) * 1e3
         osqp_ms = np.concatenate([r["osqp"] for r in runs[mode]]) * 1e3

@@ -181,10 +181,12 @@ def on_demand_constraints(
     close = np.flatnonzero(dist[:, k_c] < neighbourhood_factor * r_min)
     time_index = np.full(close.size, k_c)
     if linearise_at == "closest_approach":
-        for n, j in enumerate(close):
-            if dist[j, k_c] < threshold:
-                run_end = k_c + int(np.argmax(np.append(dist[j, k_c:] >= threshold, True)))
-                time_index[n] = k_c + int(np.argmin(dist[j, k_c:run_end]))  # deepest point of the conflict
+        tail = dist[close, k_c:]  # (n, T - k_c)
+        outside = np.c_[tail >= threshold, np.ones(close.size, bool)]
+        run_length = np.argmax(outside, axis=1)  # conflict run from k_c (0 if not conflicting at k_c)
+        in_run = np.arange(tail.shape[1])[None, :] < run_length[:, None]
+        deepest = np.argmin(np.where(in_run, tail, np.inf), axis=1)  # closest approach within the run
+        time_index = np.where(run_length > 0, k_c + deepest, k_c)
     elif linearise_at != "first_conflict":
         raise ValueError(f"linearise_at={linearise_at!r}: one of first_conflict, closest_approach")
     own_c = own_pos_world[time_index]  # p̄_i at the constrained times, (n, 3)

@@ -156,10 +156,14 @@ class DmpcConfig:
         _positive("weight_slack_quadratic", self.weight_slack_quadratic)
         _positive("slack_max_m", self.slack_max_m)
         lo, hi = np.asarray(self.pos_min_world, float), np.asarray(self.pos_max_world, float)
-        if lo.shape != (3,) or hi.shape != (3,) or not np.all(np.isfinite(lo)) or not np.all(np.isfinite(hi)):
-            raise ValueError(f"pos_min_world={self.pos_min_world!r}, pos_max_world={self.pos_max_world!r}: two finite (3,) corners")
+        if lo.shape != (3,) or hi.shape != (3,) or not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+            raise ValueError(
+                f"pos_min_world={self.pos_min_world!r}, pos_max_world={self.pos_max_world!r}: two finite (3,) corners"
+            )
         if not np.all(lo < hi):
-            raise ValueError(f"pos_max_world={self.pos_max_world!r}: every component > pos_min_world={self.pos_min_world!r}")
+            raise ValueError(
+                f"pos_max_world={self.pos_max_world!r}: every component > pos_min_world={self.pos_min_world!r}"
+            )
         for name in ("v_max", "a_max", "j_max", "r_min", "neighbourhood_factor"):
             _positive(name, getattr(self, name))
         if not (np.isfinite(self.downwash) and self.downwash >= 1.0):

@@ -487,8 +487,15 @@ class DmpcProblem:
         self._l[rows] = np.where(offsets <= -_INF, -_INF, lo).ravel()
         self._u[rows] = _INF
 
-    def _result(self, res, x0, goal, t_now_s, e, form_targets, n_coll, conflict_time_s, t_update, t_solve) -> DmpcResult:
-        cfg, mats = self.config, self.matrices
+    def _result(
+        self, res, x0: np.ndarray, goal: np.ndarray, t_now_s: float, e: np.ndarray, form_targets: np.ndarray,
+        n_coll: int, conflict_time_s: float, t_update: float, t_solve: float,
+    ) -> DmpcResult:  # fmt: skip
+        """Unpack OSQP's result ``res`` into a :class:`DmpcResult` (states rolled out, J evaluated term by term).
+
+        ``e`` (3K,) is the smoothness offset [u[-1]; 0...], ``form_targets`` (F, K, 3) the formation targets.
+        """
+        cfg = self.config
         K = cfg.horizon_steps
         U = res.x[: self._n_u]
         s = res.x[self._n_u :]
