@@ -23,24 +23,27 @@ covariance-matching identity ``E[nu nu^T] = H F P F^T H^T + H Q H^T + R``::
     M_k   = H F(dt) P_{k-1} F(dt)^T H^T + R_k            (what the filter predicts without Q)
     D_k   = C_k - M_k                                    (Eq. 11: the excess it did not predict)
     D_k+  = max(0, 1 - 1/q_k) nu_k nu_k^T,  q_k = nu_k^T M_k^-1 nu_k
-    A_hat = K_v D_k+ K_v^T / dt^2                        (K_v: velocity rows of the gain)
+    A_hat = c K_v D_k+ K_v^T / dt^2                      (K_v: velocity rows of the gain; c = 1)
     A_k   = alpha A_hat + (1 - alpha) A_{k-1}            (EMA, alpha = 0.3, Table I)
 
 where ``dt`` is the time since the previous update and ``P_{k-1}`` that
 update's posterior. ``D_k`` is rank one minus positive definite, so it has at
 most one positive direction; ``D_k+`` is its positive part in the metric of
 ``M_k`` (non-zero only when the innovation is larger than ``M_k`` explains,
-``q_k > 1``). It makes ``A_hat`` rank one, ``(K_v nu)(K_v nu)^T`` scaled: no
-eigen-decomposition per track (the Euclidean positive part gave the same RMSE
-to 3 digits on the synthetic benchmark and cost 30 us more per frame). The excess ``D`` is mapped into the state through the gain,
-as in the classic covariance-matching estimate ``Q_hat = K C K^T``, but only
-through its velocity rows, and read as an acceleration covariance so the
-adapted ``Q`` keeps the DWNA structure. Why not ``A_hat = 4 D / dt^4`` (the
-direct DWNA reading of ``H Q H^T = D``): at 25 Hz the true ``H Q H^T`` is far
-below the sampling noise of one ``nu nu^T``, and the ``4 / dt^4`` factor turns
-that noise into tens of m/s^2 of phantom acceleration (measured: velocity RMSE
-3-5 m/s on the synthetic benchmark). ``A_hat`` is capped at trace
-``sigma_acc_max_mps2^2``.
+``q_k > 1``). It makes ``A_hat`` rank one, ``(K_v nu)(K_v nu)^T`` scaled, so
+no eigen-decomposition per track is needed (the Euclidean positive part gave
+the same RMSE to 3 digits in a development run and costs more).
+
+The excess is mapped into the state through the gain, as in the classic
+covariance-matching estimate ``Q_hat = K C K^T``, but only through its velocity
+rows and read as an acceleration covariance, so the adapted ``Q`` keeps the
+DWNA structure: in a sustained manoeuvre the filter corrects its velocity by
+about ``a dt`` per update, so ``K_v nu / dt`` estimates the acceleration ``a``.
+Why not ``A_hat = 4 D / dt^4`` (the direct DWNA reading of ``H Q H^T = D``): at
+25 Hz the true ``H Q H^T`` is far below the sampling noise of one
+``nu nu^T``, and the ``4 / dt^4`` factor turns that noise into tens of m/s^2
+of phantom acceleration (measured in a development run: velocity RMSE 3-5 m/s).
+``A_hat`` is capped at trace ``sigma_acc_max_mps2^2``.
 
 Two implementations that must agree to 1e-9 (a test holds it):
 :class:`KalmanCV` wraps filterpy's ``KalmanFilter`` (the reference, and the

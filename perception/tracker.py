@@ -208,7 +208,10 @@ class _FilterpyBank:
         c = self.cfg
         for zj, Rj in zip(z, R):
             self.filters.append(
-                KalmanCV(zj, Rj, time_s, c.init_vel_std_mps, c.sigma_acc_mps2, c.adaptive, c.alpha_ema, c.sigma_acc_max_mps2, c.adapt_scale, c.adapt_after_hits)
+                KalmanCV(
+                    zj, Rj, time_s, c.init_vel_std_mps, c.sigma_acc_mps2, c.adaptive,
+                    c.alpha_ema, c.sigma_acc_max_mps2, c.adapt_scale, c.adapt_after_hits,
+                )  # fmt: skip
             )
 
     def keep(self, mask: np.ndarray) -> None:
@@ -255,7 +258,9 @@ class MultiTargetTracker:
         """Time [s] of the last update (None before the first)."""
         return self._time_s
 
-    def _inflation(self, t_from: float, t_to: float, last_seen_s: np.ndarray, confirmed: np.ndarray) -> np.ndarray | None:
+    def _inflation(
+        self, t_from: float, t_to: float, last_seen_s: np.ndarray, confirmed: np.ndarray
+    ) -> np.ndarray | None:
         """Linear coasting inflation (n, 6, 6) accrued over ``[t_from, t_to]`` beyond ``last_seen + t_hold``."""
         c = self.config
         if last_seen_s.size == 0 or t_to <= last_seen_s.min() + c.t_hold_s:
@@ -337,10 +342,11 @@ class MultiTargetTracker:
         """Snapshots of every live track (tentative ones included), in birth order."""
         x, P = self._bank.states()
         acc = self._bank.acc_covs()
+        t = float(self._time_s) if self._time_s is not None else 0.0
         return [
-            Track(int(i), s, float(self._time_s), x[j].copy(), P[j].copy(), float(self._last_seen_s[j]), int(self._hits[j]), acc[j].copy())
+            Track(int(i), s, t, x[j].copy(), P[j].copy(), float(self._last_seen_s[j]), int(self._hits[j]), acc[j].copy())
             for j, (i, s) in enumerate(zip(self._ids, self._status()))
-        ]  # fmt: skip
+        ]
 
     def predictions(self, time_s: float) -> list[NeighborPrediction]:
         """One :class:`NeighborPrediction` per confirmed or coasting track, propagated to ``time_s`` [s].

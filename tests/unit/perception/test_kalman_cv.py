@@ -26,7 +26,8 @@ def rng() -> np.random.Generator:
 
 
 def _filter(pos, adaptive=False, sigma_acc=0.5, t0=0.0, vel_std=2.0, adapt_after=1) -> KalmanCV:
-    return KalmanCV(np.asarray(pos, float), SIGMA_M**2 * np.eye(3), t0, vel_std, sigma_acc, adaptive, 0.3, 20.0, 1.0, adapt_after)
+    cov = SIGMA_M**2 * np.eye(3)
+    return KalmanCV(np.asarray(pos, float), cov, t0, vel_std, sigma_acc, adaptive, 0.3, 20.0, 1.0, adapt_after)
 
 
 def test_transition_composes_and_noise_is_the_dwna_closed_form():
@@ -161,7 +162,8 @@ def test_adaptation_is_the_positive_part_of_the_eq11_excess_in_the_metric_of_M(r
 def test_consistent_innovations_let_the_adaptive_part_decay_by_one_minus_alpha():
     A0 = np.diag([4.0, 1.0, 2.0])[None]
     P_prev = np.eye(6)[None] * 0.01
-    out = adapt_acc_cov_batch(A0, np.zeros((1, 3)), np.ones((1, 6, 3)), P_prev, 0.01 * np.eye(3)[None], np.array([0.04]), 0.3, 400.0)
+    R = 0.01 * np.eye(3)[None]
+    out = adapt_acc_cov_batch(A0, np.zeros((1, 3)), np.ones((1, 6, 3)), P_prev, R, np.array([0.04]), 0.3, 400.0)
     np.testing.assert_allclose(out[0], 0.7 * A0[0])
 
 
