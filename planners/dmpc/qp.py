@@ -15,8 +15,16 @@ P = A0_p x0 + Lambda_p U (on-demand DMPC Eq. 10, :mod:`planners.dmpc.model`)::
          obstacles: n_ok^T p[k] >= c_ok                                             (half-spaces)
          optional terminal halt: v[K] = 0 (a[K] = 0)                                (DMPC-Swarm Eq. 13e)
 
-with d_ij the desired offset p_j - p_i (on-demand DMPC design goal 2) and
-u[-1] the input applied in the previous round (read from the previous plan).
+with d_ij the desired offset p_j - p_i (on-demand DMPC design goal 2),
+u[-1] the input applied in the previous round (read from the previous plan),
+and p(t_c) the position at the on-demand plane's time, affine in U like p[k]
+(t_c on a grid of h / ``conflict_substeps``; the closest approach of the
+conflict that starts at the first conflict k_c, or k_c itself with
+``on_demand_time="first_conflict"``; see :mod:`planners.dmpc.collision`).
+Neighbours are read at the round's times from their :class:`NeighborPrediction`
+(a received plan, possibly stale: its tail extrapolates at constant velocity).
+If more neighbours are given than ``max_neighbours`` slots, the nearest are
+kept (on demand: nearest at the conflict; BVC: nearest over the horizon).
 Written for OSQP as  min 1/2 z^T P z + q^T z  s.t.  l <= A z <= u.
 
 Build, then solve: :class:`DmpcProblem` sets OSQP up once with a FIXED

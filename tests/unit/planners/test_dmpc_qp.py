@@ -214,3 +214,18 @@ def test_defaults_follow_the_paper() -> None:
     assert dataclasses.is_dataclass(cfg) and cfg.state_dim == 6 and cfg.horizon_s == pytest.approx(3.0)
     with pytest.raises(dataclasses.FrozenInstanceError):
         cfg.r_min = 1.0  # type: ignore[misc]
+
+
+def test_more_neighbours_than_slots_keeps_the_nearest() -> None:
+    for mode in ("on_demand", "bvc"):
+        cfg = DmpcConfig(collision_mode=mode, max_neighbours=1)
+        problem = DmpcProblem(cfg)
+        x0 = _x0(cfg, vel=(0.0, 0.0, 0.0))
+        near, far = _hover_neighbour([0.3, 0.0, 1.5], 1), _hover_neighbour([-0.35, 0.0, 1.5], 2)
+        previous = DmpcPlan.hover(0.0, cfg.step_s, cfg.horizon_steps, x0[:3])
+        result = problem.solve(x0, [0.0, 0.0, 1.5], [far, near], previous, t_now_s=0.0)
+        assert result.n_collision_constraints == (1 if mode == "on_demand" else cfg.horizon_steps)
+        # The kept plane is the one against the nearer neighbour: the drone backs away from it (towards -x).
+        assert result.pos_world[0, 0] < -0.05
+        if mode == "bvc":  # midway plane between 0 and 0.3 m, buffered: x <= 0.3 - (0.4 + 0.3) / 2 = -0.05
+            assert np.all(result.pos_world[:, 0] <= -0.05 + 1e-3)
