@@ -12,7 +12,13 @@ from planners.dmpc.collision import (
     on_demand_constraints,
 )
 from planners.dmpc.config import DmpcConfig
-from planners.dmpc.model import PredictionMatrices, discrete_model, prediction_matrices, rollout
+from planners.dmpc.model import (
+    PredictionMatrices,
+    discrete_model,
+    fine_position_matrices,
+    prediction_matrices,
+    rollout,
+)
 from planners.dmpc.qp import DmpcProblem, DmpcResult, DmpcSolveError, QpSnapshot
 from planners.dmpc.types import DmpcPlan
 
@@ -29,6 +35,7 @@ __all__ = [
     "bvc_planes",
     "discrete_model",
     "ellipsoidal_distance",
+    "fine_position_matrices",
     "first_conflict_step",
     "on_demand_constraints",
     "prediction_matrices",

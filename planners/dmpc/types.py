@@ -39,7 +39,9 @@ class DmpcPlan:
         vel_world: (K+1, 3) velocities [m/s] at the same times.
         acc_world: (K+1, 3) accelerations [m/s^2] at the same times, right
             limits (for the double integrator ``acc_world[k]`` is the input held
-            on [t_k, t_k+1); the last sample is 0, the constant-velocity tail).
+            on [t_k, t_k+1) and the last sample is 0, the constant-velocity
+            tail; for the triple integrator the samples are the states a[k], and
+            :meth:`acceleration` returns 0 from the last sample on, the tail).
     """
 
     t0_s: float
