@@ -47,8 +47,9 @@ class DmpcConfig:
         weight_formation: q_f of the formation term in [1/m^2] (chosen: 10, a
             tenth of the goal weight so the goal still wins far from it).
         weight_smoothness: q_Theta of the input-difference term, in
-            [s^4/m^2] (double) or [s^6/m^2] (triple) (chosen: 1.0, which keeps
-            plans bang-bang free at h = 0.2 s).
+            [s^4/m^2] (double) or [s^6/m^2] (triple) (chosen: 1.0; against
+            weight_goal = 100 it smooths the inputs without slowing the
+            8-drone swap, which finishes in about 6 s).
         weight_slack_quadratic: zeta, quadratic slack penalty in [1/m^2]
             (chosen: 1e4. online_dmpc uses ``quad_coll_penalty = 1``, but with
             OSQP that leaves the slack's curvature 1e4 times below its linear
@@ -107,7 +108,8 @@ class DmpcConfig:
         osqp_check_termination: OSQP checks its residuals every this many
             iterations (chosen: 5 instead of OSQP's 25: a warm-started round
             typically converges in 5-10 iterations; measured in
-            benchmarks/bench_dmpc.py, median solve 0.20 -> 0.14 ms on demand).
+            benchmarks/bench_dmpc.py, on-demand median solve about 0.20 ->
+            0.15-0.17 ms, same ratio to BVC).
         osqp_polish: run OSQP's solution polishing (exact active-set solve).
     """
 
