@@ -54,6 +54,8 @@ uses).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from filterpy.kalman import KalmanFilter
 
@@ -140,6 +142,16 @@ def adapt_acc_cov_batch(
     return alpha * A_hat + (1.0 - alpha) * acc_cov  # A_k = alpha A_hat + (1 - alpha) A_{k-1}
 
 
+@functools.lru_cache(maxsize=64)
+def _shared_f_g(dt_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(F, F^T, G, G^T)`` for one interval ``dt_s`` [s] (read-only, cached: frames come at a fixed rate)."""
+    F, G = transition_matrix(dt_s), noise_gain(dt_s)
+    out = (F, np.ascontiguousarray(F.T), G, np.ascontiguousarray(G.T))
+    for a in out:
+        a.flags.writeable = False
+    return out
+
+
 def predict_batch(
     x: np.ndarray, P: np.ndarray, dt_s: np.ndarray, acc_cov: np.ndarray, extra_cov: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -155,17 +167,14 @@ def predict_batch(
     Returns:
         ``(x_prior (n, 6), P_prior (n, 6, 6))``.
     """
-    if np.ndim(dt_s) == 0:  # one interval for all tracks (the tracker's case): shared F and G
-        dt = float(dt_s)
-        F = _EYE6.copy()
-        F[_POS_IDX, _VEL_IDX] = dt
-        G = (0.5 * dt * dt) * _G_POS + dt * _G_VEL
+    if np.ndim(dt_s) == 0:  # one interval for all tracks (the tracker's case): shared, cached F and G
+        F, FT, G, GT = _shared_f_g(float(dt_s))
     else:
         dt = np.asarray(dt_s, float)[:, None, None]
         F = _EYE6 + dt * _F_DT
         G = (0.5 * dt * dt) * _G_POS + dt * _G_VEL
-    FT, GT = np.swapaxes(F, -1, -2), np.swapaxes(G, -1, -2)
-    x_prior = (F @ x[..., None])[..., 0]  # x = F x
+        FT, GT = np.swapaxes(F, -1, -2), np.swapaxes(G, -1, -2)
+    x_prior = x @ FT if F.ndim == 2 else (F @ x[..., None])[..., 0]  # x = F x
     P_prior = F @ P @ FT + G @ acc_cov @ GT  # P = F P F^T + Q,  Q = G A G^T
     if extra_cov is not None:
         P_prior = P_prior + extra_cov
