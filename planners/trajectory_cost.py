@@ -112,9 +112,9 @@ class NeighborTable:
 
     def __init__(self, neighbors: list[NeighborPrediction]):
         n = len(neighbors)
-        self.times_s = np.concatenate([np.asarray(nb.times_s, float) for nb in neighbors]) if n else np.zeros(0)
-        self.pos_world = np.concatenate([np.asarray(nb.pos_world, float) for nb in neighbors]) if n else np.zeros((0, 3))
-        self.vel_world = np.concatenate([np.asarray(nb.vel_world, float) for nb in neighbors]) if n else np.zeros((0, 3))
+        self.times_s = np.concatenate([np.asarray(nb.times_s, float) for nb in neighbors] + [np.zeros(0)])
+        self.pos_world = np.concatenate([np.asarray(nb.pos_world, float) for nb in neighbors] + [np.zeros((0, 3))])
+        self.vel_world = np.concatenate([np.asarray(nb.vel_world, float) for nb in neighbors] + [np.zeros((0, 3))])
         self.offsets = np.zeros(n + 1, dtype=np.int64)
         self.offsets[1:] = np.cumsum([np.shape(nb.times_s)[0] for nb in neighbors]).astype(np.int64)
         self.t_last_s = np.array([float(nb.times_s[-1]) for nb in neighbors]) if n else np.zeros(0)
@@ -513,5 +513,5 @@ class TrajectoryCost:
         gdt = np.zeros(durations.shape[0])
         o = self.accumulate(coeffs, durations, gdc, gdt)
         return PenaltyTerms(
-            float(o[0]), float(o[1]), float(o[2]), float(o[3]), gdc, gdt, float(o[4]), float(o[5]), float(o[6]), float(o[7])
+            *(float(v) for v in o[:4]), gdc, gdt, *(float(v) for v in o[4:8])
         )

@@ -134,7 +134,9 @@ def _tau_to_time(tau):
 
 
 def _time_to_tau(T: np.ndarray) -> np.ndarray:
-    return np.where(T > 1.0, np.sqrt(np.maximum(2.0 * T - 1.0, 0.0)) - 1.0, 1.0 - np.sqrt(np.maximum(2.0 / T - 1.0, 0.0)))
+    """Inverse of :func:`_tau_to_time` for durations T (M,) [s]."""
+    above = np.sqrt(np.maximum(2.0 * T - 1.0, 0.0)) - 1.0
+    return np.where(T > 1.0, above, 1.0 - np.sqrt(np.maximum(2.0 / T - 1.0, 0.0)))
 
 
 @njit(cache=True)
@@ -162,8 +164,9 @@ def _forward(head, tail, x, n_q, K):
 
 @njit(cache=True)
 def _backward(
-    x, n_q, T, coeffs, ab, K, t0, prm, dist, dist_grad, use_field, nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, w_e, w_t, out, stats
-):
+    x, n_q, T, coeffs, ab, K, t0, prm, dist, dist_grad, use_field,
+    nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, w_e, w_t, out, stats,
+):  # fmt: skip
     """Eq. 15 cost and its gradient by x, given the forward pass; out (9,) gets penalty terms/statistics and energy."""
     m = T.shape[0]
     energy = _energy(coeffs, T)
@@ -175,8 +178,9 @@ def _backward(
     gdt += w_t  # d(w_t sum T) / dT
     terms = out[:8]
     _penalty_kernel(
-        coeffs, T, K, t0, prm, dist, dist_grad, use_field, nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, gdc, gdt, terms, stats
-    )
+        coeffs, T, K, t0, prm, dist, dist_grad, use_field,
+        nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, gdc, gdt, terms, stats,
+    )  # fmt: skip
     out[8] = energy
     gq, gT = _propagate_grad(ab, coeffs, T, gdc, gdt)
     grad = np.empty(x.shape[0])
@@ -501,8 +505,9 @@ def _compiled_cost(x, args):
         d, gd = np.zeros(0), np.zeros((0, 3))
     nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov = nb
     return _backward(
-        x, n_q, T, coeffs, ab, K, t0, prm, d, gd, use_field, nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, w_e, w_t, out, False
-    )
+        x, n_q, T, coeffs, ab, K, t0, prm, d, gd, use_field,
+        nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov, w_e, w_t, out, False,
+    )  # fmt: skip
 
 
 def _python_cost(x, problem):
@@ -551,8 +556,8 @@ def _scipy(problem: TrajectoryProblem) -> tuple[np.ndarray, float, int, str]:
     )
     if not np.isfinite(res.fun):
         raise TrajectoryOptimizationError(f"non-finite cost {res.fun!r}: {res.message}", problem)
-    status = "converged" if res.success else ("max_iterations" if res.nit >= cfg.max_iterations else "line_search_stalled")
-    return res.x, float(res.fun), int(res.nit), status
+    code = 0 if res.success else 1 if res.nit >= cfg.max_iterations else 2
+    return res.x, float(res.fun), int(res.nit), _STATUS[code]
 
 
 def solve(problem: TrajectoryProblem) -> TrajectoryOptimizerResult:
