@@ -153,7 +153,7 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
                     if in_flight is not None:
                         delivery.append(_finish_frames(pool, rig, in_flight, segmentations))
                     cams = [(i, rig.transform_camera_to_world(truth.pos_world[i], truth.rotation_body_to_world[i])) for i in range(n)]
-                    pool.submit(truth.pos_world, truth.quat_xyzw, cams)
+                    pool.submit(truth.pos_world, truth.quat_xyzw, cams, sensor=(cfg.seed, frame_index))
                     in_flight = (t, frame_index, estimates, [c[1] for c in cams])
                     frame_index += 1
                 next_cam += cam_period

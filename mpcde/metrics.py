@@ -22,7 +22,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from sim.ground_truth import TrueState, pairwise_distances
-from sim.obstacles import ObstacleSpec, distance_to_obstacles
+from sim.obstacles import ObstacleField, ObstacleSpec
 
 __all__ = ["MetricsAccumulator"]
 
@@ -34,6 +34,7 @@ class MetricsAccumulator:
         self.goals = np.asarray(goals_world, float)
         n = self.goals.shape[0]
         self.obstacles = tuple(obstacles)
+        self.field = ObstacleField(self.obstacles)
         self.r = robot_radius_m
         self.tol = goal_tolerance_m
         self.min_pair = np.inf
@@ -66,7 +67,7 @@ class MetricsAccumulator:
             self.in_collision = close
             self.min_pair_series.append((s.time_s, m))
         if self.obstacles:
-            clearance = distance_to_obstacles(s.pos_world, self.obstacles) - self.r
+            clearance = self.field.distance(s.pos_world) - self.r
             self.min_obstacle = min(self.min_obstacle, float(clearance.min()))
         new_contact = s.obstacle_contact & ~self.in_contact
         self.drone_obstacle_collisions += int(new_contact.sum())

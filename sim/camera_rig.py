@@ -14,7 +14,17 @@ from sim.renderer import RawRender
 from sim.rotations import rotation_from_quat_xyzw
 from sim.types import GroundTruthSegmentation, PoseEstimate, RgbdFrame
 
-__all__ = ["CameraRig"]
+__all__ = ["CameraRig", "sensor_depth"]
+
+
+def sensor_depth(depth_true_m: np.ndarray, camera: CameraConfig, seed: int, drone: int, frame_index: int) -> np.ndarray:
+    """The depth sensor's output (H, W) [m] for one capture, seeded by (run seed, drone, frame index).
+
+    The same inputs give the same noise wherever it is computed (a render
+    worker or the main process).
+    """
+    rng = np.random.default_rng([seed, 0xCA3, drone, frame_index])
+    return apply_depth_sensor_model(depth_true_m, rng, camera)
 
 
 class CameraRig:
@@ -39,10 +49,10 @@ class CameraRig:
         """Onboard frame: sensor-model depth, pose from the drone's own *estimate*.
 
         The noise generator is seeded by (run seed, drone, frame index), so
-        frames do not depend on how renders were distributed over workers.
+        frames do not depend on how renders were distributed over workers;
+        a render pool asked for sensor depth has already applied it.
         """
-        rng = np.random.default_rng([self.seed, 0xCA3, drone, frame_index])
-        depth_m = apply_depth_sensor_model(raw.depth_true_m, rng, self.camera)
+        depth_m = raw.depth_sensor_m if raw.depth_sensor_m is not None else sensor_depth(raw.depth_true_m, self.camera, self.seed, drone, frame_index)
         T_est = self.transform_camera_to_world(estimate.pos_world, rotation_from_quat_xyzw(estimate.quat_xyzw))
         return RgbdFrame(drone_id=drone, time_s=time_s, rgb=raw.rgb, depth_m=depth_m, K=self.K, transform_camera_to_world=T_est)
 

@@ -11,7 +11,7 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["ObstacleSpec", "generate_obstacles", "distance_to_obstacles"]
+__all__ = ["ObstacleField", "ObstacleSpec", "distance_to_obstacles", "generate_obstacles"]
 
 
 @dataclass(frozen=True)
@@ -122,10 +122,49 @@ def generate_obstacles(
     return placed
 
 
+class ObstacleField:
+    """Exact distances to a fixed set of obstacles, with their geometry cached as arrays."""
+
+    def __init__(self, obstacles: Sequence[ObstacleSpec]) -> None:
+        trees = [o for o in obstacles if o.kind == "tree"]
+        boxes = [o for o in obstacles if o.kind == "box"]
+        self.tree_c = np.array([o.center_xy for o in trees]).reshape(-1, 2)
+        self.tree_r = np.array([o.radius_m for o in trees])
+        self.tree_h = np.array([o.height_m for o in trees])
+        self.box_c = np.array([o.center_xy for o in boxes]).reshape(-1, 2)
+        self.box_he = np.array([o.half_extents_xy for o in boxes]).reshape(-1, 2)
+        self.box_h = np.array([o.height_m for o in boxes])
+        self.box_cos = np.cos([o.yaw for o in boxes])
+        self.box_sin = np.sin([o.yaw for o in boxes])
+
+    def distance(self, points_world: np.ndarray) -> np.ndarray:
+        """Distance [m] from (n, 3) points to the nearest surface, (n,); see :func:`distance_to_obstacles`."""
+        pts = np.atleast_2d(np.asarray(points_world, float))
+        best = np.full(pts.shape[0], np.inf)
+        z = pts[:, 2:3]
+        if self.tree_r.size:
+            radial = np.linalg.norm(pts[:, None, :2] - self.tree_c[None], axis=-1) - self.tree_r  # (n, T)
+            dz = np.maximum(z - self.tree_h, 0.0) + np.maximum(-z, 0.0)
+            d = np.where((radial < 0) & (dz == 0), radial, np.hypot(np.maximum(radial, 0.0), dz))
+            best = np.minimum(best, d.min(axis=1))
+        if self.box_h.size:
+            dx = pts[:, None, 0] - self.box_c[None, :, 0]
+            dy = pts[:, None, 1] - self.box_c[None, :, 1]
+            qx = np.abs(self.box_cos * dx + self.box_sin * dy) - self.box_he[:, 0]  # box-local |x| - half extent, (n, B)
+            qy = np.abs(-self.box_sin * dx + self.box_cos * dy) - self.box_he[:, 1]
+            outside_xy = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
+            inside = (qx < 0) & (qy < 0)
+            dz = np.maximum(z - self.box_h, 0.0) + np.maximum(-z, 0.0)
+            d = np.where(inside & (dz == 0), np.maximum(qx, qy), np.hypot(outside_xy, dz))
+            best = np.minimum(best, d.min(axis=1))
+        return best
+
+
 def distance_to_obstacles(points_world: np.ndarray, obstacles: Sequence[ObstacleSpec]) -> np.ndarray:
     """Exact Euclidean distance [m] from points to the nearest obstacle surface.
 
-    Vectorised over points and obstacles: (n, n_obstacles) work per call.
+    Vectorised over points and obstacles. For repeated queries against the
+    same obstacles build an :class:`ObstacleField` once.
 
     Args:
         points_world: (n, 3) points [m].
@@ -135,31 +174,4 @@ def distance_to_obstacles(points_world: np.ndarray, obstacles: Sequence[Obstacle
         (n,) distances [m]; negative inside an obstacle (depth of penetration
         in the horizontal plane); ``inf`` when there are no obstacles.
     """
-    pts = np.atleast_2d(np.asarray(points_world, float))
-    best = np.full(pts.shape[0], np.inf)
-    trees = [o for o in obstacles if o.kind == "tree"]
-    boxes = [o for o in obstacles if o.kind == "box"]
-    z = pts[:, 2:3]
-    if trees:
-        c = np.array([o.center_xy for o in trees])
-        r = np.array([o.radius_m for o in trees])
-        h = np.array([o.height_m for o in trees])
-        radial = np.linalg.norm(pts[:, None, :2] - c[None], axis=-1) - r  # (n, T)
-        dz = np.maximum(z - h, 0.0) + np.maximum(-z, 0.0)
-        d = np.where((radial < 0) & (dz == 0), radial, np.hypot(np.maximum(radial, 0.0), dz))
-        best = np.minimum(best, d.min(axis=1))
-    if boxes:
-        c = np.array([o.center_xy for o in boxes])
-        he = np.array([o.half_extents_xy for o in boxes])
-        h = np.array([o.height_m for o in boxes])
-        cy, sy = np.cos([o.yaw for o in boxes]), np.sin([o.yaw for o in boxes])
-        dx = pts[:, None, 0] - c[None, :, 0]
-        dy = pts[:, None, 1] - c[None, :, 1]
-        qx = np.abs(cy * dx + sy * dy) - he[:, 0]  # box-local |x| - half extent, (n, B)
-        qy = np.abs(-sy * dx + cy * dy) - he[:, 1]
-        outside_xy = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
-        inside = (qx < 0) & (qy < 0)
-        dz = np.maximum(z - h, 0.0) + np.maximum(-z, 0.0)
-        d = np.where(inside & (dz == 0), np.maximum(qx, qy), np.hypot(outside_xy, dz))
-        best = np.minimum(best, d.min(axis=1))
-    return best
+    return ObstacleField(obstacles).distance(points_world)

@@ -8,8 +8,10 @@ waits for the answers and copies the images out. Between the two calls the
 main process keeps stepping physics, so rendering overlaps with it. With
 ``n_workers = 0`` everything runs in-process (tests, dataset generation).
 
-Renders are noise-free and deterministic; sensor noise is added by the caller
-from its own seeded generator, so results do not depend on the worker count.
+Renders are deterministic. When asked (``sensor``), the workers also
+apply the depth sensor model, seeded per (seed, drone, frame index) by
+:func:`sim.camera_rig.sensor_depth`, so results do not depend on the worker
+count and the noise costs the main process nothing.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from typing import Sequence
 import numpy as np
 
 from sim.camera import CameraConfig
+from sim.camera_rig import sensor_depth
 from sim.renderer import RawRender, SceneRenderer
 from sim.scene import RenderStyle, SceneSpec
 
@@ -29,16 +32,27 @@ __all__ = ["CameraRequest", "RenderPool"]
 CameraRequest = tuple[int, np.ndarray]  # (drone index, true transform_camera_to_world (4, 4))
 
 
-def _slot_views(buf: memoryview, n_slots: int, H: int, W: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+SLOT_BYTES_PER_PX = 3 + 4 + 2 + 4  # rgb, true depth, mask, sensor depth
+
+
+def _slot_views(buf: memoryview, n_slots: int, H: int, W: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
     views = []
-    size = H * W * (3 + 4 + 2)
     for s in range(n_slots):
-        off = s * size
+        off = s * H * W * SLOT_BYTES_PER_PX
         rgb = np.ndarray((H, W, 3), np.uint8, buf, off)
         depth = np.ndarray((H, W), np.float32, buf, off + H * W * 3)
         mask = np.ndarray((H, W), np.int16, buf, off + H * W * 7)
-        views.append((rgb, depth, mask))
+        sensor = np.ndarray((H, W), np.float32, buf, off + H * W * 9)
+        views.append((rgb, depth, mask, sensor))
     return views
+
+
+def _render_one(renderer: SceneRenderer, drone: int, T_cw: np.ndarray, style, sensor: tuple[int, int] | None) -> RawRender:
+    r = renderer.render(T_cw, drone, style)
+    if sensor is None:
+        return r
+    seed, frame_index = sensor
+    return RawRender(r.rgb, r.depth_true_m, r.drone_index_mask, sensor_depth(r.depth_true_m, renderer.camera, seed, drone, frame_index))
 
 
 def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_slots: int) -> None:  # pragma: no cover - runs in a child
@@ -50,12 +64,14 @@ def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_s
             msg = conn.recv()
             if msg[0] == "stop":
                 break
-            _, pos, quat, jobs, style = msg
+            _, pos, quat, jobs, style, sensor = msg
             renderer.set_drone_poses(pos, quat)
             for slot, drone, T_cw in jobs:
-                r = renderer.render(T_cw, drone, style)
-                rgb, depth, mask = views[slot]
+                r = _render_one(renderer, drone, T_cw, style, sensor)
+                rgb, depth, mask, sensor_view = views[slot]
                 rgb[:], depth[:], mask[:] = r.rgb, r.depth_true_m, r.drone_index_mask
+                if r.depth_sensor_m is not None:
+                    sensor_view[:] = r.depth_sensor_m
             conn.send(("done", len(jobs)))
     finally:
         del views
@@ -90,7 +106,7 @@ class RenderPool:
         H, W = camera.height_px, camera.width_px
         n_slots = spec.n_drones
         for _ in range(n_workers):
-            shm = shared_memory.SharedMemory(create=True, size=max(1, n_slots * H * W * 9))
+            shm = shared_memory.SharedMemory(create=True, size=max(1, n_slots * H * W * SLOT_BYTES_PER_PX))
             parent, child = ctx.Pipe()
             proc = ctx.Process(target=_worker_main, args=(child, spec, camera, shm.name, n_slots), daemon=True)
             proc.start()
@@ -101,14 +117,24 @@ class RenderPool:
             self._views.append(_slot_views(shm.buf, n_slots, H, W))
 
     def submit(
-        self, pos_world: np.ndarray, quat_xyzw: np.ndarray, cameras: Sequence[CameraRequest], style: RenderStyle | None = None
+        self,
+        pos_world: np.ndarray,
+        quat_xyzw: np.ndarray,
+        cameras: Sequence[CameraRequest],
+        style: RenderStyle | None = None,
+        sensor: tuple[int, int] | None = None,
     ) -> None:
-        """Start rendering ``cameras`` with the drones at (N, 3) / (N, 4) true poses."""
+        """Start rendering ``cameras`` with the drones at (N, 3) / (N, 4) true poses.
+
+        Args:
+            sensor: (run seed, frame index) to also apply the depth sensor
+                model (``RawRender.depth_sensor_m``); None for true depth only.
+        """
         if self._pending is not None:
             raise RuntimeError("RenderPool.submit: collect() the previous batch first")
         if self._local is not None:
             self._local.set_drone_poses(pos_world, quat_xyzw)
-            self._local_result = [self._local.render(T, d, style) for d, T in cameras]
+            self._local_result = [_render_one(self._local, d, T, style, sensor) for d, T in cameras]
             self._pending = []
             return
         assign: list[list[tuple[int, int, np.ndarray]]] = [[] for _ in range(self.n_workers)]
@@ -120,9 +146,10 @@ class RenderPool:
             order.append((w, slot))
         for w, jobs in enumerate(assign):
             if jobs:
-                self._conns[w].send(("render", np.asarray(pos_world, float), np.asarray(quat_xyzw, float), jobs, style))
+                self._conns[w].send(("render", np.asarray(pos_world, float), np.asarray(quat_xyzw, float), jobs, style, sensor))
         self._pending = [(w, []) for w, jobs in enumerate(assign) if jobs]
         self._order = order
+        self._sensor = sensor is not None
 
     def collect(self) -> list[RawRender]:
         """Wait for the submitted batch; renders in the order of the request."""
@@ -137,16 +164,23 @@ class RenderPool:
                 raise RuntimeError(f"render worker {w} failed: {reply!r}")
         out = []
         for w, slot in self._order:
-            rgb, depth, mask = self._views[w][slot]
-            out.append(RawRender(rgb=rgb.copy(), depth_true_m=depth.copy(), drone_index_mask=mask.copy()))
+            rgb, depth, mask, sensor = self._views[w][slot]
+            out.append(
+                RawRender(rgb=rgb.copy(), depth_true_m=depth.copy(), drone_index_mask=mask.copy(), depth_sensor_m=sensor.copy() if self._sensor else None)
+            )
         self._pending = None
         return out
 
     def render(
-        self, pos_world: np.ndarray, quat_xyzw: np.ndarray, cameras: Sequence[CameraRequest], style: RenderStyle | None = None
+        self,
+        pos_world: np.ndarray,
+        quat_xyzw: np.ndarray,
+        cameras: Sequence[CameraRequest],
+        style: RenderStyle | None = None,
+        sensor: tuple[int, int] | None = None,
     ) -> list[RawRender]:
         """Synchronous :meth:`submit` + :meth:`collect`."""
-        self.submit(pos_world, quat_xyzw, cameras, style)
+        self.submit(pos_world, quat_xyzw, cameras, style, sensor)
         return self.collect()
 
     @property

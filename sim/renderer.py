@@ -39,11 +39,14 @@ class RawRender:
         depth_true_m: (H, W) float32 depth along the optical axis [m]; ``inf``
             where nothing is hit (sky).
         drone_index_mask: (H, W) int16, drone index or -1.
+        depth_sensor_m: (H, W) float32 sensor-model depth [m] (NaN invalid),
+            when the render pool was asked to apply the sensor model; else None.
     """
 
     rgb: np.ndarray
     depth_true_m: np.ndarray
     drone_index_mask: np.ndarray
+    depth_sensor_m: np.ndarray | None = None
 
 
 class SceneRenderer:

@@ -3,7 +3,8 @@
 Each physics tick (default 240 Hz) the SE(3) controller turns each drone's
 reference into a wrench, the motor bank allocates it to four rotor thrusts
 (saturated, with motor lag), and the thrusts are applied as forces at the rotor
-hubs, the rotor drag torques and body drag through PyBullet; then PyBullet
+hubs (as their exact resultant force and torque about the centre of mass),
+the rotor drag torques and body drag through PyBullet; then PyBullet
 integrates the rigid bodies. No pose is ever set by hand after spawning.
 
 The controller reads the *true* state (it stands for the flight controller's
@@ -80,6 +81,7 @@ class World:
             # aerodynamics are ours (body drag below); no artificial damping
             pb.changeDynamics(b, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=self.client)
         self._static_ids = set(self.obstacle_ids) | {self.ground_id}
+        self._drone_index = {b: i for i, b in enumerate(self.drone_ids)}
         self.controller = SE3Controller(self.params, n, self.config.gains)
         self.motors = MotorBank(self.params, n)
         self.failed = np.zeros(n, bool)
@@ -119,11 +121,12 @@ class World:
         R = rotation_from_quat_xyzw(quat)
         omega_b = np.einsum("nji,nj->ni", R, omega_w)  # Omega_body = R^T omega_world
         contact = np.zeros(n, bool)
-        for i, b in enumerate(self.drone_ids):
-            for cp in pb.getContactPoints(bodyA=b, physicsClientId=c):
-                if cp[2] in self._static_ids:
-                    contact[i] = True
-                    break
+        for cp in pb.getContactPoints(physicsClientId=c):  # every contact of the world in one call
+            a, b = cp[1], cp[2]
+            if a in self._drone_index and b in self._static_ids:
+                contact[self._drone_index[a]] = True
+            elif b in self._drone_index and a in self._static_ids:
+                contact[self._drone_index[b]] = True
         return TrueState(
             time_s=self.time_s,
             pos_world=pos,
@@ -155,16 +158,18 @@ class World:
         )
         thrusts, drag_torques = self.motors.step(self.motors.thrusts_for_wrench(wrench), self.dt_s)
         R = s.rotation_body_to_world
-        rotor_pos_world = s.pos_world[:, None, :] + np.einsum("nij,kj->nki", R, self._rotor_pos_body)
-        rotor_force_world = thrusts[:, :, None] * R[:, None, :, 2]  # f_i R e3
-        yaw_torque_world = drag_torques.sum(axis=1)[:, None] * R[:, :, 2]  # sum_i s_i k_m w_i^2 R e3
-        drag_force_world = -self.params.linear_drag_coeff * s.vel_world
+        # The four rotor thrusts f_i act along body z at the hubs r_i; their resultant
+        # about the centre of mass is exactly F = sum_i f_i R e3 and
+        # tau = R (sum_i r_i x f_i e3 + sum_i s_i k_m w_i^2 e3) (rotor drag torques), applied
+        # as one force at the COM and one torque (2 PyBullet calls per drone instead of 6).
+        r = self._rotor_pos_body
+        tau_body = np.stack([thrusts @ r[:, 1], -(thrusts @ r[:, 0]), drag_torques.sum(axis=1)], axis=1)
+        force_world = thrusts.sum(axis=1)[:, None] * R[:, :, 2] - self.params.linear_drag_coeff * s.vel_world
+        torque_world = np.einsum("nij,nj->ni", R, tau_body)
         c = self.client
         for i, b in enumerate(self.drone_ids):
-            for k in range(4):
-                pb.applyExternalForce(b, -1, rotor_force_world[i, k].tolist(), rotor_pos_world[i, k].tolist(), pb.WORLD_FRAME, physicsClientId=c)
-            pb.applyExternalForce(b, -1, drag_force_world[i].tolist(), s.pos_world[i].tolist(), pb.WORLD_FRAME, physicsClientId=c)
-            pb.applyExternalTorque(b, -1, yaw_torque_world[i].tolist(), pb.WORLD_FRAME, physicsClientId=c)
+            pb.applyExternalForce(b, -1, force_world[i].tolist(), s.pos_world[i].tolist(), pb.WORLD_FRAME, physicsClientId=c)
+            pb.applyExternalTorque(b, -1, torque_world[i].tolist(), pb.WORLD_FRAME, physicsClientId=c)
         pb.stepSimulation(physicsClientId=c)
         self.step_count += 1
         self.time_s = self.step_count * self.dt_s

@@ -51,9 +51,11 @@ def test_rendering_in_worker_processes_gives_the_same_frames_as_in_process():
         T[:3, 3] = pos[i] - [0.3, 0, 0]
         cams.append((i, T))
     with RenderPool(spec, CameraConfig(), 0) as local, RenderPool(spec, CameraConfig(), 2) as pool:
-        a = local.render(pos, quat, cams)
-        b = pool.render(pos, quat, cams)
+        a = local.render(pos, quat, cams, sensor=(3, 17))
+        b = pool.render(pos, quat, cams, sensor=(3, 17))
     for x, y in zip(a, b):
+        assert np.array_equal(x.depth_sensor_m, y.depth_sensor_m, equal_nan=True)
+        assert np.isnan(x.depth_sensor_m).any() and not np.array_equal(x.depth_sensor_m, x.depth_true_m, equal_nan=True)
         assert np.array_equal(x.rgb, y.rgb)
         assert np.array_equal(x.drone_index_mask, y.drone_index_mask)
         assert np.array_equal(x.depth_true_m, y.depth_true_m)
