@@ -67,7 +67,7 @@ class TrajectoryOptimizerConfig:
         weight_swarm: weight of the swarm penalty w_s [-]; default 1e5.
         samples_per_piece: K penalty samples per piece [-]; default 16.
         max_piece_length_m: front-end segments longer than this are split evenly [m]; default 3.0.
-        initial_speed_fraction: initial durations are segment length / (fraction v_max) [-]; default 0.6.
+        initial_speed_fraction: initial durations are segment length / (fraction v_max) [-]; default 0.5.
         max_iterations: L-BFGS iteration limit [-]; default 200.
         gradient_tolerance: stop when ||g||_inf <= tol max(1, ||x||_inf) [-]; default 1e-5.
         relative_cost_tolerance: stop when the cost fell by less than this fraction over 3 iterations [-]; default 1e-4.
@@ -91,7 +91,7 @@ class TrajectoryOptimizerConfig:
     weight_swarm: float = 1.0e5
     samples_per_piece: int = 16
     max_piece_length_m: float = 3.0
-    initial_speed_fraction: float = 0.6
+    initial_speed_fraction: float = 0.5
     max_iterations: int = 200
     gradient_tolerance: float = 1e-5
     relative_cost_tolerance: float = 1e-4

@@ -66,7 +66,7 @@ def test_time_map_round_trips_and_its_derivative_matches_finite_differences():
 
 def test_total_cost_gradient_matches_finite_differences():
     field = CylinderField([[3.0, 0.3], [7.0, -0.2]], [0.4, 0.3])
-    cfg = TrajectoryOptimizerConfig(v_max_mps=1.2, a_max_mps2=0.3, samples_per_piece=8)
+    cfg = TrajectoryOptimizerConfig(v_max_mps=1.0, a_max_mps2=0.3, samples_per_piece=8, initial_speed_fraction=1.0)
     nb = NeighborPrediction.constant_velocity(
         1, "perception", 0.0, [5.0, -0.5, 1.2], [0.0, 0.1, 0.0], np.diag([0.01] * 3 + [0.02] * 3)
     )
