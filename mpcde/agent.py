@@ -14,13 +14,36 @@ keeps the latest frame and the neighbours' latest broadcast plans; perception
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
 from planners.min_jerk_line import MinJerkLine
 from sim.types import FlatOutputReference, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
 
-__all__ = ["Agent", "AgentCounters"]
+__all__ = ["Agent", "AgentCounters", "OnboardAgent"]
+
+
+class OnboardAgent(Protocol):
+    """What the loop may call on an onboard agent, and all it may hand it.
+
+    Inputs are only the drone's own pose estimate, its own camera frames and
+    its radio inbox; outputs are a controller reference and a broadcast
+    payload. Every planner stack (placeholder, DMPC, MP-CDE) implements this.
+    """
+
+    drone_id: int
+    counters: "AgentCounters"
+
+    def on_pose_estimate(self, estimate: PoseEstimate) -> None: ...
+
+    def on_frame(self, frame: RgbdFrame) -> None: ...
+
+    def on_radio(self, messages: list[RadioMessage]) -> None: ...
+
+    def outgoing(self, time_s: float) -> Any | None: ...
+
+    def reference(self, time_s: float) -> FlatOutputReference: ...
 
 
 @dataclass
@@ -34,7 +57,7 @@ class AgentCounters:
 
 @dataclass
 class Agent:
-    """One drone's onboard stack.
+    """One drone's onboard stack with the PLACEHOLDER planner (``planner.kind: min_jerk_line``).
 
     Attributes:
         drone_id: index of the drone.

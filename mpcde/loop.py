@@ -26,7 +26,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from mpcde.agent import Agent
+from mpcde.agents import make_agent
 from mpcde.metrics import MetricsAccumulator
 from mpcde.scenario import ScenarioConfig, build_layout, check_layout, resolve_obstacles
 from sim.camera_rig import CameraRig
@@ -117,7 +117,7 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
     estimator = PoseEstimator(cfg.pose_estimate, n, cfg.seed)
     rig = CameraRig(cfg.camera, cfg.seed)
     radio = Radio(cfg.radio, n, cfg.seed, line_of_sight=lambda a, b: _line_of_sight(world, a, b))
-    agents = [Agent(i, goals[i], cfg.planner.cruise_speed_mps, cfg.planner.start_delay_s) for i in range(n)]
+    agents = [make_agent(cfg, i, goals[i], n) for i in range(n)]
     metrics = MetricsAccumulator(goals, prepared.obstacles, cfg.physics.quadrotor.robot_radius_m, cfg.run.goal_tolerance_m)
     log = RunLog()
     workers = cfg.run.render_workers if cfg.run.render_workers >= 0 else (os.cpu_count() or 1)
@@ -168,13 +168,14 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
                 if frame_sink is not None:
                     frame_sink(t, truth, latest_frames)
             if t >= next_radio - eps:
+                # a round: read the inbox (plans of earlier rounds), then compute and broadcast
+                for a in agents:
+                    a.on_radio(radio.receive(a.drone_id, t))
                 for a in agents:
                     if not truth.failed[a.drone_id]:
                         msg = a.outgoing(t)
                         if msg is not None:
                             radio.broadcast(a.drone_id, t, msg, truth.pos_world)
-                for a in agents:
-                    a.on_radio(radio.receive(a.drone_id, t))
                 next_radio += radio_period
             refs = [a.reference(t) for a in agents]
             if t >= next_log - eps:
@@ -183,7 +184,7 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
                     pos_world=truth.pos_world,
                     vel_world=truth.vel_world,
                     yaw=yaw_from_rotation(truth.rotation_body_to_world),
-                    est_pos_world=[a.latest_estimate.pos_world for a in agents],
+                    est_pos_world=[e.pos_world for e in estimator.latest],
                     ref_pos_world=[r.pos_world for r in refs],
                     failed=truth.failed,
                 )

@@ -110,7 +110,7 @@ class SpyAgent(agent_module.Agent):
 def test_onboard_agent_sees_only_its_frames_its_estimate_and_its_inbox(monkeypatch):
     import mpcde.loop as loop
 
-    monkeypatch.setattr(loop, "Agent", SpyAgent)
+    monkeypatch.setattr(loop, "make_agent", lambda cfg, i, goal, n: SpyAgent(i, goal, cfg.planner.cruise_speed_mps, cfg.planner.start_delay_s))
     SpyAgent.seen = []
     run_scenario(prepare_run(short("crossing", 0.5, render_workers=0)))
     kinds = {k for k, _, _ in SpyAgent.seen}
@@ -124,9 +124,11 @@ def test_onboard_agent_sees_only_its_frames_its_estimate_and_its_inbox(monkeypat
             assert all(type(m) is RadioMessage for m in value)
     # a frame carries no segmentation, only image, depth, intrinsics and the own pose estimate
     assert {f.name for f in fields(RgbdFrame)} == {"drone_id", "time_s", "rgb", "depth_m", "K", "transform_camera_to_world"}
-    # the only entry points of the agent are these three plus its outputs
+    # the only entry points of an onboard agent are these three inputs plus its two outputs
+    protocol = {n for n, _ in inspect.getmembers(agent_module.OnboardAgent, inspect.isfunction) if not n.startswith("_")}
+    assert protocol == {"on_pose_estimate", "on_frame", "on_radio", "outgoing", "reference"}
     public = {n for n, _ in inspect.getmembers(agent_module.Agent, inspect.isfunction) if not n.startswith("_")}
-    assert public == {"on_pose_estimate", "on_frame", "on_radio", "outgoing", "reference"}
+    assert public == protocol
 
 
 def test_onboard_packages_never_import_ground_truth_or_the_world():
