@@ -182,7 +182,7 @@ def _neighbors(seed: int, t0: float) -> list[NeighborPrediction]:
     return out
 
 
-def bench_replan(scenes: int = 12, repeats: int = 3) -> None:
+def bench_replan(scenes: int = 24, repeats: int = 3) -> None:
     print("\n(b) full replan: A* front end + MINCO optimisation, 5 neighbours, ESDF from perception.esdf")
     cfg_ours = TrajectoryOptimizerConfig()
     cfg_scipy = TrajectoryOptimizerConfig(solver="scipy")
@@ -221,8 +221,10 @@ def bench_replan(scenes: int = 12, repeats: int = 3) -> None:
         med[name] = np.median(a[:, 0]) * 1e3
         print(f"{name:>7} {med[name]:>10.2f} {np.median(a[:, 6]) * 1e3:>9.2f} {np.median(a[:, 1]) * 1e3:>13.2f} {np.median(a[:, 2]) * 1e3:>12.2f} "
               f"{np.median(a[:, 3]):>6.0f} {np.median(a[:, 4]):>6.0f} {a[:, 5].mean():>9.0%}")  # fmt: skip
-    print(f"scipy / ours replan time ratio: {med['scipy'] / med['lbfgs']:.2f}; goal <= 5 ms median: "
-          f"{'met' if med['lbfgs'] <= 5.0 else 'NOT met'} ({med['lbfgs']:.2f} ms)")  # fmt: skip
+    cpu = np.median(np.array(rows["lbfgs"], float)[:, 6]) * 1e3
+    print(f"scipy / ours replan time ratio: {med['scipy'] / med['lbfgs']:.2f}")
+    print(f"goal <= 5 ms median: wall {med['lbfgs']:.2f} ms ({'met' if med['lbfgs'] <= 5.0 else 'NOT met'}), "
+          f"CPU {cpu:.2f} ms ({'met' if cpu <= 5.0 else 'NOT met'}); wall includes waiting for the shared cores")  # fmt: skip
 
 
 def main() -> None:
