@@ -9,7 +9,7 @@ having written nothing.
 from __future__ import annotations
 
 import argparse
-import json
+import os
 import sys
 from pathlib import Path
 
@@ -57,6 +57,17 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--seeds", type=int, default=3, help="repeats per row (seeds 0..N-1)")
     ev.add_argument("--quiet", action="store_true")
     return p
+
+
+def _check_out_dir(out: Path) -> None:
+    """Refuse an --out that is a file or sits in an unwritable place (before any work)."""
+    if out.exists() and not out.is_dir():
+        raise ConfigError("--out", str(out), "exists and is not a folder")
+    parent = out.resolve()
+    while not parent.exists():
+        parent = parent.parent
+    if not os.access(parent, os.W_OK):
+        raise ConfigError("--out", str(out), f"{parent} is not writable")
 
 
 def _cmd_fly(args: argparse.Namespace) -> int:
@@ -108,14 +119,9 @@ def _cmd_eval_tracking(args: argparse.Namespace) -> int:
 
     if args.seeds < 1:
         raise ConfigError("--seeds", args.seeds, "an integer >= 1")
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise ConfigError("--out", str(args.out), f"cannot create ({e.strerror})") from None
-    try:
-        results = run_eval_tracking(args.out, measurements=tuple(args.measurements), seeds=tuple(range(args.seeds)), progress=not args.quiet)
-    except ValueError as e:
-        raise ConfigError("--measurements", args.measurements, str(e)) from None
+    _check_out_dir(args.out)
+    # run_eval_tracking validates its options before it creates or writes anything
+    results = run_eval_tracking(args.out, measurements=tuple(args.measurements), seeds=tuple(range(args.seeds)), progress=not args.quiet)
     print(format_table(results))
     print(f"-> {args.out / 'results.json'}")
     return 0
@@ -132,6 +138,9 @@ def main(argv: list[str] | None = None) -> int:
     except (MpcdeError, ValueError) as e:
         msg = str(e).splitlines()[0] if str(e) else type(e).__name__
         sys.stderr.write(f"mpcde: error: {msg}\n")
+        return EXIT_BAD_INPUT
+    except OSError as e:  # an output place that cannot be written
+        sys.stderr.write(f"mpcde: error: --out={str(getattr(args, 'out', ''))!r}: {e.strerror or e} ({e.filename})\n")
         return EXIT_BAD_INPUT
     return 1
 
