@@ -14,7 +14,11 @@ otherwise (GCOPTER's C^1 map of R onto T > 0). Build, then solve:
 Solver: our own L-BFGS (memory 16, two-loop recursion, Lewis-Overton weak-Wolfe
 line search as in GCOPTER's ``lbfgs.hpp``); ``solver="scipy"`` runs
 ``scipy.optimize.minimize(method="L-BFGS-B")`` on the same cost instead.
-``benchmarks/bench_minco.py`` measures both.
+``benchmarks/bench_minco.py`` measures both. With an ``OccupancySnapshot`` (or no
+field) the whole L-BFGS runs compiled; any other ``DistanceField`` is called from
+a Python driver of the same algorithm. Numba's on-disk cache does not see edits
+to compiled callees in other modules (minco, trajectory_cost): after editing their
+kernels, delete ``planners/__pycache__/trajectory_optimizer.*.nb[ic]``.
 """
 
 from __future__ import annotations
@@ -258,8 +262,7 @@ class TrajectoryOptimizationError(RuntimeError):
 
     def __init__(self, reason: str, problem: TrajectoryProblem):
         super().__init__(reason)
-        self.reason = reason
-        self.problem = problem
+        self.reason, self.problem = reason, problem
 
 
 @dataclass(frozen=True)
@@ -319,15 +322,12 @@ def build_trajectory_problem(
         distance_field: obstacle field or None; neighbors: predictions of the other drones.
         t0_s: absolute time [s] of the start state.
     """
-    start = np.ascontiguousarray(start_pva, dtype=float)
-    goal = np.ascontiguousarray(goal_pva, dtype=float)
-    if start.shape != (3, 3) or goal.shape != (3, 3):
-        raise ValueError(f"start_pva/goal_pva shapes={start.shape}/{goal.shape}: must be (3, 3)")
+    start, goal = (np.ascontiguousarray(a, dtype=float) for a in (start_pva, goal_pva))
+    if start.shape != (3, 3) or goal.shape != (3, 3) or not (np.all(np.isfinite(start)) and np.all(np.isfinite(goal))):
+        raise ValueError(f"start_pva/goal_pva shapes={start.shape}/{goal.shape}: must be finite (3, 3)")
     wp = np.array(waypoints_world, dtype=float)
     if wp.ndim != 2 or wp.shape[0] < 2 or wp.shape[1] != 3 or not np.all(np.isfinite(wp)):
         raise ValueError(f"waypoints_world shape={wp.shape}: must be finite (n, 3), n >= 2")
-    if not (np.all(np.isfinite(start)) and np.all(np.isfinite(goal))):
-        raise ValueError("start_pva/goal_pva: must be finite")
     wp[0], wp[-1] = start[0], goal[0]
     points = [wp[0]]
     for a, b in zip(wp[:-1], wp[1:]):
@@ -510,10 +510,6 @@ def _compiled_cost(x, args):
     )  # fmt: skip
 
 
-def _python_cost(x, problem):
-    return problem.cost_and_gradient(x)
-
-
 _STATUS = ("converged", "max_iterations", "line_search_stalled")
 
 
@@ -534,7 +530,7 @@ def _lbfgs(problem: TrajectoryProblem) -> tuple[np.ndarray, float, int, str]:
         x, f, k, code, evals = _lbfgs_compiled(args, problem.x0, *opts)
         problem.evaluations += int(evals)
     else:
-        x, f, k, code, _ = _lbfgs_loop(_python_cost, problem, problem.x0, *opts)
+        x, f, k, code, _ = _lbfgs_loop(lambda x_, p: p.cost_and_gradient(x_), problem, problem.x0, *opts)
     if code == 3:
         raise TrajectoryOptimizationError(f"non-finite initial cost {f!r}", problem)
     return x, float(f), int(k), _STATUS[code]
