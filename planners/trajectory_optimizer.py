@@ -71,6 +71,7 @@ class TrajectoryOptimizerConfig:
         weight_swarm: weight of the swarm penalty w_s [-]; default 1e5.
         samples_per_piece: K penalty samples per piece [-]; default 16.
         max_piece_length_m: front-end segments longer than this are split evenly [m]; default 3.0.
+        min_pieces: fewer pieces than this are made by splitting the longest segment [-]; default 3.
         initial_speed_fraction: initial durations are segment length / (fraction v_max) [-]; default 0.5.
         max_iterations: L-BFGS iteration limit [-]; default 200.
         gradient_tolerance: stop when ||g||_inf <= tol max(1, ||x||_inf) [-]; default 1e-5.
@@ -95,6 +96,7 @@ class TrajectoryOptimizerConfig:
     weight_swarm: float = 1.0e5
     samples_per_piece: int = 16
     max_piece_length_m: float = 3.0
+    min_pieces: int = 3
     initial_speed_fraction: float = 0.5
     max_iterations: int = 200
     gradient_tolerance: float = 1e-5
@@ -113,7 +115,7 @@ class TrajectoryOptimizerConfig:
             raise ValueError(f"initial_speed_fraction={self.initial_speed_fraction!r}: must be in (0, 1]")
         if not self.relative_cost_tolerance >= 0.0:
             raise ValueError(f"relative_cost_tolerance={self.relative_cost_tolerance!r}: must be >= 0")
-        for name in ("max_iterations", "lbfgs_memory"):
+        for name in ("max_iterations", "lbfgs_memory", "min_pieces"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
                 raise ValueError(f"{name}={getattr(self, name)!r}: must be an int >= 1")
         if self.solver not in ("lbfgs", "scipy"):
@@ -329,10 +331,12 @@ def build_trajectory_problem(
     if wp.ndim != 2 or wp.shape[0] < 2 or wp.shape[1] != 3 or not np.all(np.isfinite(wp)):
         raise ValueError(f"waypoints_world shape={wp.shape}: must be finite (n, 3), n >= 2")
     wp[0], wp[-1] = start[0], goal[0]
+    n_split = np.maximum(1, np.ceil(np.linalg.norm(np.diff(wp, axis=0), axis=1) / config.max_piece_length_m))
+    while n_split.sum() < config.min_pieces:  # too few pieces to move in space: split the longest further
+        n_split[np.argmax(np.linalg.norm(np.diff(wp, axis=0), axis=1) / n_split)] += 1
     points = [wp[0]]
-    for a, b in zip(wp[:-1], wp[1:]):
-        n_split = max(1, int(np.ceil(np.linalg.norm(b - a) / config.max_piece_length_m)))
-        points.extend(a + (b - a) * (k / n_split) for k in range(1, n_split + 1))
+    for a, b, n in zip(wp[:-1], wp[1:], n_split.astype(int)):
+        points.extend(a + (b - a) * (k / n) for k in range(1, n + 1))
     points = np.array(points)
     lengths = np.linalg.norm(np.diff(points, axis=0), axis=1)
     durations = np.maximum(lengths / (config.initial_speed_fraction * config.v_max_mps), 0.2)

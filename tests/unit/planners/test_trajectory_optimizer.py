@@ -234,3 +234,20 @@ def test_compiled_and_python_lbfgs_drivers_agree():
     assert abs(compiled.iterations - python.iterations) <= 2
     t = np.linspace(0.0, compiled.trajectory.total_duration, 200)
     np.testing.assert_allclose(compiled.trajectory.pos(t), python.trajectory.pos(t), atol=1e-4)
+
+
+def test_a_short_hop_gets_min_pieces_and_can_dodge_a_neighbor():
+    start = np.array([[0.0, 0.0, 1.2], [0.5, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    goal = np.array([[2.0, 0.3, 1.2], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    ts = np.array([0.0, 1.0, 2.0])
+    plan = NeighborPrediction(
+        1, "radio", 0.0, ts, np.array([[1.0, -1.0, 1.2], [1.0, 0.0, 1.2], [1.0, 1.0, 1.2]]), np.tile([0.0, 1.0, 0.0], (3, 1)),
+        np.zeros((6, 6)),
+    )  # fmt: skip
+    cfg = TrajectoryOptimizerConfig(min_pieces=3)
+    problem = build_trajectory_problem(start, goal, np.array([start[0], goal[0]]), None, [plan], 0.0, cfg)
+    assert problem.num_pieces == 3
+    result = solve(problem)
+    t, pos, _, _ = _dense(result.trajectory)
+    scale = np.array([1.0, 1.0, 1.0 / np.sqrt(cfg.swarm_z_scale)])
+    assert np.linalg.norm((pos - plan.position(t)) * scale, axis=1).min() >= cfg.swarm_clearance_m
