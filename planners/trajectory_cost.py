@@ -45,22 +45,23 @@ __all__ = ["NeighborTable", "PenaltyParameters", "PenaltyTerms", "TrajectoryCost
 class PenaltyParameters:
     """Limits, clearances and weights of the sampled penalties (module docstring).
 
+    Built by ``TrajectoryOptimizerConfig.penalty_parameters()``, which documents the
+    same fields for users; the defaults here are the same.
+
     Attributes:
-        v_max_mps: speed limit [m/s].
-        a_max_mps2: acceleration limit [m/s^2].
-        obstacle_clearance_m: clearance C_o to obstacles on the distance field [m].
-        swarm_clearance_m: swarm clearance C_s [m] (MP-CDE Table I: 0.7 m).
-        swarm_z_scale: c in E = diag(1, 1, 1/c), c >= 1 (MP-CDE Eq. 16; not given
-            in the paper, 2.0 means 1.41 C_s of vertical clearance).
-        clearance_margin_m: added to both clearances inside the penalty [m], so
-            that the soft constraint settles outside C_o and C_s.
-        uncertainty_sigma: n_sigma of the neighbour uncertainty radius [-].
-        max_uncertainty_inflation_m: cap r_max on the inflation [m].
-        weight_vel: weight of the speed penalty [-].
-        weight_acc: weight of the acceleration penalty [-].
-        weight_obstacle: weight of the obstacle penalty [-].
-        weight_swarm: weight of the swarm penalty w_s [-].
-        samples_per_piece: K, sample intervals per piece [-].
+        v_max_mps: speed limit [m/s]; default 2.0.
+        a_max_mps2: acceleration limit [m/s^2]; default 4.0.
+        obstacle_clearance_m: clearance C_o to obstacles on the distance field [m]; default 0.4.
+        swarm_clearance_m: swarm clearance C_s [m]; default 0.7 (MP-CDE Table I).
+        swarm_z_scale: c in E = diag(1, 1, 1/c), c >= 1 [-]; default 2.0 (not given in
+            the paper; 2.0 asks for 1.41 C_s of vertical clearance).
+        clearance_margin_m: added to both clearances inside the penalty [m], so that the
+            soft constraint settles outside C_o and C_s; default 0.1.
+        uncertainty_sigma: n_sigma of the neighbour uncertainty radius [-]; default 1.0.
+        max_uncertainty_inflation_m: cap r_max on the inflation [m]; default 0.5.
+        weight_vel, weight_acc, weight_obstacle, weight_swarm: penalty weights [-]
+            (w_s is MP-CDE's swarm weight); default 1e5 each.
+        samples_per_piece: K, sample intervals per piece [-]; default 16 (GCOPTER).
     """
 
     v_max_mps: float = 2.0
