@@ -1,0 +1,66 @@
+"""Detector latency per 320 x 240 frame: batched over 6 frames (one per drone) vs one frame at a time.
+
+Run: ``OMP_NUM_THREADS=2 .venv/bin/python benchmarks/bench_detector.py [--threads N] [--repeats R]``.
+Frames are the committed fixture renders (cycled to 6). Timed: the whole
+``DroneDetector.detect`` call (encoding, network, peak extraction, NMS), after
+warm-up; the median of ``repeats`` is printed with the ratio against the
+one-frame-at-a-time baseline measured in the same run. The network forward
+alone is also printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from perception.detector import DroneDetector
+from perception.detector.model import encode_frames
+from sim.types import RgbdFrame
+
+FIXTURE = Path(__file__).resolve().parents[1] / "data" / "detector" / "fixture" / "test" / "shard_00000.npz"
+
+
+def _frames(n: int) -> list[RgbdFrame]:
+    with np.load(FIXTURE) as z:
+        rgb, depth, K, T = z["rgb"], z["depth_m"].astype(np.float32), z["K"], z["transform_camera_to_world"]
+    return [RgbdFrame(drone_id=i, time_s=0.0, rgb=rgb[i % len(rgb)], depth_m=depth[i % len(rgb)], K=K[0], transform_camera_to_world=T[0]) for i in range(n)]
+
+
+def _median_ms(fn, repeats: int) -> float:
+    for _ in range(5):
+        fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times) * 1e3)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--threads", type=int, default=torch.get_num_threads())
+    parser.add_argument("--repeats", type=int, default=50)
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    detector = DroneDetector.load()
+    frames = _frames(6)
+    batched_ms = _median_ms(lambda: detector.detect(frames), args.repeats) / 6.0
+    single_ms = _median_ms(lambda: [detector.detect([f]) for f in frames], args.repeats) / 6.0
+    x = encode_frames(np.stack([f.rgb for f in frames]), np.stack([f.depth_m for f in frames]), detector.in_channels)
+    x = x.contiguous(memory_format=torch.channels_last)
+    with torch.inference_mode():
+        forward_ms = _median_ms(lambda: detector.net(x), args.repeats) / 6.0
+    n_params = sum(p.numel() for p in detector.net.parameters())
+    print(f"detector ({n_params} parameters, {args.threads} threads, 320x240, median of {args.repeats})")
+    print(f"  batched over 6 frames : {batched_ms:7.2f} ms per frame  (network forward alone {forward_ms:.2f} ms per frame)")
+    print(f"  one frame at a time   : {single_ms:7.2f} ms per frame  (baseline)")
+    print(f"  speed-up of batching  : {single_ms / batched_ms:7.2f}x    goal <= 3 ms per frame batched")
+
+
+if __name__ == "__main__":
+    main()
