@@ -1,0 +1,462 @@
+"""The communicating onboard agent: DMPC over exchanged plans (``planner.kind: dmpc``).
+
+Every radio round (period ``radio.rate_hz``, which must equal the QP step h;
+DESIGN.md section 3) the loop first hands the agent its inbox
+(:meth:`DmpcAgent.on_radio`), then asks for its broadcast
+(:meth:`DmpcAgent.outgoing`). In ``outgoing(t)`` the agent
+
+1. builds its state x0 at t from its own pose estimate (position extrapolated
+   from the estimate's time with the estimated velocity; velocity; for the
+   triple integrator the acceleration of its own previous plan at t). When
+   the estimate agrees with the own previous plan's state at t within
+   ``state_tolerance_m`` and ``state_tolerance_mps`` (the controller is
+   tracking the plan), x0 is the plan's state instead. Why: the goal cost
+   acts on the last ``goal_steps`` only, so each plan moves slowly in its
+   first steps; replanning every round from the estimate then feeds the
+   estimate's noise and the controller's lag into every first step, and in
+   the 8-drone swap (full physics, default pose noise) the drones drifted
+   off their goals (5 of 8 arrived within 20 s; from the plan's state: 8 of
+   8 in 5.4 s). Setting both tolerances to 0 always replans from the estimate.
+2. turns the neighbours' latest received plans into
+   :class:`perception.types.NeighborPrediction` (source ``"radio"``, stamped
+   with the send time, so ``age_s`` is the plan's age). A neighbour with no new
+   plan in this round's inbox is planned against with its last plan, evaluated
+   at the current times (i.e. shifted; beyond its horizon it extrapolates at
+   constant velocity) and counted *stale*; a plan older than
+   ``plan_timeout_s`` is dropped,
+3. solves its QP (:class:`planners.dmpc.DmpcProblem`; on-demand DMPC Sec. 3,
+   or the BVC baseline, DMPC-Swarm Eq. 14-15) toward its goal, with formation
+   offsets when configured and half-spaces of the known static obstacles,
+4. broadcasts the new plan as a :class:`sim.types.PlanMessage`.
+
+If OSQP fails (:class:`planners.dmpc.DmpcSolveError`) the agent keeps flying
+its previous plan shifted to t (a *fallback*). :meth:`DmpcAgent.reference`
+samples the current plan (position, velocity, acceleration feed-forward) for
+the SE(3) controller, at a constant heading (the heading of the first pose
+estimate, which the world sets toward the goal).
+
+Static obstacles: the agent is given the scenario's obstacle list as a prior
+map (the on-demand DMPC paper plans against "known obstacle positions"); it
+never sees another drone's state except through the radio. For each step k of
+its previous plan the nearest point of each obstacle's footprint gives a
+vertical separating plane n_k^T p[k] >= n_k^T c_k + r_robot + margin (the
+tangent plane at the nearest point, pushed out by the inflation), for the
+``max_obstacle_planes`` nearest obstacles.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any, Sequence
+
+import numpy as np
+
+from mpcde.agent import AgentCounters
+from mpcde.errors import ConfigError
+from perception.types import NeighborPrediction
+from planners.dmpc import DmpcConfig, DmpcPlan, DmpcProblem, DmpcSolveError
+from sim.obstacles import ObstacleSpec
+from sim.types import FlatOutputReference, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
+
+__all__ = ["DmpcAgent", "DmpcAgentConfig", "DmpcRoundStats", "PlanSampler", "obstacle_half_spaces"]
+
+
+@dataclass(frozen=True)
+class DmpcAgentConfig:
+    """DMPC settings of a scenario (the ``dmpc:`` mapping of a scenario file).
+
+    Attributes:
+        qp: the per-drone QP (:class:`planners.dmpc.DmpcConfig`); ``qp.step_s``
+            must equal ``1 / radio.rate_hz`` (one round per step). Default: the
+            QP's defaults with 4 obstacle-plane slots (allocated only when the
+            scenario has obstacles).
+        formation_from_goals: keep the formation the goals form: the desired
+            offset to neighbour j is d_ij = goal_j - goal_i (on-demand DMPC
+            design goal 2), weighted by ``qp.weight_formation``.
+        plan_timeout_s: a neighbour's plan older than this [s] is dropped
+            (chosen: 3.0 s, the QP horizon K h; beyond it the plan says nothing).
+        obstacle_margin_m: clearance [m] kept from an obstacle surface on top
+            of the robot radius (chosen: 0.25 m, a few times the controller's
+            tracking error at 2 m/s).
+        obstacle_range_m: obstacles whose footprint comes closer than this [m]
+            to the previous plan get a plane (chosen: 3.0 m).
+        goal_lookahead_m: the QP's goal is the point this far [m] along the
+            line to the real goal when the goal is farther (a carrot; 0 =
+            always the real goal, the paper's form). Chosen: 4.0 m, two
+            thirds of what v_max = 2 m/s covers in the 3 s horizon. With the
+            goal itself 15 m away the terminal cost pins the plan to the speed
+            limit at every step and OSQP needed 410 iterations on average
+            (median 2.1 ms) in formation_square; with the carrot 70 (0.41 ms),
+            at the price of a slower cruise (mission 9.9 s -> 13.0 s).
+        state_tolerance_m: x0 is the own plan's state when the estimated
+            position is within this of it [m], else the estimate (chosen:
+            0.1 m, a few times the controller's tracking error; 0 = always
+            the estimate). See the module docstring.
+        state_tolerance_mps: the same bound on the velocity [m/s] (chosen: 0.3).
+    """
+
+    qp: DmpcConfig = field(default_factory=lambda: DmpcConfig(max_obstacle_planes=4))
+    formation_from_goals: bool = False
+    plan_timeout_s: float = 3.0
+    obstacle_margin_m: float = 0.25
+    obstacle_range_m: float = 3.0
+    goal_lookahead_m: float = 4.0
+    state_tolerance_m: float = 0.1
+    state_tolerance_mps: float = 0.3
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.plan_timeout_s) and self.plan_timeout_s > 0):
+            raise ConfigError("plan_timeout_s", self.plan_timeout_s, "a number > 0 [s]")
+        if not (math.isfinite(self.obstacle_margin_m) and self.obstacle_margin_m >= 0):
+            raise ConfigError("obstacle_margin_m", self.obstacle_margin_m, "a number >= 0 [m]")
+        if not (math.isfinite(self.obstacle_range_m) and self.obstacle_range_m > 0):
+            raise ConfigError("obstacle_range_m", self.obstacle_range_m, "a number > 0 [m]")
+        for name in ("goal_lookahead_m", "state_tolerance_m", "state_tolerance_mps"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ConfigError(name, value, "a number >= 0")
+
+
+@dataclass
+class DmpcRoundStats:
+    """What one agent's rounds did (for metrics; :meth:`DmpcAgent.extra_metrics`).
+
+    Attributes:
+        qp_solve_s: per solved round, OSQP's wall time [s] (update + solve, :attr:`DmpcResult.solve_time_s`).
+        qp_build_s: per solved round, Python time [s] building the round's constraints.
+        iterations: per solved round, OSQP iterations.
+        collision_rows: per solved round, active collision constraints.
+        statuses: count per OSQP status (failures included).
+        fallbacks: rounds flown on the previous plan because OSQP failed.
+        state_resets: rounds whose x0 came from the estimate (it disagreed with the plan, or no plan yet).
+        stale_plans: neighbour plans used that were not renewed this round.
+        fresh_plans: neighbour plans used that arrived this round.
+        dropped_plans: neighbour plans dropped for age (``plan_timeout_s``).
+        neighbour_age_s: per used neighbour plan, its age [s] at the round.
+    """
+
+    qp_solve_s: list[float] = field(default_factory=list)
+    qp_build_s: list[float] = field(default_factory=list)
+    iterations: list[int] = field(default_factory=list)
+    collision_rows: list[int] = field(default_factory=list)
+    statuses: dict[str, int] = field(default_factory=dict)
+    fallbacks: int = 0
+    state_resets: int = 0
+    stale_plans: int = 0
+    fresh_plans: int = 0
+    dropped_plans: int = 0
+    neighbour_age_s: list[float] = field(default_factory=list)
+
+
+def obstacle_half_spaces(
+    path_world: np.ndarray, obstacles: Sequence[ObstacleSpec], inflation_m: float, range_m: float, max_planes: int
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Time-varying vertical half-spaces keeping a path clear of static obstacles.
+
+    For each obstacle and each step k, with q_k the point of the obstacle's
+    footprint nearest to ``path_world[k]`` and n_k the horizontal unit vector
+    from q_k to the path point: n_k^T p[k] >= n_k^T q_k + inflation_m. The
+    obstacle is convex, so this plane separates the whole footprint (grown by
+    ``inflation_m``) from the free side. A path point inside the footprint uses
+    the direction from the centre (trees) or of least penetration (boxes).
+
+    Args:
+        path_world: (K, 3) the drone's previous plan at the round's steps [m].
+        obstacles: the known static obstacles.
+        inflation_m: robot radius + margin [m].
+        range_m: only obstacles with a footprint within this of the path [m].
+        max_planes: at most this many obstacles, nearest first.
+
+    Returns:
+        Up to ``max_planes`` pairs ``(normal (K, 3), offset (K,))`` meaning
+        normal[k]^T p[k] >= offset[k].
+    """
+    path_xy = np.asarray(path_world, float)[:, :2]
+    candidates = []
+    for ob in obstacles:
+        c = np.asarray(ob.center_xy, float)
+        if ob.kind == "tree":
+            rel = path_xy - c
+            dist_c = np.linalg.norm(rel, axis=1)
+            n = np.where(dist_c[:, None] > 1e-9, rel / np.maximum(dist_c, 1e-9)[:, None], np.array([1.0, 0.0]))
+            near = c + ob.radius_m * n  # nearest footprint point (or the exit point when inside)
+            gap = dist_c - ob.radius_m
+        else:
+            cos, sin = math.cos(ob.yaw), math.sin(ob.yaw)
+            R = np.array([[cos, -sin], [sin, cos]])  # box -> world
+            local = (path_xy - c) @ R  # rows: R^T (p - c)
+            he = np.asarray(ob.half_extents_xy, float)
+            clamped = np.clip(local, -he, he)
+            outside = np.any(np.abs(local) > he, axis=1)
+            d_local = local - clamped
+            gap_out = np.linalg.norm(d_local, axis=1)
+            # inside: push out through the nearest face
+            pen = he - np.abs(local)  # (K, 2) distance to the faces
+            axis = np.argmin(pen, axis=1)
+            n_in = np.zeros_like(local)
+            n_in[np.arange(len(local)), axis] = np.where(local[np.arange(len(local)), axis] >= 0, 1.0, -1.0)
+            face = local.copy()
+            face[np.arange(len(local)), axis] = n_in[np.arange(len(local)), axis] * he[axis]
+            n_local = np.where(outside[:, None], d_local / np.maximum(gap_out, 1e-9)[:, None], n_in)
+            near_local = np.where(outside[:, None], clamped, face)
+            n = n_local @ R.T
+            near = c + near_local @ R.T
+            gap = np.where(outside, gap_out, -pen[np.arange(len(local)), axis])
+        if gap.min() < range_m:
+            candidates.append((float(gap.min()), n, near))
+    candidates.sort(key=lambda x: x[0])
+    planes = []
+    for _, n, near in candidates[:max_planes]:
+        normal = np.c_[n, np.zeros(len(n))]  # vertical plane
+        offset = np.einsum("kd,kd->k", n, near) + inflation_m  # n_k^T q_k + inflation
+        planes.append((normal, offset))
+    return planes
+
+
+class PlanSampler:
+    """Fast scalar evaluation of a :class:`DmpcPlan` for the 240 Hz reference.
+
+    The plan's cubic Hermite pieces (:mod:`planners.dmpc.types`) are turned
+    into power-basis coefficients once per plan, p_i(s) = c0 + c1 s + c2 s^2 +
+    c3 s^3 with s = (t - t_i) / h in [0, 1); the tails are constant velocity.
+    Same values as :meth:`DmpcPlan.position` / ``velocity`` / ``acceleration``
+    (right limits at the samples), about 20 times cheaper per call.
+
+    Args:
+        plan: the plan to sample.
+    """
+
+    def __init__(self, plan: DmpcPlan) -> None:
+        p, v, h = plan.pos_world, plan.vel_world, plan.h_s
+        p0, p1, v0, v1 = p[:-1], p[1:], v[:-1] * h, v[1:] * h
+        # Hermite -> power basis: c0 = p0, c1 = h v0, c2 = 3(p1 - p0) - 2 h v0 - h v1, c3 = 2(p0 - p1) + h v0 + h v1
+        self.coef = np.stack([p0, v0, 3 * (p1 - p0) - 2 * v0 - v1, 2 * (p0 - p1) + v0 + v1], axis=1)  # (K, 4, 3)
+        self.plan = plan
+        self.t0_s, self.h_s, self.K = plan.t0_s, h, plan.horizon_steps
+
+    def sample(self, time_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position [m], velocity [m/s], acceleration [m/s^2], each (3,), at ``time_s`` [s]."""
+        plan, h = self.plan, self.h_s
+        u = (time_s - self.t0_s) / h
+        if u < 0.0:
+            return plan.pos_world[0] + plan.vel_world[0] * (time_s - self.t0_s), plan.vel_world[0].copy(), np.zeros(3)
+        if u >= self.K:
+            return plan.pos_world[-1] + plan.vel_world[-1] * (time_s - plan.t_end_s), plan.vel_world[-1].copy(), np.zeros(3)
+        i = min(int(math.floor(u + 1e-9)), self.K - 1)
+        s = min(max(u - i, 0.0), 1.0)
+        c0, c1, c2, c3 = self.coef[i]
+        pos = c0 + s * (c1 + s * (c2 + s * c3))
+        vel = (c1 + s * (2.0 * c2 + 3.0 * s * c3)) / h
+        acc = (2.0 * c2 + 6.0 * s * c3) / (h * h)
+        return pos, vel, acc
+
+
+def _yaw_from_quat_xyzw(q: np.ndarray) -> float:
+    """Heading [rad] of a body->world quaternion (4,) xyzw."""
+    x, y, z, w = (float(v) for v in q)
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+class DmpcAgent:
+    """One drone's DMPC agent (implements :class:`mpcde.agent.OnboardAgent`).
+
+    Args:
+        drone_id: index of the drone.
+        goal_world: (3,) goal [m].
+        config: the scenario's :class:`DmpcAgentConfig`.
+        start_delay_s: hover (goal = start) until this time [s]; the first
+            rounds exchange plans before anyone departs.
+        formation_offsets: desired p_j - p_i (3,) [m] by neighbour id, or None.
+        obstacles: the known static obstacles (prior map).
+        robot_radius_m: the drone's radius [m] (obstacle inflation).
+    """
+
+    def __init__(
+        self,
+        drone_id: int,
+        goal_world: np.ndarray,
+        config: DmpcAgentConfig,
+        start_delay_s: float = 0.0,
+        formation_offsets: dict[int, np.ndarray] | None = None,
+        obstacles: Sequence[ObstacleSpec] = (),
+        robot_radius_m: float = 0.1,
+    ) -> None:
+        self.drone_id = int(drone_id)
+        self.goal_world = np.asarray(goal_world, float).reshape(3)
+        self.config = config
+        self.obstacles = tuple(obstacles)
+        qp = config.qp if self.obstacles else replace(config.qp, max_obstacle_planes=0)
+        self.qp_config = qp
+        self.problem = DmpcProblem(qp)
+        self.start_delay_s = float(start_delay_s)
+        self.formation_offsets = formation_offsets
+        self.inflation_m = float(robot_radius_m) + config.obstacle_margin_m
+        self.counters = AgentCounters()
+        self.stats = DmpcRoundStats()
+        self.plan: DmpcPlan | None = None
+        self._sampler: PlanSampler | None = None
+        self.latest_estimate: PoseEstimate | None = None
+        self.start_world: np.ndarray | None = None
+        self.yaw = 0.0
+        self.neighbour_plans: dict[int, PlanMessage] = {}
+        self._renewed: set[int] = set()
+
+    # ------------------------------------------------------------------ inputs
+    def on_pose_estimate(self, estimate: PoseEstimate) -> None:
+        """Take the drone's own pose estimate (the first fixes start and heading)."""
+        if self.latest_estimate is None:
+            self.start_world = np.asarray(estimate.pos_world, float).copy()
+            self.yaw = _yaw_from_quat_xyzw(estimate.quat_xyzw)
+        self.latest_estimate = estimate
+
+    def on_frame(self, frame: RgbdFrame) -> None:
+        """Take one camera frame (counted; DMPC plans from the radio only)."""
+        self.counters.frames += 1
+
+    def on_radio(self, messages: list[RadioMessage]) -> None:
+        """Take this round's inbox: keep each neighbour's newest plan."""
+        self._renewed = set()
+        for m in messages:
+            self.counters.messages += 1
+            if isinstance(m.payload, PlanMessage) and m.sender_id != self.drone_id:
+                old = self.neighbour_plans.get(m.sender_id)
+                if old is None or m.payload.time_s > old.time_s:
+                    self.neighbour_plans[m.sender_id] = m.payload
+                    self._renewed.add(m.sender_id)
+                    self.counters.plans += 1
+
+    # ------------------------------------------------------------------ round
+    def _state(self, time_s: float) -> np.ndarray:
+        """x0 at ``time_s``: (6,) [p, v] or (9,) [p, v, a], from the estimate or the plan (module docstring)."""
+        est = self.latest_estimate
+        dt = time_s - est.time_s
+        pos = np.asarray(est.pos_world, float) + np.asarray(est.vel_world, float) * dt
+        vel = np.asarray(est.vel_world, float)
+        if self.plan is not None:
+            plan_pos, plan_vel = self.plan.position(time_s), self.plan.velocity(time_s)
+            cfg = self.config
+            if np.linalg.norm(plan_pos - pos) <= cfg.state_tolerance_m and np.linalg.norm(plan_vel - vel) <= cfg.state_tolerance_mps:
+                pos, vel = plan_pos, plan_vel
+            else:
+                self.stats.state_resets += 1
+        else:
+            self.stats.state_resets += 1
+        if self.qp_config.model == "double":
+            return np.r_[pos, vel]
+        acc = self.plan.acceleration(time_s) if self.plan is not None else np.zeros(3)
+        return np.r_[pos, vel, acc]
+
+    def _predictions(self, time_s: float) -> list[NeighborPrediction]:
+        """The neighbours' plans as predictions; counts fresh, stale and dropped plans."""
+        out = []
+        for j in sorted(self.neighbour_plans):
+            msg = self.neighbour_plans[j]
+            age = time_s - msg.time_s
+            if age > self.config.plan_timeout_s:
+                self.stats.dropped_plans += 1
+                continue
+            if j in self._renewed:
+                self.stats.fresh_plans += 1
+            else:
+                self.stats.stale_plans += 1
+            self.stats.neighbour_age_s.append(age)
+            out.append(
+                NeighborPrediction(
+                    neighbor_id=j, source="radio", stamp_s=msg.time_s, times_s=np.asarray(msg.times_s, float),
+                    pos_world=np.asarray(msg.pos_world, float), vel_world=np.asarray(msg.vel_world, float),
+                    cov_world=np.zeros((6, 6)),
+                )
+            )  # fmt: skip
+        self._renewed = set()
+        return out
+
+    def outgoing(self, time_s: float) -> PlanMessage | None:
+        """Run this round's DMPC solve at ``time_s`` [s] and return the plan to broadcast."""
+        if self.latest_estimate is None:
+            return None
+        cfg = self.qp_config
+        x0 = self._state(time_s)
+        goal = self.goal_world if time_s >= self.start_delay_s - 1e-9 else self.start_world
+        lookahead = self.config.goal_lookahead_m
+        to_goal = goal - x0[:3]
+        dist = float(np.linalg.norm(to_goal))
+        if lookahead > 0 and dist > lookahead:
+            goal = x0[:3] + to_goal * (lookahead / dist)  # carrot on the line to the goal
+        predictions = self._predictions(time_s)
+        obstacles = None
+        if cfg.max_obstacle_planes:
+            t_steps = time_s + cfg.step_s * np.arange(1, cfg.horizon_steps + 1)
+            if self.plan is not None:
+                path = self.plan.position(t_steps)
+            else:
+                path = x0[:3] + x0[3:6] * (t_steps - time_s)[:, None]
+            obstacles = obstacle_half_spaces(
+                path, self.obstacles, self.inflation_m, self.config.obstacle_range_m, cfg.max_obstacle_planes
+            )
+        try:
+            res = self.problem.solve(
+                x0, goal, predictions, self.plan, self.formation_offsets, t_now_s=time_s, obstacles=obstacles
+            )  # fmt: skip
+        except DmpcSolveError as e:
+            self.stats.statuses[e.status] = self.stats.statuses.get(e.status, 0) + 1
+            self.stats.fallbacks += 1
+            if self.plan is None:
+                self.plan = DmpcPlan.hover(time_s, cfg.step_s, cfg.horizon_steps, x0[:3])
+            else:
+                self.plan = self.plan.shifted(time_s)
+        else:
+            self.stats.statuses[res.status] = self.stats.statuses.get(res.status, 0) + 1
+            self.stats.qp_solve_s.append(res.solve_time_s)
+            self.stats.qp_build_s.append(res.update_time_s)
+            self.stats.iterations.append(res.iterations)
+            self.stats.collision_rows.append(res.n_collision_constraints)
+            self.plan = res.plan
+        p = self.plan
+        self._sampler = PlanSampler(p)
+        return PlanMessage(
+            sender_id=self.drone_id, time_s=float(time_s), times_s=p.times_s.copy(),
+            pos_world=p.pos_world.copy(), vel_world=p.vel_world.copy(),
+        )  # fmt: skip
+
+    def reference(self, time_s: float) -> FlatOutputReference:
+        """Controller reference at ``time_s`` [s]: the current plan (hover at the start before it)."""
+        if self._sampler is None:
+            pos = self.start_world if self.start_world is not None else np.zeros(3)
+            return FlatOutputReference.hover(pos, self.yaw)
+        pos, vel, acc = self._sampler.sample(time_s)
+        return FlatOutputReference(pos_world=pos, vel_world=vel, acc_world=acc, yaw=self.yaw, yaw_rate=0.0)
+
+    # ------------------------------------------------------------------ metrics
+    def extra_metrics(self) -> dict[str, Any]:
+        """This agent's DMPC statistics (the loop adds them to ``metrics.json`` under ``agents``).
+
+        ``qp_solve_ms`` is the list of every solved round's OSQP time [ms]
+        (update + solve), so an evaluation can pool rounds across drones.
+        """
+        s = self.stats
+        solve_ms = np.asarray(s.qp_solve_s) * 1e3
+
+        def stat(values: np.ndarray, q: float) -> float | None:
+            return float(np.percentile(values, q)) if values.size else None
+
+        return {
+            "drone_id": self.drone_id,
+            "planner": "dmpc",
+            "collision_mode": self.qp_config.collision_mode,
+            "rounds": len(s.qp_solve_s) + s.fallbacks,
+            "solves": len(s.qp_solve_s),
+            "fallbacks": s.fallbacks,
+            "state_resets": s.state_resets,
+            "statuses": dict(s.statuses),
+            "fresh_plans": s.fresh_plans,
+            "stale_plans": s.stale_plans,
+            "dropped_plans": s.dropped_plans,
+            "mean_neighbour_age_s": float(np.mean(s.neighbour_age_s)) if s.neighbour_age_s else None,
+            "qp_ms_median": stat(solve_ms, 50),
+            "qp_ms_p95": stat(solve_ms, 95),
+            "qp_build_ms_median": stat(np.asarray(s.qp_build_s) * 1e3, 50),
+            "mean_iterations": float(np.mean(s.iterations)) if s.iterations else None,
+            "mean_collision_rows": float(np.mean(s.collision_rows)) if s.collision_rows else None,
+            "qp_solve_ms": [round(float(v), 5) for v in solve_ms],
+        }
