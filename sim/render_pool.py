@@ -193,9 +193,10 @@ class RenderPool:
         if self._local is not None:
             self._local.close()
             self._local = None
-        for conn, proc in zip(self._conns, self._workers):
+        busy = {w for w, _ in self._pending} if self._pending else set()
+        for w, (conn, proc) in enumerate(zip(self._conns, self._workers)):
             try:
-                if self._pending is not None:
+                if w in busy:  # drain the answer of a batch never collected
                     conn.recv()
                 conn.send(("stop",))
             except (BrokenPipeError, EOFError, OSError):

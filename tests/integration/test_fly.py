@@ -144,3 +144,18 @@ def test_onboard_packages_never_import_ground_truth_or_the_world():
     agent_src = inspect.getsource(agent_module)
     assert "ground_truth" not in agent_src.replace("ground truth", "") and "TrueState" not in agent_src
     assert not offenders, offenders
+
+
+def test_closing_a_pool_with_an_uncollected_batch_and_idle_workers_returns():
+    """A run that fails mid-render must not hang in close() (one camera, two workers)."""
+    from sim.camera import CameraConfig
+    from sim.render_pool import RenderPool
+    from sim.scene import SceneSpec
+
+    pool = RenderPool(SceneSpec(obstacles=(), n_drones=1), CameraConfig(width_px=32, height_px=24), 2)
+    T = np.eye(4)
+    T[:3, :3] = np.array([[0, 0, 1.0], [-1, 0, 0], [0, -1, 0]])
+    T[2, 3] = 1.5
+    pool.submit(np.array([[5.0, 0.0, 1.5]]), np.array([[0, 0, 0, 1.0]]), [(0, T)])
+    pool.close()
+    assert not pool.busy

@@ -1,0 +1,205 @@
+"""The communication-denied agent (MP-CDE): own map, front end, MINCO, replanning.
+
+What it uses: its own depth frames (mapped by :class:`perception.occupancy_map.OccupancyMap`,
+which masks detection boxes once a detector runs), its own pose estimate, and
+predictions of neighbours (empty until perception tracks are wired in: then
+MP-CDE Eq. 16 keeps C_s from each). What it never uses: ground truth, the radio.
+
+Replanning (MP-CDE Alg. 1 line 13 and DESIGN.md section 3): after a frame is
+mapped, replan when (a) no trajectory exists, (b) at least ``replan_period_s``
+passed since the last plan, or (c) the rest of the current trajectory comes
+closer than the clearance to an obstacle on the updated ESDF. A replan starts
+from the current trajectory's own state (position, velocity, acceleration) at
+the frame time, so the reference stays continuous; the front end
+(:func:`planners.path_search.search_path`) searches the map window towards the
+goal (clipped to the window when the goal lies outside it) and the MINCO
+optimiser (:mod:`planners.trajectory_optimizer`) refines that path on the ESDF.
+A plan that fails or leaves obstacle clearance violated is rejected; if the
+current trajectory is itself unsafe, the agent brakes to a stop along it
+(a stopping MINCO piece from its current state).
+
+Yaw: the "tracking" mode of MP-CDE Sec. IV-A (heading along the direction of
+travel, rate-limited to ``yaw_rate_max``); the active yaw planner is not yet here.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mpcde.agent import AgentCounters
+from perception.map_config import MapConfig
+from perception.occupancy_map import OccupancyMap
+from planners.minco import MincoTrajectory, minco_s3
+from planners.path_search import PathSearchConfig, search_path
+from planners.trajectory_optimizer import TrajectoryOptimizationError, TrajectoryOptimizerConfig, build_trajectory_problem, solve
+from sim.rotations import yaw_from_rotation, rotation_from_quat_xyzw
+from sim.types import FlatOutputReference, PoseEstimate, RadioMessage, RgbdFrame
+
+__all__ = ["DeniedAgent", "DeniedAgentConfig", "PlanningStats"]
+
+
+@dataclass(frozen=True)
+class DeniedAgentConfig:
+    """Settings of the MP-CDE agent.
+
+    Attributes:
+        v_max_mps: speed limit of the optimiser [m/s].
+        a_max_mps2: acceleration limit [m/s^2].
+        clearance_m: obstacle clearance of the trajectory on the ESDF [m].
+        front_end_clearance_m: clearance required by the front-end search [m].
+        replan_period_s: replan at least this often [s] (DESIGN.md: 0.5 s).
+        yaw_rate_max_radps: heading rate limit [rad/s] (MP-CDE Table I: 2.0).
+        start_delay_s: hover before the first departure [s].
+        map: occupancy map settings.
+    """
+
+    v_max_mps: float = 1.0
+    a_max_mps2: float = 3.0
+    clearance_m: float = 0.4
+    front_end_clearance_m: float = 0.45
+    replan_period_s: float = 0.5
+    yaw_rate_max_radps: float = 2.0
+    start_delay_s: float = 0.5
+    map: MapConfig = field(default_factory=MapConfig)
+
+
+@dataclass
+class PlanningStats:
+    """What the agent's planner did (for metrics)."""
+
+    replans: int = 0
+    failures: int = 0
+    brakes: int = 0
+    solve_ms: list = field(default_factory=list)
+    map_ms: list = field(default_factory=list)
+
+
+class DeniedAgent:
+    """One drone's MP-CDE stack (implements :class:`mpcde.agent.OnboardAgent`)."""
+
+    def __init__(self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig) -> None:
+        self.drone_id = drone_id
+        self.goal_world = np.asarray(goal_world, float)
+        self.config = config
+        self.counters = AgentCounters()
+        self.stats = PlanningStats()
+        self.map = OccupancyMap(config.map)
+        self.trajectory: MincoTrajectory | None = None
+        self.last_plan_time_s = -np.inf
+        self.latest_estimate: PoseEstimate | None = None
+        self.hover_world: np.ndarray | None = None
+        self.yaw: float | None = None
+        self.yaw_time_s = 0.0
+        c = config
+        self.optimizer = TrajectoryOptimizerConfig(v_max_mps=c.v_max_mps, a_max_mps2=c.a_max_mps2, obstacle_clearance_m=c.clearance_m)
+        self.search = PathSearchConfig()
+
+    # inputs ---------------------------------------------------------------
+    def on_pose_estimate(self, estimate: PoseEstimate) -> None:
+        """Own pose estimate; the first one fixes the hover point and heading."""
+        self.latest_estimate = estimate
+        if self.hover_world is None:
+            self.hover_world = estimate.pos_world.copy()
+            self.yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
+
+    def on_radio(self, messages: list[RadioMessage]) -> None:
+        """Denied: the radio is not used (messages are counted only)."""
+        self.counters.messages += len(messages)
+
+    def on_frame(self, frame: RgbdFrame) -> None:
+        """Map the frame, then replan if due or if the current plan became unsafe."""
+        self.counters.frames += 1
+        t0 = time.perf_counter()
+        self.map.update(frame)
+        snap = self.map.snapshot()
+        self.stats.map_ms.append(1e3 * (time.perf_counter() - t0))
+        t = frame.time_s
+        if t < self.config.start_delay_s or self.latest_estimate is None:
+            return
+        unsafe = self.trajectory is not None and not self._safe(self.trajectory, snap, t)
+        if self.trajectory is None or unsafe or t - self.last_plan_time_s >= self.config.replan_period_s:
+            if not self._replan(snap, t) and unsafe:
+                self._brake(t)
+
+    def outgoing(self, time_s: float) -> None:
+        """Denied: nothing is broadcast."""
+        return None
+
+    # planning ---------------------------------------------------------------
+    def _state_at(self, t: float) -> np.ndarray:
+        """(3, 3) position, velocity, acceleration of the current reference at ``t``."""
+        if self.trajectory is None:
+            return np.stack([self.hover_world, np.zeros(3), np.zeros(3)])
+        tau = t - self.trajectory.t0_s
+        return np.stack([self.trajectory.pos(tau), self.trajectory.vel(tau), self.trajectory.acc(tau)])
+
+    def _safe(self, traj: MincoTrajectory, snap, t: float) -> bool:
+        tau = np.linspace(max(t - traj.t0_s, 0.0), traj.total_duration, 40)
+        d, _ = snap.distance_and_gradient(traj.pos(tau))
+        return bool(np.min(d) >= 0.75 * self.config.clearance_m)
+
+    def _replan(self, snap, t: float) -> bool:
+        start = self._state_at(t)
+        t0 = time.perf_counter()
+        path = search_path(snap, start[0], self.goal_world, self.config.front_end_clearance_m, self.search)
+        if not path.found:
+            self.stats.failures += 1
+            return False
+        goal_pva = np.stack([path.goal_used_world, np.zeros(3), np.zeros(3)])
+        try:
+            problem = build_trajectory_problem(start, goal_pva, path.waypoints_world, snap, [], t, self.optimizer)
+            result = solve(problem)
+        except (TrajectoryOptimizationError, ValueError):
+            self.stats.failures += 1
+            return False
+        self.stats.solve_ms.append(1e3 * (time.perf_counter() - t0))
+        if not self._safe(result.trajectory, snap, t):
+            self.stats.failures += 1
+            return False
+        self.trajectory = result.trajectory
+        self.last_plan_time_s = t
+        self.stats.replans += 1
+        return True
+
+    def _brake(self, t: float) -> None:
+        """Stop from the current state with a single minimum-jerk piece (no obstacle knowledge)."""
+        p, v, a = self._state_at(t)
+        speed = float(np.linalg.norm(v))
+        T = max(2.0 * speed / self.config.a_max_mps2, 0.3)
+        stop = p + 0.5 * v * T  # a comfortable stopping distance along the current velocity
+        self.trajectory = minco_s3(np.stack([p, v, a]), np.stack([stop, np.zeros(3), np.zeros(3)]), np.zeros((0, 3)), np.array([T]), t0_s=t)
+        self.last_plan_time_s = t
+        self.stats.brakes += 1
+
+    # output -----------------------------------------------------------------
+    def reference(self, time_s: float) -> FlatOutputReference:
+        """Reference at ``time_s`` [s]: the current MINCO trajectory, heading along travel."""
+        if self.trajectory is None:
+            hover = self.hover_world if self.hover_world is not None else np.zeros(3)
+            return FlatOutputReference.hover(hover, self.yaw or 0.0)
+        p, v, a = self._state_at(time_s)
+        if self.yaw is None:
+            self.yaw = 0.0
+        dt = max(time_s - self.yaw_time_s, 0.0)
+        self.yaw_time_s = time_s
+        yaw_rate = 0.0
+        if np.hypot(v[0], v[1]) > 0.2:
+            err = (np.arctan2(v[1], v[0]) - self.yaw + np.pi) % (2 * np.pi) - np.pi
+            step = float(np.clip(err, -self.config.yaw_rate_max_radps * dt, self.config.yaw_rate_max_radps * dt))
+            self.yaw += step
+            yaw_rate = step / dt if dt > 0 else 0.0
+        return FlatOutputReference(pos_world=p, vel_world=v, acc_world=a, yaw=self.yaw, yaw_rate=yaw_rate)
+
+    def extra_metrics(self) -> dict:
+        """Planner statistics for metrics.json."""
+        s = self.stats
+        return {
+            "replans": s.replans,
+            "plan_failures": s.failures,
+            "brakes": s.brakes,
+            "replan_ms_median": float(np.median(s.solve_ms)) if s.solve_ms else None,
+            "map_ms_median": float(np.median(s.map_ms)) if s.map_ms else None,
+        }
