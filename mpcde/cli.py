@@ -1,7 +1,8 @@
 """The ``mpcde`` command line.
 
-Subcommands: ``fly`` (a headless scenario -> run folder) and
-``eval-tracking`` (tracker evaluation -> results.json). Bad input prints one
+Subcommands: ``fly`` (a headless scenario -> run folder), ``eval-tracking``
+(tracker evaluation -> results.json) and ``eval-dmpc`` (on-demand DMPC vs
+BVC -> results.json). Bad input prints one
 line ``mpcde: error: <field>=<value>: <allowed>`` and exits with status 2,
 having written nothing.
 """
@@ -18,6 +19,7 @@ from mpcde.errors import ConfigError, MpcdeError
 __all__ = ["main"]
 
 EXIT_BAD_INPUT = 2
+MODES = {"placeholder": "min_jerk_line", "denied": "mpcde", "comm": "dmpc"}  # --mode -> planner.kind
 
 
 class _Parser(argparse.ArgumentParser):
@@ -47,6 +49,13 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_argument("--out", required=True, type=Path, help="output folder (created; must be empty unless --overwrite)")
     fly.add_argument("--seed", type=_seed, default=None, help="seed of the run (overrides the file's)")
     fly.add_argument("--duration", type=float, default=None, help="time limit [s] (overrides the file's)")
+    fly.add_argument(
+        "--mode",
+        choices=sorted(MODES),
+        default=None,
+        help="onboard stack, overriding the file's planner.kind: placeholder (blind straight line), "
+        "denied (MP-CDE: own map, A*, MINCO), comm (DMPC on radio plans)",
+    )
     fly.add_argument("--video", action="store_true", help="also write video.mp4 (top view beside each camera)")
     fly.add_argument("--no-cameras", action="store_true", help="do not render cameras (faster; no video tiles)")
     fly.add_argument("--overwrite", action="store_true", help="replace an existing non-empty --out")
@@ -56,6 +65,12 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--measurements", choices=["synthetic", "pipeline"], nargs="+", default=["synthetic"])
     ev.add_argument("--seeds", type=int, default=3, help="repeats per row (seeds 0..N-1)")
     ev.add_argument("--quiet", action="store_true")
+    ed = sub.add_parser("eval-dmpc", help="on-demand DMPC vs buffered Voronoi cells (the paper's Table 1) -> results.json")
+    ed.add_argument("--out", required=True, type=Path)
+    ed.add_argument("--methods", nargs="+", choices=["on_demand", "bvc"], default=["on_demand", "bvc"])
+    ed.add_argument("--scenarios", nargs="+", default=["formation_square", "antipodal"], help="built-in names or YAML files")
+    ed.add_argument("--seeds", type=int, default=1, help="flights per row (seeds 0..N-1)")
+    ed.add_argument("--quiet", action="store_true")
     return p
 
 
@@ -82,9 +97,12 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     if args.duration is not None:
         overrides["duration_s"] = args.duration
     cfg = load_scenario(args.scenario, overrides)
-    if args.no_cameras:
-        from dataclasses import replace
+    from dataclasses import replace
 
+    if args.mode is not None:
+        cfg = replace(cfg, planner=replace(cfg.planner, kind=MODES[args.mode]))
+        cfg.__post_init__()  # re-check cross-field rules for the new kind
+    if args.no_cameras:
         cfg = replace(cfg, run=replace(cfg.run, cameras=False))
     if args.video and not cfg.run.cameras:
         raise ConfigError("--video", True, "needs cameras (drop --no-cameras or set run.cameras: true)")
@@ -127,6 +145,18 @@ def _cmd_eval_tracking(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_eval_dmpc(args: argparse.Namespace) -> int:
+    from mpcde.eval_dmpc import format_table, run_eval_dmpc
+
+    if args.seeds < 1:
+        raise ConfigError("--seeds", args.seeds, "an integer >= 1")
+    _check_out_dir(args.out)
+    results = run_eval_dmpc(args.out, methods=tuple(args.methods), scenarios=tuple(args.scenarios), seeds=tuple(range(args.seeds)), progress=not args.quiet)
+    print(format_table(results))
+    print(f"-> {args.out / 'results.json'}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``mpcde`` console script."""
     args = build_parser().parse_args(argv)
@@ -135,6 +165,8 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_fly(args)
         if args.command == "eval-tracking":
             return _cmd_eval_tracking(args)
+        if args.command == "eval-dmpc":
+            return _cmd_eval_dmpc(args)
     except (MpcdeError, ValueError) as e:
         msg = str(e).splitlines()[0] if str(e) else type(e).__name__
         sys.stderr.write(f"mpcde: error: {msg}\n")

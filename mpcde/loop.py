@@ -211,6 +211,9 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
         "render_workers": workers if pool is not None else None,
         "frames_received": int(sum(a.counters.frames for a in agents)),
     }
+    agent_metrics = [a.extra_metrics() for a in agents if hasattr(a, "extra_metrics")]
+    if agent_metrics:
+        extra["agents"] = agent_metrics
     result = metrics.result(wall, truth.failed, extra)
     return RunResult(cfg, prepared.obstacles, starts, goals, result, log)
 

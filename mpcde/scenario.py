@@ -14,6 +14,8 @@ from typing import Literal
 
 import numpy as np
 
+from mpcde.agent_denied import DeniedAgentConfig
+from mpcde.agent_dmpc import DmpcAgentConfig
 from mpcde.config_io import from_dict, load_yaml
 from mpcde.errors import ConfigError
 from sim.camera import CameraConfig
@@ -136,13 +138,16 @@ class PlannerConfig:
 
     Attributes:
         kind: ``"min_jerk_line"``, the placeholder (a straight minimum-jerk
-            line to the goal, blind to obstacles and neighbours) until MINCO
-            and DMPC are wired in.
+            line to the goal, blind to obstacles and neighbours), or
+            ``"mpcde"``, the communication-denied stack (own map from the
+            camera, A* front end, MINCO; settings in ``denied``), or
+            ``"dmpc"``, the communicating stack (DMPC on exchanged radio
+            plans; settings in ``dmpc``).
         cruise_speed_mps: peak speed along the line [m/s] (MP-CDE flights: 1 m/s).
         start_delay_s: hover time before departure [s].
     """
 
-    kind: Literal["min_jerk_line"] = "min_jerk_line"
+    kind: Literal["min_jerk_line", "mpcde", "dmpc"] = "min_jerk_line"
     cruise_speed_mps: float = 1.0
     start_delay_s: float = 0.5
 
@@ -196,6 +201,8 @@ class ScenarioConfig:
         pose_estimate: self-localisation error.
         physics: physics rate, airframe and controller.
         planner: onboard planning.
+        denied: the MP-CDE (communication-denied) agent's settings.
+        dmpc: the DMPC (communicating) agent's settings.
         run: simulation options.
     """
 
@@ -209,6 +216,8 @@ class ScenarioConfig:
     pose_estimate: PoseEstimateConfig = field(default_factory=PoseEstimateConfig)
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
+    denied: DeniedAgentConfig = field(default_factory=DeniedAgentConfig)
+    dmpc: DmpcAgentConfig = field(default_factory=DmpcAgentConfig)
     run: RunOptions = field(default_factory=RunOptions)
 
     def __post_init__(self) -> None:
@@ -216,6 +225,8 @@ class ScenarioConfig:
             raise ConfigError("duration_s", self.duration_s, "in (0, 3600] s")
         if not 0 <= self.seed < 2**32:
             raise ConfigError("seed", self.seed, "an integer in [0, 2^32)")
+        if self.planner.kind == "dmpc" and abs(self.dmpc.qp.step_s * self.radio.rate_hz - 1.0) > 1e-6:
+            raise ConfigError("dmpc.qp.step_s", self.dmpc.qp.step_s, f"must equal 1 / radio.rate_hz = {1.0 / self.radio.rate_hz:g} s (one DMPC round per step)")
 
 
 def build_layout(drones: DronesConfig) -> tuple[np.ndarray, np.ndarray]:
