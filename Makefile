@@ -9,7 +9,7 @@ setup:
 	@bash scripts/setup.sh
 
 demo: setup
-	$(PY) -m mpcde fly data/scenarios/forest_swarm.yaml --out $(DEMO_OUT) --seed 0 --video --overwrite
+	$(PY) -m mpcde fly data/scenarios/forest_swarm.yaml --mode comm --out $(DEMO_OUT) --seed 0 --video --overwrite
 
 test: setup
 	$(PY) -m pytest -q
