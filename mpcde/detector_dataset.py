@@ -59,6 +59,7 @@ __all__ = [
     "DatasetConfig",
     "LabelledFrame",
     "boxes_from_mask",
+    "iter_scenes",
     "load_dataset",
     "render_scene",
     "split_seeds",
@@ -321,7 +322,7 @@ def _render_scene_job(args: tuple[int, DatasetConfig, CameraConfig]) -> list[Lab
     return render_scene(*args)
 
 
-def _scene_iter(seeds: Sequence[int], cfg: DatasetConfig, camera: CameraConfig, workers: int) -> Iterator[list[LabelledFrame]]:
+def iter_scenes(seeds: Sequence[int], cfg: DatasetConfig, camera: CameraConfig, workers: int) -> Iterator[list[LabelledFrame]]:
     """Rendered scenes in seed order, from a spawn pool of ``workers`` processes (1: in-process)."""
     jobs = [(s, cfg, camera) for s in seeds]
     if workers <= 1:
@@ -368,7 +369,7 @@ def write_dataset(
             n_shards += 1
             buf.clear()
 
-    for frames in _scene_iter(seeds, cfg, camera, workers):
+    for frames in iter_scenes(seeds, cfg, camera, workers):
         for fr in frames:
             if n_written >= n_frames:
                 break
@@ -395,14 +396,20 @@ def write_dataset(
     return manifest
 
 
-def load_dataset(folder: Path) -> dict[str, np.ndarray]:
-    """Concatenate every shard under ``folder`` (one split) into one dict of arrays (box_frame re-indexed)."""
+def load_dataset(folder: Path, max_frames: int | None = None) -> dict[str, np.ndarray]:
+    """Concatenate the shards under ``folder`` (one split) into one dict of arrays (box_frame re-indexed).
+
+    With ``max_frames``, only the shards needed for that many frames are read
+    (the result may hold up to one shard more).
+    """
     shards = sorted(Path(folder).glob("shard_*.npz"))
     if not shards:
         raise ConfigError("dataset", str(folder), "a folder holding shard_*.npz files")
     parts: dict[str, list[np.ndarray]] = {}
     offset = 0
     for path in shards:
+        if max_frames is not None and offset >= max_frames:
+            break
         with np.load(path) as z:
             for key in z.files:
                 a = z[key]

@@ -39,7 +39,7 @@ from typing import Sequence
 
 import numpy as np
 
-from mpcde.detector_dataset import SPLIT_SEED_BASE, SPLIT_SIZE, DatasetConfig, LabelledFrame, _scene_iter, split_seeds
+from mpcde.detector_dataset import SPLIT_SEED_BASE, SPLIT_SIZE, DatasetConfig, LabelledFrame, iter_scenes, split_seeds
 from mpcde.errors import ConfigError
 from perception.backprojection import backproject, box_depth_m
 from perception.detector.decode import box_iou_xyxy
@@ -53,6 +53,7 @@ __all__ = [
     "choose_threshold",
     "evaluate_detections",
     "format_table",
+    "json_safe",
     "match_frame",
     "run_eval_detector",
 ]
@@ -129,11 +130,12 @@ def _scored(predictions: Sequence[tuple[np.ndarray, np.ndarray]], data: dict) ->
         boxes, scores = boxes[keep], scores[keep]
         rows = np.nonzero(data["box_frame"] == f)[0]
         status, matched = match_frame(boxes, scores, data["box_xyxy"][rows], data["box_ignore"][rows])
+        depth = np.asarray(data["depth_m"][f], np.float32) if np.any(status == FP) else None
         dist = np.array(
-            [data["box_distance_m"][rows[m]] if s == TP else _fp_distance_m(b, data["depth_m"][f].astype(np.float32), data["K"][f])
+            [data["box_distance_m"][rows[m]] if s == TP else _fp_distance_m(b, depth, data["K"][f]) if s == FP else np.nan
              for b, s, m in zip(boxes, status, matched)]
         )
-        out.append({"boxes": boxes, "scores": scores, "status": status, "matched_row": np.where(matched >= 0, rows[matched], -1) if matched.size else matched, "dist": dist})
+        out.append({"boxes": boxes, "scores": scores, "status": status, "dist": dist})
     return out
 
 
@@ -234,23 +236,41 @@ def _backprojection_table(frames: Sequence[LabelledFrame], detections: list[list
     return {"goal": "median error <= 0.05 m + 0.01 * range", "true_positives_without_depth": skipped, "by_distance": table}
 
 
+def json_safe(obj):  # noqa: ANN001 - any JSON-like value
+    """NaN / inf floats -> None (strict JSON), recursively."""
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
+def _fmt(x, width: int, digits: int = 3) -> str:
+    """A number right-aligned, '-' for missing / NaN."""
+    if x is None or (isinstance(x, float) and not np.isfinite(x)):
+        return f"{'-':>{width}}"
+    return f"{x:>{width}.{digits}f}"
+
+
 def format_table(results: dict, backprojection: dict | None = None) -> str:
     """Human-readable tables of ``results`` (and of a back-projection table when given)."""
     o = results["overall"]
     lines = [
-        f"detector: precision {o['precision']:.3f}  recall {o['recall']:.3f}  AP@0.5 {o['ap50']:.3f}  "
-        f"latency {results['latency_ms_per_frame']:.2f} ms/frame (batch of 6, 320x240)",
+        f"detector: precision {_fmt(o['precision'], 0)}  recall {_fmt(o['recall'], 0)}  AP@0.5 {_fmt(o['ap50'], 0)}  "
+        f"latency {_fmt(results['latency_ms_per_frame'], 0, 2)} ms/frame (batch of 6, 320x240)",
         f"{'range [m]':>10} {'n':>6} {'precision':>10} {'recall':>8} {'AP@0.5':>8}",
     ]
     for b in results["by_distance"]:
-        lines.append(f"{b['min_m']:>4.0f}-{b['max_m']:<5.0f} {b['n']:>6d} {b['precision']:>10.3f} {b['recall']:>8.3f} {b['ap50']:>8.3f}")
+        lines.append(f"{b['min_m']:>4.0f}-{b['max_m']:<5.0f} {b['n']:>6d} {_fmt(b['precision'], 10)} {_fmt(b['recall'], 8)} {_fmt(b['ap50'], 8)}")
     if backprojection is not None:
         lines.append("back-projection (true positives, render -> detect -> back-project), goal median <= 5 cm + 1 % range:")
         lines.append(f"{'range [m]':>10} {'n':>6} {'median [m]':>11} {'p90 [m]':>8} {'goal [m]':>9} {'<= goal':>8}")
         for b in backprojection["by_distance"]:
             lines.append(
-                f"{b['min_m']:>4.0f}-{b['max_m']:<5.0f} {b['n']:>6d} {b['median_error_m']:>11.3f} {b['p90_error_m']:>8.3f} "
-                f"{b['median_goal_m']:>9.3f} {b['share_within_goal']:>8.2f}"
+                f"{b['min_m']:>4.0f}-{b['max_m']:<5.0f} {b['n']:>6d} {_fmt(b['median_error_m'], 11)} {_fmt(b['p90_error_m'], 8)} "
+                f"{_fmt(b['median_goal_m'], 9)} {_fmt(b['share_within_goal'], 8, 2)}"
             )
     return "\n".join(lines)
 
@@ -296,7 +316,7 @@ def run_eval_detector(
 
     frames: list[LabelledFrame] = []
     bar = tqdm(total=n_frames, disable=not progress, desc="render test")
-    for scene in _scene_iter(list(seeds), cfg, CameraConfig(), workers):
+    for scene in iter_scenes(list(seeds), cfg, CameraConfig(), workers):
         take = scene[: n_frames - len(frames)]
         frames += take
         bar.update(len(take))
@@ -334,12 +354,12 @@ def run_eval_detector(
         "weights": str(weights) if weights is not None else "data/detector/drone_detector.pt",
     }
     bp = _backprojection_table(frames, detections, data, detector.score_threshold)
-    (out_dir / "results.json").write_text(json.dumps(results, indent=2))
-    (out_dir / "backprojection.json").write_text(json.dumps(bp, indent=2))
+    (out_dir / "results.json").write_text(json.dumps(json_safe(results), indent=2))
+    (out_dir / "backprojection.json").write_text(json.dumps(json_safe(bp), indent=2))
     w5, w8 = extra["within_5m"], extra["within_8m"]
     text = format_table(results, bp) + (
-        f"\nwithin 5 m: precision {w5['precision']:.3f} recall {w5['recall']:.3f} AP@0.5 {w5['ap50']:.3f} (n {w5['n']})"
-        f"\nwithin 8 m: precision {w8['precision']:.3f} recall {w8['recall']:.3f} AP@0.5 {w8['ap50']:.3f} (n {w8['n']})"
+        f"\nwithin 5 m: precision {_fmt(w5['precision'], 0)} recall {_fmt(w5['recall'], 0)} AP@0.5 {_fmt(w5['ap50'], 0)} (n {w5['n']})"
+        f"\nwithin 8 m: precision {_fmt(w8['precision'], 0)} recall {_fmt(w8['recall'], 0)} AP@0.5 {_fmt(w8['ap50'], 0)} (n {w8['n']})"
         f"\nframes {extra['n_frames']}, test scene seeds {extra['scene_seeds']}, score threshold {extra['score_threshold']}, "
         f"weights {extra['weights']}\n"
     )

@@ -183,16 +183,17 @@ def predict_dataset(net: DetectorNet, data: dict, batch: int = 16) -> list[tuple
 def run_train_detector(
     out_dir: Path,
     n_train_frames: int = 8000,
-    epochs: int = 12,
+    epochs: int = 20,
     seed: int = 0,
     progress: bool = True,
     data_dir: Path | None = None,
     n_val_frames: int = 640,
     batch_size: int = 32,
-    crop_hw_px: tuple[int, int] = (128, 160),
+    crop_hw_px: tuple[int, int] = (160, 224),
     lr: float = 3e-3,
-    max_minutes: float = 25.0,
-    model: ModelConfig = ModelConfig(),
+    max_minutes: float = 24.0,
+    model: ModelConfig = ModelConfig(c1=8, c2=16, c3=32, c4=64),
+    threads: int = 2,
 ) -> dict:
     """Generate (or reuse) data, train the detector on CPU, write weights and a model card.
 
@@ -210,14 +211,11 @@ def run_train_detector(
         max_minutes: wall-clock budget for the optimisation [min]; training stops
             (and saves) when it is spent.
         model: network widths and input channels.
+        threads: torch CPU threads during the run (restored afterwards).
 
     Returns:
         The model card (also written as JSON).
     """
-    from tqdm import tqdm
-
-    from mpcde.eval_detector import choose_threshold, evaluate_detections
-
     if not (isinstance(epochs, int) and epochs >= 1):
         raise ConfigError("epochs", epochs, "an integer >= 1")
     if not (isinstance(n_train_frames, int) and n_train_frames >= 16):
@@ -230,11 +228,24 @@ def run_train_detector(
     out_dir.mkdir(parents=True, exist_ok=True)
     data_dir = Path(data_dir) if data_dir is not None else out_dir / "data"
     _ensure_dataset(data_dir, n_train_frames, n_val_frames, progress)
-    train = _subset(load_dataset(data_dir / "train"), n_train_frames)
-    val = _subset(load_dataset(data_dir / "val"), n_val_frames)
+    train = _subset(load_dataset(data_dir / "train", n_train_frames), n_train_frames)
+    val = _subset(load_dataset(data_dir / "val", n_val_frames), n_val_frames)
+    threads_before = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        return _train(out_dir, data_dir, train, val, epochs, seed, progress, batch_size, crop_hw_px, lr, max_minutes, model)
+    finally:
+        torch.set_num_threads(threads_before)
+
+
+def _train(out_dir, data_dir, train, val, epochs, seed, progress, batch_size, crop_hw_px, lr, max_minutes, model) -> dict:
+    """The optimisation, validation and writing of :func:`run_train_detector` (arguments as there)."""
+    from tqdm import tqdm
+
+    from mpcde.eval_detector import json_safe, choose_threshold, evaluate_detections
+
     n_train = train["rgb"].shape[0]
     boxes_of = [np.nonzero(train["box_frame"] == f)[0] for f in range(n_train)]
-
     torch.manual_seed(seed)
     rng = np.random.default_rng([seed, 0x7EA1])
     net = DetectorNet(model)
@@ -290,6 +301,8 @@ def run_train_detector(
     bar.close()
     train_s = time.perf_counter() - t_start
 
+    weights_path = out_dir / "drone_detector.pt"
+    torch.save({"format": CHECKPOINT_FORMAT, "model_config": model.to_dict(), "state_dict": net.state_dict(), "score_threshold": 0.3}, weights_path)
     predictions = predict_dataset(net, val)
     threshold = choose_threshold(predictions, val)
     val_metrics = evaluate_detections(predictions, val, threshold)
@@ -330,5 +343,5 @@ def run_train_detector(
         "score_threshold": threshold,
         "val_metrics": val_metrics,
     }
-    (out_dir / "model_card.json").write_text(json.dumps(card, indent=2))
+    (out_dir / "model_card.json").write_text(json.dumps(json_safe(card), indent=2))
     return card

@@ -26,7 +26,9 @@ this module takes:
 
 The depth camera sees the drone's near surface; the drone's position is its
 body centre, on average ``surface_to_centre_m`` farther along the ray, which is
-added along the unit ray.
+added along the unit ray (0.03 m: on 1365 validation renders with mask boxes the
+median along-ray offset from the foreground depth point to the true centre was
+0.027-0.036 m in every 2 m range bin from 0 to 10 m).
 
 Covariance (anisotropic, in world): along the ray the depth error dominates,
 std_r^2 = (pi / 2) sigma(d)^2 |r|^2 / n + model_std_m^2 (variance of a median of

@@ -2,7 +2,9 @@
 
 :class:`DroneDetector` wraps :class:`~perception.detector.model.DetectorNet`
 with its BatchNorms folded, in channels-last layout under
-``torch.inference_mode``; one forward pass serves every frame handed to
+``torch.inference_mode``, traced and frozen by ``torch.jit`` once per input
+shape (``optimize_for_inference`` fuses conv + ReLU; eager when
+``compile_graph=False``); one forward pass serves every frame handed to
 :meth:`DroneDetector.detect` (one per drone of a swarm tick). It reads only
 :class:`sim.types.RgbdFrame` (image, depth, intrinsics, pose estimate): never a
 segmentation.
@@ -14,6 +16,7 @@ layout, with BatchNorms), ``score_threshold`` (chosen on the validation split).
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Sequence
 
@@ -43,9 +46,12 @@ class DroneDetector:
         score_threshold: default score threshold in [0, 1] (from the checkpoint).
         max_detections: most detections per frame.
         nms_iou: IoU threshold of non-maximum suppression.
+        compile_graph: run a traced, frozen graph (per input shape) instead of eager PyTorch.
     """
 
-    def __init__(self, net: DetectorNet, score_threshold: float, max_detections: int = 20, nms_iou: float = 0.5) -> None:
+    def __init__(
+        self, net: DetectorNet, score_threshold: float, max_detections: int = 20, nms_iou: float = 0.5, compile_graph: bool = False
+    ) -> None:
         if not 0.0 <= score_threshold <= 1.0:
             raise ValueError(f"score_threshold={score_threshold!r}: in [0, 1]")
         if not (isinstance(max_detections, int) and max_detections >= 1):
@@ -56,6 +62,25 @@ class DroneDetector:
         self.score_threshold = float(score_threshold)
         self.max_detections = max_detections
         self.nms_iou = nms_iou
+        self.compile_graph = compile_graph
+        self._graphs: dict[tuple[int, ...], torch.jit.ScriptModule] = {}
+
+    def _forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Network outputs; with ``compile_graph`` a traced, frozen graph per input shape (conv + ReLU fused)."""
+        if not self.compile_graph:
+            return self.net(x)
+        key = tuple(x.shape)
+        graph = self._graphs.get(key)
+        if graph is None:
+            try:
+                with warnings.catch_warnings():  # torch.jit is deprecated in favour of torch.compile, which needs a C++ toolchain
+                    warnings.simplefilter("ignore")
+                    graph = torch.jit.optimize_for_inference(torch.jit.freeze(torch.jit.trace(self.net, x)))
+            except Exception:  # pragma: no cover - torch builds without the JIT: stay eager
+                self.compile_graph = False
+                return self.net(x)
+            self._graphs[key] = graph
+        return graph(x)
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> "DroneDetector":
@@ -113,6 +138,6 @@ class DroneDetector:
         depth = np.stack([f.depth_m for f in frames]) if self.in_channels == 4 else None
         with torch.inference_mode():
             x = encode_frames(rgb, depth, self.in_channels).contiguous(memory_format=torch.channels_last)
-            out = self.net(x)
+            out = self._forward(x)
             decoded = decode_outputs(out, thr, self.max_detections, self.nms_iou, image_shape_px=shape)
         return [[Detection(box_xyxy=b, score=float(s)) for b, s in zip(boxes, scores)] for boxes, scores in decoded]
