@@ -60,9 +60,9 @@ class ModelConfig:
     """
 
     in_channels: int = 4
-    c1: int = 12
-    c2: int = 24
-    c3: int = 48
+    c1: int = 8
+    c2: int = 16
+    c3: int = 32
     c4: int = 64
 
     def __post_init__(self) -> None:
