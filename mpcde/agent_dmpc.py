@@ -57,6 +57,7 @@ from mpcde.errors import ConfigError
 from perception.types import NeighborPrediction
 from planners.dmpc import DmpcConfig, DmpcPlan, DmpcProblem, DmpcSolveError
 from sim.obstacles import ObstacleSpec
+from sim.rotations import rotation_from_quat_xyzw, yaw_from_rotation
 from sim.types import FlatOutputReference, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
 
 __all__ = ["DmpcAgent", "DmpcAgentConfig", "DmpcRoundStats", "PlanSampler", "obstacle_half_spaces"]
@@ -252,12 +253,6 @@ class PlanSampler:
         return pos, vel, acc
 
 
-def _yaw_from_quat_xyzw(q: np.ndarray) -> float:
-    """Heading [rad] of a body->world quaternion (4,) xyzw."""
-    x, y, z, w = (float(v) for v in q)
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
 class DmpcAgent:
     """One drone's DMPC agent (implements :class:`mpcde.agent.OnboardAgent`).
 
@@ -307,7 +302,7 @@ class DmpcAgent:
         """Take the drone's own pose estimate (the first fixes start and heading)."""
         if self.latest_estimate is None:
             self.start_world = np.asarray(estimate.pos_world, float).copy()
-            self.yaw = _yaw_from_quat_xyzw(estimate.quat_xyzw)
+            self.yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
         self.latest_estimate = estimate
 
     def on_frame(self, frame: RgbdFrame) -> None:

@@ -10,12 +10,23 @@ import numpy as np
 
 from mpcde.agent import Agent, OnboardAgent
 from mpcde.scenario import ScenarioConfig
+from sim.obstacles import ObstacleSpec
 
 __all__ = ["make_agent"]
 
 
-def make_agent(cfg: ScenarioConfig, drone_id: int, goal_world: np.ndarray, n_drones: int) -> OnboardAgent:
-    """The onboard agent of drone ``drone_id`` flying to ``goal_world`` (3,) [m]."""
+def make_agent(cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obstacles: tuple[ObstacleSpec, ...]) -> OnboardAgent:
+    """The onboard agent of drone ``drone_id``.
+
+    Args:
+        goals_world: (N, 3) every drone's goal [m] (the mission; a DMPC
+            formation takes its offsets from them).
+        obstacles: the static obstacles, given only to the DMPC agent as its
+            prior map (the on-demand DMPC paper assumes known obstacles); the
+            other stacks map with their cameras.
+    """
+    goal_world = np.asarray(goals_world[drone_id], float)
+    n_drones = len(goals_world)
     kind = cfg.planner.kind
     if kind == "min_jerk_line":
         return Agent(drone_id, np.asarray(goal_world, float), cfg.planner.cruise_speed_mps, cfg.planner.start_delay_s)
@@ -25,10 +36,8 @@ def make_agent(cfg: ScenarioConfig, drone_id: int, goal_world: np.ndarray, n_dro
         return DeniedAgent(drone_id, goal_world, cfg.denied)
     if kind == "dmpc":
         from mpcde.agent_dmpc import DmpcAgent
-        from mpcde.scenario import build_layout, resolve_obstacles
 
-        starts, goals = build_layout(cfg.drones)  # the mission (goals) and the prior map (static obstacles)
+        goals = np.asarray(goals_world, float)
         offsets = {j: goals[j] - goals[drone_id] for j in range(n_drones) if j != drone_id} if cfg.dmpc.formation_from_goals else None
-        obstacles = resolve_obstacles(cfg, starts, goals)
         return DmpcAgent(drone_id, goal_world, cfg.dmpc, cfg.planner.start_delay_s, offsets, obstacles, cfg.physics.quadrotor.robot_radius_m)
     raise AssertionError(f"planner.kind={kind!r} has no agent")  # unreachable: PlannerConfig validates kind

@@ -117,7 +117,7 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
     estimator = PoseEstimator(cfg.pose_estimate, n, cfg.seed)
     rig = CameraRig(cfg.camera, cfg.seed)
     radio = Radio(cfg.radio, n, cfg.seed, line_of_sight=lambda a, b: _line_of_sight(world, a, b))
-    agents = [make_agent(cfg, i, goals[i], n) for i in range(n)]
+    agents = [make_agent(cfg, i, goals, prepared.obstacles) for i in range(n)]
     metrics = MetricsAccumulator(goals, prepared.obstacles, cfg.physics.quadrotor.robot_radius_m, cfg.run.goal_tolerance_m)
     log = RunLog()
     workers = cfg.run.render_workers if cfg.run.render_workers >= 0 else (os.cpu_count() or 1)
