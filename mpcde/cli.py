@@ -1,6 +1,8 @@
 """The ``mpcde`` command line.
 
-Subcommands: ``fly`` (a headless scenario -> run folder), ``eval-tracking``
+Subcommands: ``fly`` (a headless scenario -> run folder), ``train-detector``
+(render a dataset, train the drone detector on CPU -> weights + model card),
+``eval-detector`` (held-out renders -> results.json), ``eval-tracking``
 (tracker evaluation -> results.json) and ``eval-dmpc`` (on-demand DMPC vs
 BVC -> results.json). Bad input prints one
 line ``mpcde: error: <field>=<value>: <allowed>`` and exits with status 2,
@@ -60,6 +62,21 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_argument("--no-cameras", action="store_true", help="do not render cameras (faster; no video tiles)")
     fly.add_argument("--overwrite", action="store_true", help="replace an existing non-empty --out")
     fly.add_argument("--quiet", action="store_true", help="no progress bar")
+    td = sub.add_parser("train-detector", help="render a training set and train the drone detector on CPU (weights + model card)")
+    td.add_argument("--out", required=True, type=Path, help="output folder: drone_detector.pt, model_card.json (and data/ unless --data)")
+    td.add_argument("--data", type=Path, default=None, help="dataset folder to reuse or fill (train/ and val/); default OUT/data")
+    td.add_argument("--frames", type=int, default=8000, help="training frames (rendered when the dataset has fewer)")
+    td.add_argument("--val-frames", type=int, default=640, help="validation frames (threshold choice and the card's metrics)")
+    td.add_argument("--epochs", type=int, default=20, help="passes over the training frames")
+    td.add_argument("--minutes", type=float, default=24.0, help="wall-clock budget of the optimisation [min]")
+    td.add_argument("--seed", type=_seed, default=0, help="seed of the weights init and augmentation")
+    td.add_argument("--quiet", action="store_true")
+    tde = sub.add_parser("eval-detector", help="score the detector on held-out renders -> results.json")
+    tde.add_argument("--out", required=True, type=Path)
+    tde.add_argument("--weights", type=Path, default=None, help="checkpoint (default: the shipped data/detector/drone_detector.pt)")
+    tde.add_argument("--frames", type=int, default=800, help="held-out test frames to render and score")
+    tde.add_argument("--workers", type=int, default=2, help="render processes")
+    tde.add_argument("--quiet", action="store_true")
     ev = sub.add_parser("eval-tracking", help="evaluate the tracker (AKF vs KF) and write results.json")
     ev.add_argument("--out", required=True, type=Path)
     ev.add_argument("--measurements", choices=["synthetic", "pipeline"], nargs="+", default=["synthetic"])
@@ -132,6 +149,49 @@ def _cmd_fly(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_train_detector(args: argparse.Namespace) -> int:
+    from mpcde.train_detector import run_train_detector
+
+    if args.frames < 16:
+        raise ConfigError("--frames", args.frames, "an integer >= 16")
+    if args.val_frames < 8:
+        raise ConfigError("--val-frames", args.val_frames, "an integer >= 8")
+    if args.epochs < 1:
+        raise ConfigError("--epochs", args.epochs, "an integer >= 1")
+    if not (args.minutes > 0):
+        raise ConfigError("--minutes", args.minutes, "> 0")
+    _check_out_dir(args.out)
+    if args.data is not None:
+        _check_out_dir(args.data)
+    card = run_train_detector(
+        args.out, n_train_frames=args.frames, epochs=args.epochs, seed=args.seed, progress=not args.quiet,
+        data_dir=args.data, n_val_frames=args.val_frames, max_minutes=args.minutes,
+    )  # fmt: skip
+    v = card["val_metrics"]
+    print(
+        f"trained {card['training']['epochs_run']} epochs ({card['training']['train_time_s']:.0f} s) on "
+        f"{card['data']['train_frames']} frames; validation within 5 m: precision {v['within_5m']['precision']:.3f} "
+        f"recall {v['within_5m']['recall']:.3f}; score threshold {card['score_threshold']:.2f} -> {args.out / 'drone_detector.pt'}"
+    )
+    return 0
+
+
+def _cmd_eval_detector(args: argparse.Namespace) -> int:
+    from mpcde.eval_detector import format_table, run_eval_detector
+    from perception.detector.detector import DroneDetector
+
+    if args.frames < 1:
+        raise ConfigError("--frames", args.frames, "an integer >= 1")
+    if args.workers < 1:
+        raise ConfigError("--workers", args.workers, "an integer >= 1")
+    _check_out_dir(args.out)
+    DroneDetector.load(args.weights)  # a missing or corrupt file fails here, before anything is written
+    run_eval_detector(args.out, weights=args.weights, n_frames=args.frames, progress=not args.quiet, workers=args.workers)
+    print((args.out / "results.txt").read_text().rstrip())
+    print(f"-> {args.out / 'results.json'}")
+    return 0
+
+
 def _cmd_eval_tracking(args: argparse.Namespace) -> int:
     from mpcde.eval_tracking import format_table, run_eval_tracking
 
@@ -163,6 +223,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "fly":
             return _cmd_fly(args)
+        if args.command == "train-detector":
+            return _cmd_train_detector(args)
+        if args.command == "eval-detector":
+            return _cmd_eval_detector(args)
         if args.command == "eval-tracking":
             return _cmd_eval_tracking(args)
         if args.command == "eval-dmpc":
