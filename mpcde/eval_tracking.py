@@ -1,7 +1,8 @@
 """Tracking evaluation: the adaptive KF against the plain KF (MP-CDE Sec. V-B2).
 
-An observer hovers and watches 1-3 neighbour drones fly manoeuvring paths
-(turns, speed changes, gentle climbs) at a nominal speed. A *measurement
+An observer hovers and watches, with its one forward camera, 1-3 neighbour
+drones fly manoeuvring paths (turns, speed changes, gentle climbs) in front
+of it at a nominal speed. A *measurement
 source* turns the truth into per-frame measured positions at 25 Hz; the
 tracker (:class:`perception.tracker.MultiTargetTracker`) runs on them with
 ``filter="akf"`` and with ``filter="kf"`` on the very same measurements, and
@@ -36,13 +37,16 @@ from scipy.optimize import linear_sum_assignment
 
 from perception.tracker import COASTING, CONFIRMED, Measurement, MultiTargetTracker, range_noise_cov
 from perception.tracker_config import TrackerConfig
+from sim.camera import CameraConfig, rotation_camera_to_body
 
 __all__ = [
     "MATCH_RADIUS_M",
     "MeasurementSource",
     "SyntheticMeasurements",
     "TrackingScenario",
+    "camera_pose",
     "format_table",
+    "in_camera_view",
     "make_scenario",
     "run_eval_tracking",
 ]
@@ -52,6 +56,12 @@ MATCH_RADIUS_M = 1.0
 
 RATE_HZ = 25.0
 """Perception rate (MP-CDE: 25 Hz)."""
+
+VIEW_RANGE_M = (2.0, 7.0)
+"""Horizontal range [m] from the observer within which the targets fly (they steer back when outside)."""
+
+VIEW_AZIMUTH_DEG = 30.0
+"""Largest azimuth [deg] off the observer's optical axis within which the targets fly."""
 
 PAPER_REFERENCE = (
     "MP-CDE (Sec. V-B2) reports: low speed  AKF pos 0.06 m, vel 0.25 m/s; KF pos 0.14 m, vel 0.29 m/s\n"
@@ -68,12 +78,16 @@ class TrackingScenario:
         observer_pos_world: (3,) the observer's (hovering) position [m].
         target_pos_world: (T, n, 3) target positions [m].
         target_vel_world: (T, n, 3) target velocities [m/s].
+        observer_yaw_rad: the observer's (fixed) yaw [rad]; its forward camera
+            (body +x, :class:`sim.camera.CameraConfig`) looks along world
+            ``(cos yaw, sin yaw, 0)``.
     """
 
     times_s: np.ndarray
     observer_pos_world: np.ndarray
     target_pos_world: np.ndarray
     target_vel_world: np.ndarray
+    observer_yaw_rad: float = 0.0
 
     @property
     def n_targets(self) -> int:
@@ -81,18 +95,37 @@ class TrackingScenario:
         return self.target_pos_world.shape[1]
 
 
+def _wrap_rad(angle_rad: float) -> float:
+    """``angle_rad`` wrapped into [-pi, pi)."""
+    return (angle_rad + np.pi) % (2 * np.pi) - np.pi
+
+
 def make_scenario(
     speed_mps: float, n_targets: int, duration_s: float, seed: int, rate_hz: float = RATE_HZ
 ) -> TrackingScenario:
-    """Manoeuvring target paths around a hovering observer at ``(0, 0, 1.5)`` m.
+    """Manoeuvring target paths in front of a hovering observer at ``(0, 0, 1.5)`` m, yaw 0.
 
-    Each target flies segments of 1-3 s; at each segment start it picks a new
-    speed in ``[0.6, 1.3] * speed_mps`` (reached at 0.5 m/s^2) and, with
-    probability 0.6, a turn rate of 0.2-1.0 rad/s capped so the lateral
-    acceleration stays under 2 m/s^2 (reached at 1 rad/s^2). Targets that
-    leave the 3-5 m annulus around the observer turn back at the full turn
-    rate (so they stay within about 2-6.5 m). Height varies
-    sinusoidally by ``0.2 speed_mps`` m/s. Integrated at 10 sub-steps per frame.
+    The observer's one forward camera looks along world +x, so the targets fly
+    in its view: the region ``VIEW_RANGE_M`` (2-7 m horizontal range) x
+    ``|azimuth| <= VIEW_AZIMUTH_DEG`` (30 deg) x height within about
+    ``+-0.8 m`` of the observer. Each target starts inside it (range 3-6 m,
+    ``|az| <= 20 deg``) and flies segments of 1-3 s; at each segment start it
+    picks a new speed in ``[0.6, 1.3] * speed_mps`` (reached at 0.5 m/s^2)
+    and, with probability 0.6, a turn rate of 0.2-1.0 rad/s capped so the
+    lateral acceleration stays under 2 m/s^2 (turn rate changed at 1 rad/s^2).
+    Steering back: when the point ``0.3 + 0.5 speed_mps`` seconds of straight
+    flight ahead lies outside the region shrunk by a margin (range
+    2.3-6.44 m, ``|az| <= 25.5 deg``), the target turns towards the region's
+    centre (4.5 m straight ahead) at up to 3 m/s^2 of lateral acceleration
+    (turn rate changed at 3 rad/s^2) and eases off to ``0.8 speed_mps``; once
+    its course stays inside it flies straight at a new speed in
+    ``[1.0, 1.3] * speed_mps``. At 2 m/s it still overshoots the region now
+    and then (seeds 0-4: 95-100 % of the time inside; mean speed about
+    0.93 ``speed_mps`` at 0.5 and 1 m/s, 0.81 ``speed_mps`` at 2 m/s because
+    it turns back often). Height follows a gentle climb and descent,
+    ``z = z_obs + c + A sin(0.5 t + phase)`` with ``|c| <= 0.2`` m and
+    ``A = min(0.4 speed_mps, 0.55)`` m. Integrated at 10
+    sub-steps per frame.
     """
     rng = np.random.default_rng([seed, int(round(speed_mps * 1000)), 17])
     n_frames = int(round(duration_s * rate_hz))
@@ -100,16 +133,24 @@ def make_scenario(
     sub = 10
     h = dt / sub
     observer = np.array([0.0, 0.0, 1.5])
+    yaw = 0.0
+    r_min, r_max = VIEW_RANGE_M
+    az_max = np.radians(VIEW_AZIMUTH_DEG)
+    centre_xy = observer[:2] + 0.5 * (r_min + r_max) * np.array([np.cos(yaw), np.sin(yaw)])
     pos = np.zeros((n_frames, n_targets, 3))
     vel = np.zeros((n_frames, n_targets, 3))
     turn_max = min(1.0, 2.0 / (1.3 * speed_mps))  # lateral acceleration <= 2 m/s^2
     steer_max = min(1.5, 3.0 / (1.3 * speed_mps))  # <= 3 m/s^2 when turning back
+    climb_amp_m = min(0.4 * speed_mps, 0.55)
+    look_s = 0.3 + 0.5 * speed_mps  # about the time a turn back takes (turn-rate ramp plus half a turn)
     for j in range(n_targets):
-        bearing = 2 * np.pi * j / n_targets + rng.uniform(-0.5, 0.5)
-        p = observer + np.array([4.0 * np.cos(bearing), 4.0 * np.sin(bearing), rng.uniform(-0.3, 0.3)])
+        rng_xy = rng.uniform(3.0, 6.0)
+        az = yaw + np.radians(rng.uniform(-20.0, 20.0))
+        offset_z, phase = rng.uniform(-0.2, 0.2), rng.uniform(0, 2 * np.pi)
+        p = observer + np.array([rng_xy * np.cos(az), rng_xy * np.sin(az), offset_z + climb_amp_m * np.sin(phase)])
         heading = rng.uniform(0, 2 * np.pi)
         speed, turn, speed_goal, turn_goal, seg_left = speed_mps, 0.0, speed_mps, 0.0, 0.0
-        phase, t = rng.uniform(0, 2 * np.pi), 0.0
+        t, steering = 0.0, False
         for k in range(n_frames):
             for _ in range(sub):
                 seg_left -= h
@@ -117,22 +158,66 @@ def make_scenario(
                     seg_left = rng.uniform(1.0, 3.0)
                     speed_goal = speed_mps * rng.uniform(0.6, 1.3)
                     turn_goal = rng.choice([-1.0, 1.0]) * rng.uniform(0.2, 1.0) * turn_max * (rng.random() < 0.6)
-                r_xy = np.hypot(*(p - observer)[:2])
-                if r_xy > 5.0 or r_xy < 3.0:  # steer back towards the middle of the annulus
-                    inward = np.arctan2(*(observer - p)[1::-1])
-                    goal = inward if r_xy > 5.0 else inward + np.pi
-                    off = (goal - heading + np.pi) % (2 * np.pi) - np.pi
-                    if abs(off) > np.pi / 3:
-                        turn_goal, seg_left = np.sign(off) * steer_max, max(seg_left, 0.5)
-                turn += np.clip(turn_goal - turn, -1.0 * h, 1.0 * h)
+                # where the target would be after look_s of straight flight: outside the region -> turn back now
+                ahead = p[:2] - observer[:2] + look_s * speed * np.array([np.cos(heading), np.sin(heading)])
+                r_xy = np.hypot(*ahead)
+                az_rel = _wrap_rad(np.arctan2(ahead[1], ahead[0]) - yaw)
+                if r_xy > 0.92 * r_max or r_xy < 1.15 * r_min or abs(az_rel) > 0.85 * az_max:  # a margin inside the region
+                    to_centre = np.arctan2(centre_xy[1] - p[1], centre_xy[0] - p[0])
+                    off = _wrap_rad(to_centre - heading)
+                    turn_goal = np.clip(3.0 * off, -steer_max, steer_max)  # turn towards the centre
+                    speed_goal = min(speed_goal, 0.8 * speed_mps)  # and eases off to turn tighter
+                    seg_left, steering = max(seg_left, 0.5), True
+                elif steering:  # back on a course that stays inside: straight, speeding up again
+                    turn_goal, speed_goal, steering = 0.0, speed_mps * rng.uniform(1.0, 1.3), False
+                ramp = 3.0 if steering else 1.0  # turn-rate change [rad/s^2]: quicker when turning back
+                turn += np.clip(turn_goal - turn, -ramp * h, ramp * h)
                 speed += np.clip(speed_goal - speed, -0.5 * h, 0.5 * h)
                 heading += turn * h
                 t += h
-                v = np.array([speed * np.cos(heading), speed * np.sin(heading), 0.2 * speed_mps * np.sin(0.5 * t + phase)])
+                v_z = 0.5 * climb_amp_m * np.cos(0.5 * t + phase)  # d/dt of A sin(0.5 t + phase)
+                v = np.array([speed * np.cos(heading), speed * np.sin(heading), v_z])
                 p = p + v * h
             pos[k, j], vel[k, j] = p, v
     times = np.arange(1, n_frames + 1) * dt
-    return TrackingScenario(times, observer, pos, vel)
+    return TrackingScenario(times, observer, pos, vel, yaw)
+
+
+def camera_pose(scenario: TrackingScenario, camera: CameraConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The observer's forward camera: ``(pos_world (3,) [m], rotation_camera_to_world (3, 3))``.
+
+    Body frame = world rotated by ``scenario.observer_yaw_rad`` about z (a
+    hovering drone, level); the camera sits at ``camera.mount_offset_body_m``
+    with the optical frame of :func:`sim.camera.rotation_camera_to_body`.
+    """
+    c, s = np.cos(scenario.observer_yaw_rad), np.sin(scenario.observer_yaw_rad)
+    rotation_body_to_world = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    pos_world = scenario.observer_pos_world + rotation_body_to_world @ np.asarray(camera.mount_offset_body_m, float)
+    return pos_world, rotation_body_to_world @ rotation_camera_to_body(camera.mount_pitch_deg)
+
+
+def in_camera_view(
+    points_world: np.ndarray,
+    camera_pos_world: np.ndarray,
+    rotation_camera_to_world: np.ndarray,
+    camera: CameraConfig,
+    margin_m: float,
+) -> np.ndarray:
+    """(n,) bool: which of ``points_world`` (n, 3) [m] a drone centred there is inside the camera's view.
+
+    Inside means: depth along the optical axis in ``[camera.depth_min_m,
+    camera.depth_max_m]`` and the point at least ``margin_m`` inside each of
+    the four side planes of the frustum (``hfov_deg`` x ``vfov_deg``), i.e. a
+    drone of radius ``margin_m`` is entirely in the image. ``camera_pos_world``
+    (3,) [m]; ``rotation_camera_to_world`` (3, 3).
+    """
+    p_cam = (np.asarray(points_world, float).reshape(-1, 3) - camera_pos_world) @ rotation_camera_to_world
+    x, y, z = p_cam[:, 0], p_cam[:, 1], p_cam[:, 2]
+    half_h, half_v = np.radians(camera.hfov_deg) / 2, np.radians(camera.vfov_deg) / 2
+    # signed distance inside a side plane through the optical centre at half-angle a: z sin a - |x| cos a
+    inside_h = z * np.sin(half_h) - np.abs(x) * np.cos(half_h) >= margin_m
+    inside_v = z * np.sin(half_v) - np.abs(y) * np.cos(half_v) >= margin_m
+    return inside_h & inside_v & (z >= camera.depth_min_m) & (z <= camera.depth_max_m)
 
 
 class MeasurementSource(Protocol):
@@ -160,14 +245,24 @@ class SyntheticMeasurements:
     Each measurement carries the covariance of the same model evaluated at its
     *measured* range, as the pipeline would.
 
+    Field of view: a target is measured only while it is inside the
+    observer's camera view (:func:`in_camera_view` with ``camera`` and
+    ``fov_margin_m``: the whole drone in the frustum, depth 0.2-10 m), the
+    same condition under which the ``"pipeline"`` source could detect it.
+
     Attributes:
         p_miss: probability a visible target is not detected in a frame [-].
         p_occlusion: probability per frame and target that an occlusion starts [-].
         occlusion_s: (min, max) duration of an occlusion [s].
         false_positive_rate: mean number of false detections per frame [-]
-            (uniform 1-8 m from the observer).
+            (anywhere in the image, at a depth of 1-8 m).
         std_floor_m: noise std per axis at zero range [m].
         std_per_range: noise std growth per metre of range [m/m].
+        camera: the observer's forward camera (:class:`sim.camera.CameraConfig`:
+            85 x 58 deg, depth 0.2-10 m, mounted at body (0.07, 0, 0.01) m).
+        fov_margin_m: a target's centre must lie this far inside every side
+            plane of the frustum to be measured [m] (about the drone's
+            radius: 180 mm frame plus rotors).
     """
 
     name: str = "synthetic"
@@ -177,28 +272,34 @@ class SyntheticMeasurements:
     false_positive_rate: float = 0.05
     std_floor_m: float = 0.02
     std_per_range: float = 0.01
+    camera: CameraConfig = CameraConfig()
+    fov_margin_m: float = 0.15
 
     def measure(self, scenario: TrackingScenario, seed: int) -> list[list[Measurement]]:
         """Per-frame measurements of ``scenario`` (seeded by ``seed``)."""
         rng = np.random.default_rng([seed, 29])
         n_frames, n = scenario.target_pos_world.shape[:2]
         occluded_until = np.full(n, -np.inf)
+        cam_pos_world, rotation_camera_to_world = camera_pose(scenario, self.camera)
+        visible = in_camera_view(
+            scenario.target_pos_world.reshape(-1, 3), cam_pos_world, rotation_camera_to_world, self.camera, self.fov_margin_m
+        ).reshape(n_frames, n)
+        tan_h, tan_v = np.tan(np.radians(self.camera.hfov_deg) / 2), np.tan(np.radians(self.camera.vfov_deg) / 2)
         frames: list[list[Measurement]] = []
         for k, t in enumerate(scenario.times_s):
             ms: list[Measurement] = []
             for j in range(n):
                 if rng.random() < self.p_occlusion:
                     occluded_until[j] = t + rng.uniform(*self.occlusion_s)
-                if t < occluded_until[j] or rng.random() < self.p_miss:
+                if t < occluded_until[j] or rng.random() < self.p_miss or not visible[k, j]:
                     continue
                 truth = scenario.target_pos_world[k, j]
                 std = self.std_floor_m + self.std_per_range * np.linalg.norm(truth - scenario.observer_pos_world)
                 z = truth + rng.normal(0.0, std, 3)
                 ms.append(self._measurement(z, scenario.observer_pos_world, float(t)))
-            for _ in range(rng.poisson(self.false_positive_rate)):
-                direction = rng.normal(size=3)
-                direction /= np.linalg.norm(direction)
-                z = scenario.observer_pos_world + rng.uniform(1.0, 8.0) * direction
+            for _ in range(rng.poisson(self.false_positive_rate)):  # anywhere in the image, depth 1-8 m
+                ray_cam = np.array([rng.uniform(-tan_h, tan_h), rng.uniform(-tan_v, tan_v), 1.0])
+                z = cam_pos_world + rotation_camera_to_world @ (rng.uniform(1.0, 8.0) * ray_cam)
                 ms.append(self._measurement(z, scenario.observer_pos_world, float(t)))
             order = rng.permutation(len(ms))  # detections come in no particular order
             frames.append([ms[i] for i in order])

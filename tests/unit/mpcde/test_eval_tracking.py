@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -9,7 +10,9 @@ import pytest
 
 from mpcde.eval_tracking import (
     SyntheticMeasurements,
+    camera_pose,
     format_table,
+    in_camera_view,
     make_scenario,
     run_eval_tracking,
 )
@@ -90,3 +93,58 @@ def test_scenarios_are_seeded_and_manoeuvre():
     assert np.linalg.norm(acc, axis=2).max() > 1.0  # it turns
     speed = np.linalg.norm(a.target_vel_world[..., :2], axis=2)
     assert 1.0 < speed.min() and speed.max() < 2.7
+
+
+@pytest.mark.parametrize("speed", [0.5, 2.0])
+def test_targets_fly_in_front_of_the_observer_camera(speed):
+    """Targets stay in range 2-7 m, |azimuth| <= 30 deg, height +-0.8 m nearly all the time (brief overshoots)."""
+    inside, seen = [], []
+    source = SyntheticMeasurements()
+    for seed in (0, 1):
+        sc = make_scenario(speed, 3, 30.0, seed)
+        assert sc.observer_yaw_rad == 0.0
+        rel = sc.target_pos_world - sc.observer_pos_world
+        r_xy = np.hypot(rel[..., 0], rel[..., 1])
+        az_deg = np.degrees(np.arctan2(rel[..., 1], rel[..., 0]))
+        inside.append((r_xy >= 2.0) & (r_xy <= 7.0) & (np.abs(az_deg) <= 30.0))
+        assert np.abs(rel[..., 2]).max() <= 0.8
+        cam_pos, rot = camera_pose(sc, source.camera)
+        seen.append(in_camera_view(sc.target_pos_world.reshape(-1, 3), cam_pos, rot, source.camera, 0.15))
+    assert np.mean(inside) > 0.9
+    assert np.mean(np.concatenate(seen)) > 0.97
+
+
+def test_the_camera_view_check_follows_the_frustum():
+    sc = make_scenario(1.0, 1, 1.0, seed=0)
+    cam = SyntheticMeasurements().camera
+    cam_pos, rot = camera_pose(sc, cam)
+    np.testing.assert_allclose(cam_pos, [0.07, 0.0, 1.51])
+    np.testing.assert_allclose(rot @ [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], atol=1e-12)  # optical axis = world +x
+    half_h = np.radians(cam.hfov_deg / 2)
+    d = 4.0
+    edge_y = d * np.tan(half_h)  # on the horizontal side plane at depth d
+    pts = cam_pos + np.array(
+        [
+            [d, 0.0, 0.0],  # straight ahead
+            [-d, 0.0, 0.0],  # behind
+            [10.5, 0.0, 0.0],  # beyond the depth range
+            [d, edge_y - 0.1 / np.cos(half_h), 0.0],  # 0.1 m inside the left plane: less than the margin
+            [d, edge_y - 0.2 / np.cos(half_h), 0.0],  # 0.2 m inside it
+            [d, 0.0, d * np.tan(np.radians(cam.vfov_deg / 2)) + 0.05],  # above the top plane
+        ]
+    )
+    np.testing.assert_array_equal(in_camera_view(pts, cam_pos, rot, cam, 0.15), [True, False, False, False, True, False])
+
+
+def test_targets_out_of_view_are_not_measured_and_false_positives_are_in_view():
+    sc = make_scenario(1.0, 2, 4.0, seed=0)
+    behind = sc.target_pos_world.copy()
+    behind[:, 1] = sc.observer_pos_world + (sc.observer_pos_world - behind[:, 1]) * [1, 1, 0]  # mirrored behind
+    sc = dataclasses.replace(sc, target_pos_world=behind)
+    source = SyntheticMeasurements(p_miss=0.0, p_occlusion=0.0, false_positive_rate=0.5)
+    frames = source.measure(sc, seed=0)
+    cam_pos, rot = camera_pose(sc, source.camera)
+    all_z = np.array([m.pos_world for f in frames for m in f])
+    assert len(all_z) > 0.9 * len(frames)  # target 0 every frame, a few false positives
+    assert np.all(np.linalg.norm(all_z[:, :2] - behind[0, 1, :2], axis=1) > 1.0)  # never the target behind
+    assert np.all(in_camera_view(all_z, cam_pos, rot, source.camera, -0.5))  # false positives lie in the image
