@@ -23,10 +23,14 @@ Box convention: ``[u_min - 0.5, v_min - 0.5, u_max + 0.5, v_max + 0.5]`` [px]
 over the visible pixels (pixel centres sit at integer coordinates, as in K), so
 a box's width is the number of columns it covers. A drone is *labelled* when its
 box is at least ``MIN_BOX_WIDTH_PX`` wide, ``MIN_BOX_HEIGHT_PX`` high and it has
-at least ``MIN_VISIBLE_PX`` visible pixels; a drone with at least one visible
-pixel below that is kept as an *ignore* box (training does not penalise a peak
-there; evaluation counts a detection on it neither as a true nor as a false
-positive).
+at least ``MIN_VISIBLE_PX`` visible pixels, and its centre projects inside the
+image; any other drone with at least one visible pixel is kept as an *ignore*
+box (training does not penalise a peak there; evaluation counts a detection on
+it neither as a true nor as a false positive). The centre rule is KITTI's
+"truncated" class: a drone cut by the image border past its centre shows a box
+whose centre is not the drone's, so back-projection (MP-CDE Eq. 7-8) cannot
+place it and no downstream consumer can use it (:func:`centre_out_of_view`;
+it is applied when a split is loaded too, so shards written before it follow it).
 
 Splits are disjoint ranges of scene seeds (``SPLIT_SEED_BASE``); a frame's
 content depends only on (scene seed, frame index), never on the worker that
@@ -52,9 +56,11 @@ from sim.rotations import quat_xyzw_from_rotation
 from sim.scene import RenderStyle, SceneSpec
 
 __all__ = [
+    "LABEL_RULE",
     "MIN_BOX_HEIGHT_PX",
     "MIN_BOX_WIDTH_PX",
     "MIN_VISIBLE_PX",
+    "centre_out_of_view",
     "SPLIT_SEED_BASE",
     "DatasetConfig",
     "LabelledFrame",
@@ -72,6 +78,12 @@ MIN_BOX_HEIGHT_PX = 2
 """Lower visible boxes are ignore boxes [px]."""
 MIN_VISIBLE_PX = 6
 """Drones with fewer visible pixels are ignore boxes."""
+
+LABEL_RULE = (
+    f"box width >= {MIN_BOX_WIDTH_PX} px, height >= {MIN_BOX_HEIGHT_PX} px, >= {MIN_VISIBLE_PX} visible px "
+    "and centre inside the image; else ignore"
+)
+"""The labelling rule in words (manifests and model cards)."""
 
 SPLIT_SEED_BASE = {"train": 0, "val": 1_000_000, "test": 2_000_000}
 """First scene seed of each split; each split owns [base, base + 1_000_000)."""
@@ -171,6 +183,29 @@ def split_seeds(split: str, n_scenes: int, offset: int = 0) -> list[int]:
         raise ConfigError("n_scenes", n_scenes, f"offset + n_scenes <= {SPLIT_SIZE}")
     base = SPLIT_SEED_BASE[split] + offset
     return list(range(base, base + n_scenes))
+
+
+def centre_out_of_view(pos_world: np.ndarray, K: np.ndarray, transform_camera_to_world: np.ndarray, shape_px: tuple[int, int]) -> np.ndarray:
+    """Whether each drone centre lies outside the image (or behind the camera): the truncation ignore rule.
+
+    Args:
+        pos_world: (n, 3) drone centres [m].
+        K: (3, 3) intrinsics (pixel centres at integers).
+        transform_camera_to_world: (4, 4) camera pose.
+        shape_px: (H, W) image size.
+
+    Returns:
+        (n,) bool.
+    """
+    T = np.asarray(transform_camera_to_world, float)
+    p_c = (np.asarray(pos_world, float).reshape(-1, 3) - T[:3, 3]) @ T[:3, :3]  # rows of R^T (p - t)
+    z = p_c[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = K[0, 0] * p_c[:, 0] / z + K[0, 2]
+        v = K[1, 1] * p_c[:, 1] / z + K[1, 2]
+    H, W = shape_px
+    inside = (z > 0) & (u >= -0.5) & (u <= W - 0.5) & (v >= -0.5) & (v <= H - 0.5)
+    return ~inside
 
 
 def boxes_from_mask(mask: np.ndarray, n_drones: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -276,6 +311,7 @@ def render_scene(scene_seed: int, cfg: DatasetConfig = DatasetConfig(), camera: 
             ids, boxes, counts = boxes_from_mask(raw.drone_index_mask, placed)
             w, h = boxes[:, 2] - boxes[:, 0], boxes[:, 3] - boxes[:, 1]
             ignore = (w < MIN_BOX_WIDTH_PX) | (h < MIN_BOX_HEIGHT_PX) | (counts < MIN_VISIBLE_PX)
+            ignore |= centre_out_of_view(pos[ids], K, T_cw, (H, W))
             frames.append(
                 LabelledFrame(
                     scene_seed=int(scene_seed),
@@ -389,7 +425,7 @@ def write_dataset(
         "n_boxes": n_boxes,
         "n_ignore_boxes": n_ignore,
         "scene_seeds": [seeds[0], seeds[-1]],
-        "label_rule": f"box width >= {MIN_BOX_WIDTH_PX} px, height >= {MIN_BOX_HEIGHT_PX} px, >= {MIN_VISIBLE_PX} visible px; else ignore",
+        "label_rule": LABEL_RULE,
         "config": asdict(cfg),
     }
     (folder / "manifest.json").write_text(json.dumps(manifest, indent=2))
@@ -417,4 +453,9 @@ def load_dataset(folder: Path, max_frames: int | None = None) -> dict[str, np.nd
                     a = a + offset
                 parts.setdefault(key, []).append(a)
             offset += z["rgb"].shape[0]
-    return {k: np.concatenate(v) for k, v in parts.items()}
+    data = {k: np.concatenate(v) for k, v in parts.items()}
+    shape = data["rgb"].shape[1:3]
+    for f in np.unique(data["box_frame"]):  # the truncation rule, also for shards written before it
+        rows = np.nonzero(data["box_frame"] == f)[0]
+        data["box_ignore"][rows] |= centre_out_of_view(data["box_pos_world"][rows], data["K"][f], data["transform_camera_to_world"][f], shape)
+    return data

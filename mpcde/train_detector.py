@@ -34,7 +34,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from mpcde.detector_dataset import MIN_BOX_HEIGHT_PX, MIN_BOX_WIDTH_PX, DatasetConfig, load_dataset, write_dataset
+from mpcde.detector_dataset import LABEL_RULE, MIN_BOX_HEIGHT_PX, MIN_BOX_WIDTH_PX, DatasetConfig, load_dataset, write_dataset
 from mpcde.errors import ConfigError
 from perception.detector.decode import decode_outputs
 from perception.detector.detector import CHECKPOINT_FORMAT
@@ -325,7 +325,7 @@ def _train(out_dir, data_dir, train, val, epochs, seed, progress, batch_size, cr
             "train_boxes": int((~train["box_ignore"]).sum()),
             "val_frames": int(val["rgb"].shape[0]),
             "val_boxes": int((~val["box_ignore"]).sum()),
-            "label_rule": f"box width >= {MIN_BOX_WIDTH_PX} px, height >= {MIN_BOX_HEIGHT_PX} px, >= 6 visible px; else ignore",
+            "label_rule": LABEL_RULE,
         },
         "training": {
             "epochs_planned": epochs,

@@ -91,3 +91,17 @@ def test_bad_dataset_config_names_the_field():
         DatasetConfig(distance_range_m=(5.0, 1.0))
     with pytest.raises(ConfigError, match="frames_per_scene"):
         DatasetConfig(frames_per_scene=0)
+
+
+def test_truncation_rule_ignores_drones_whose_centre_leaves_the_image():
+    from mpcde.detector_dataset import centre_out_of_view
+    from sim.camera import CameraConfig, intrinsics
+
+    cam = CameraConfig()
+    K = intrinsics(cam)
+    T = np.eye(4)  # camera at the origin looking along world z (optical frame = world)
+    W, H = cam.width_px, cam.height_px
+    def at(u, v, z):
+        return np.array([(u - K[0, 2]) * z / K[0, 0], (v - K[1, 2]) * z / K[1, 1], z])
+    pts = np.stack([at(160, 120, 3.0), at(W - 0.6, 5, 2.0), at(W - 0.4, 5, 2.0), at(-0.6, 100, 1.0), at(100, H - 0.6, 4.0), at(160, 120, -3.0)])
+    np.testing.assert_array_equal(centre_out_of_view(pts, K, T, (H, W)), [False, False, True, True, False, True])
