@@ -19,8 +19,12 @@ MP-CDE Sec. IV-B. Each frame (25 Hz) the tracker
 :meth:`MultiTargetTracker.predictions` hands the planners one
 :class:`~perception.types.NeighborPrediction` per confirmed or coasting track
 (Eq. 12). Two filter back-ends give the same numbers (a test holds them to
-1e-9): ``"numpy"`` runs all tracks at once (the default, fast) and
-``"filterpy"`` one filterpy ``KalmanFilter`` per track (the reference).
+1e-9): ``"numba"`` runs all tracks at once in compiled kernels
+(:mod:`perception.kalman_kernels`; the default, fast) and ``"filterpy"`` one
+filterpy ``KalmanFilter`` per track (the reference). The Hungarian solver is
+called only when two gated pairs share a track or a measurement; otherwise
+the gated pairs are the assignment (see
+:func:`perception.kalman_kernels.trivial_assignment`).
 """
 
 from __future__ import annotations
@@ -32,7 +36,8 @@ from typing import Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from perception.kalman_cv import KalmanCV, adapt_acc_cov_batch, predict_batch, update_batch
+from perception.kalman_cv import KalmanCV, predict_batch
+from perception.kalman_kernels import gate_pairs, predict_tracks, trivial_assignment, update_tracks
 from perception.tracker_config import TrackerConfig
 from perception.types import NeighborPrediction
 
@@ -114,8 +119,8 @@ class Track:
         return self.state_world[3:]
 
 
-class _NumpyBank:
-    """All tracks' filters as stacked arrays (the fast path)."""
+class _CompiledBank:
+    """All tracks' filters as stacked arrays, run by the compiled kernels (the fast path)."""
 
     def __init__(self, config: TrackerConfig) -> None:
         self.cfg = config
@@ -128,38 +133,22 @@ class _NumpyBank:
     def states(self) -> tuple[np.ndarray, np.ndarray]:
         return self.x, self.P
 
-    def predict(self, dt_s: float, extra_cov: np.ndarray | None) -> None:
-        n = self.x.shape[0]
-        if n == 0:
-            return
-        acc = self.acc_cov + self.cfg.sigma_acc_mps2**2 * np.eye(3)
-        self.x, self.P = predict_batch(self.x, self.P, dt_s, acc, extra_cov)
+    def predict(self, dt_s: float, coast_s: np.ndarray) -> None:
+        c = self.cfg
+        predict_tracks(
+            self.x, self.P, self.acc_cov, c.sigma_acc_mps2**2, dt_s, coast_s,
+            c.coast_pos_inflation_m2ps, c.coast_vel_inflation_m2ps3,
+        )  # fmt: skip
 
     def update(
-        self, idx: np.ndarray, z: np.ndarray, R: np.ndarray, time_s: float, S_inv: np.ndarray, adapt: np.ndarray
-    ) -> None:
-        full = idx.size == self.x.shape[0]  # every track matched: idx is 0..n-1 (sorted by the assignment)
-        sel = slice(None) if full else idx
-        x_post, P_post, y, K = update_batch(self.x[sel], self.P[sel], z, R, S_inv)
-        if self.cfg.adaptive:
-            dt = time_s - self.last_update_s[sel]
-            ok = (dt > 0) & adapt
-            if ok.all():
-                self.acc_cov[sel] = adapt_acc_cov_batch(
-                    self.acc_cov[sel], y, K, self.P_post[sel], R, dt,
-                    self.cfg.alpha_ema, self.cfg.sigma_acc_max_mps2**2, self.cfg.adapt_scale,
-                )  # fmt: skip
-            elif ok.any():
-                part = idx[ok]
-                self.acc_cov[part] = adapt_acc_cov_batch(
-                    self.acc_cov[part], y[ok], K[ok], self.P_post[part], R[ok], dt[ok],
-                    self.cfg.alpha_ema, self.cfg.sigma_acc_max_mps2**2, self.cfg.adapt_scale,
-                )  # fmt: skip
-        if full:  # P and P_post may share memory until the next predict, which makes a new P
-            self.x, self.P, self.P_post = x_post, P_post, P_post
-        else:
-            self.x[idx], self.P[idx], self.P_post[idx] = x_post, P_post, P_post
-        self.last_update_s[sel] = time_s
+        self, rows: np.ndarray, cols: np.ndarray, z: np.ndarray, R: np.ndarray, time_s: float,
+        S_inv: np.ndarray, adapt: np.ndarray,
+    ) -> None:  # fmt: skip
+        c = self.cfg
+        update_tracks(
+            self.x, self.P, self.P_post, self.acc_cov, self.last_update_s, rows, cols, z, R, S_inv, time_s,
+            adapt, c.alpha_ema, c.sigma_acc_max_mps2**2, c.adapt_scale,
+        )  # fmt: skip
 
     def add(self, z: np.ndarray, R: np.ndarray, time_s: float) -> None:
         m = z.shape[0]
@@ -194,14 +183,17 @@ class _FilterpyBank:
             return np.zeros((0, 6)), np.zeros((0, 6, 6))
         return np.stack([f.x for f in self.filters]), np.stack([f.P for f in self.filters])
 
-    def predict(self, dt_s: float, extra_cov: np.ndarray | None) -> None:
-        for i, f in enumerate(self.filters):
-            f.predict(f.time_s + dt_s, None if extra_cov is None else extra_cov[i])
+    def predict(self, dt_s: float, coast_s: np.ndarray) -> None:
+        c = self.cfg
+        rates = np.diag(np.repeat([c.coast_pos_inflation_m2ps, c.coast_vel_inflation_m2ps3], 3))
+        for f, coast in zip(self.filters, coast_s):
+            f.predict(f.time_s + dt_s, coast * rates if coast > 0 else None)  # P += coast diag(c_p I, c_v I)
 
     def update(
-        self, idx: np.ndarray, z: np.ndarray, R: np.ndarray, time_s: float, S_inv: np.ndarray, adapt: np.ndarray
-    ) -> None:
-        for j, i in enumerate(idx):
+        self, rows: np.ndarray, cols: np.ndarray, z: np.ndarray, R: np.ndarray, time_s: float,
+        S_inv: np.ndarray, adapt: np.ndarray,
+    ) -> None:  # fmt: skip
+        for i, j in zip(rows, cols):
             self.filters[i].update(z[j], R[j])
 
     def add(self, z: np.ndarray, R: np.ndarray, time_s: float) -> None:
@@ -226,19 +218,20 @@ class MultiTargetTracker:
 
     Args:
         config: tracker settings (:class:`~perception.tracker_config.TrackerConfig`).
-        backend: ``"numpy"`` (all tracks at once; default) or ``"filterpy"``
-            (one filterpy ``KalmanFilter`` per track; the reference).
+        backend: ``"numba"`` (all tracks at once in compiled kernels,
+            :mod:`perception.kalman_kernels`; default) or ``"filterpy"`` (one
+            filterpy ``KalmanFilter`` per track; the reference).
 
     """
 
-    def __init__(self, config: TrackerConfig | None = None, backend: str = "numpy") -> None:
+    def __init__(self, config: TrackerConfig | None = None, backend: str = "numba") -> None:
         self.config = config if config is not None else TrackerConfig()
-        if backend == "numpy":
-            self._bank: _NumpyBank | _FilterpyBank = _NumpyBank(self.config)
+        if backend == "numba":
+            self._bank: _CompiledBank | _FilterpyBank = _CompiledBank(self.config)
         elif backend == "filterpy":
             self._bank = _FilterpyBank(self.config)
         else:
-            raise ValueError(f"backend={backend!r}: 'numpy' or 'filterpy'")
+            raise ValueError(f"backend={backend!r}: 'numba' or 'filterpy'")
         self.backend = backend
         self._time_s: float | None = None
         self._ids = np.zeros(0, dtype=np.int64)
@@ -258,70 +251,79 @@ class MultiTargetTracker:
         """Time [s] of the last update (None before the first)."""
         return self._time_s
 
-    def _inflation(
-        self, t_from: float, t_to: float, last_seen_s: np.ndarray, confirmed: np.ndarray
-    ) -> np.ndarray | None:
-        """Linear coasting inflation (n, 6, 6) accrued over ``[t_from, t_to]`` beyond ``last_seen + t_hold``."""
+    def _coast_s(self, t_from: float, t_to: float, last_seen_s: np.ndarray, confirmed: np.ndarray) -> np.ndarray:
+        """(n,) coasting time [s] accrued over ``[t_from, t_to]`` beyond ``last_seen + t_hold`` (confirmed tracks)."""
+        hold = self.config.t_hold_s
+        if last_seen_s.size == 0 or t_to <= last_seen_s.min() + hold:
+            return np.zeros(last_seen_s.size)
+        start = np.maximum(t_from, last_seen_s + hold)
+        return np.where(confirmed, np.maximum(t_to - start, 0.0), 0.0)
+
+    def _inflation(self, coast_s: np.ndarray) -> np.ndarray | None:
+        """Linear coasting inflation (n, 6, 6) ``coast diag(c_p I, c_v I)`` for coasting times ``coast_s`` (n,)."""
+        if not np.any(coast_s > 0):
+            return None
         c = self.config
-        if last_seen_s.size == 0 or t_to <= last_seen_s.min() + c.t_hold_s:
-            return None
-        start = np.maximum(t_from, last_seen_s + c.t_hold_s)
-        dt_c = np.where(confirmed, np.maximum(t_to - start, 0.0), 0.0)
-        if not np.any(dt_c > 0):
-            return None
-        diag = np.concatenate([np.full(3, c.coast_pos_inflation_m2ps), np.full(3, c.coast_vel_inflation_m2ps3)])
-        return dt_c[:, None, None] * np.diag(diag)[None]  # P += (t - t_hold_start) diag(c_p I, c_v I)
+        rates = np.repeat([c.coast_pos_inflation_m2ps, c.coast_vel_inflation_m2ps3], 3)
+        return coast_s[:, None, None] * np.diag(rates)[None]  # P += (t - t_hold_start) diag(c_p I, c_v I)
 
     def update(self, time_s: float, measurements: Sequence[Measurement]) -> None:
         """Process one frame's measurements taken at ``time_s`` [s] (non-decreasing across calls)."""
         t = float(time_s)
         if self._time_s is not None and t < self._time_s:
             raise ValueError(f"time_s={time_s!r}: >= the previous update time {self._time_s!r}")
-        for mm in measurements:
+        m = len(measurements)
+        z = np.empty((m, 3))
+        R = np.empty((m, 3, 3))
+        for j, mm in enumerate(measurements):
             if abs(mm.time_s - t) > 1e-6:
                 raise ValueError(f"Measurement.time_s={mm.time_s!r}: equal to the update's time_s={t!r}")
+            z[j] = mm.pos_world
+            R[j] = mm.cov_world
         cfg = self.config
         n = self._ids.size
         if n and self._time_s is not None:
-            extra = self._inflation(self._time_s, t, self._last_seen_s, self._confirmed)
-            self._bank.predict(t - self._time_s, extra)  # Eq. 9
+            self._bank.predict(t - self._time_s, self._coast_s(self._time_s, t, self._last_seen_s, self._confirmed))
         self._time_s = t
-        m = len(measurements)
-        z = np.array([mm.pos_world for mm in measurements], float).reshape(m, 3)
-        R = np.array([mm.cov_world for mm in measurements], float).reshape(m, 3, 3)
 
         rows = cols = np.zeros(0, dtype=np.int64)
         unmatched = np.ones(m, dtype=bool)
         if n and m:
             x, P = self._bank.states()
-            nu = z[None, :, :] - x[:, None, :3]  # (n, m, 3) nu = z - H x
-            S_inv = np.linalg.inv(P[:, None, :3, :3] + R[None])  # (n, m, 3, 3) S^-1, S = H P H^T + R
-            d2 = np.einsum("nmi,nmij,nmj->nm", nu, S_inv, nu)  # d2 = nu^T S^-1 nu
-            cost = np.where(d2 <= cfg.gate_chi2, d2, _GATED_COST)
-            rows, cols = linear_sum_assignment(cost)
-            ok = d2[rows, cols] <= cfg.gate_chi2
-            rows, cols = rows[ok], cols[ok]
-            unmatched &= ~np.any(d2 <= cfg.birth_gate_chi2, axis=0)  # no births near live tracks
-        if rows.size:
-            adapt = self._hits[rows] >= cfg.adapt_after_hits
-            self._bank.update(rows, z[cols], R[cols], t, S_inv[rows, cols], adapt)  # Eq. 10-11
-            self._hits[rows] += 1
-            self._last_seen_s[rows] = t
-            self._confirmed[rows] |= self._hits[rows] >= cfg.confirm_hits
+            d2 = np.empty((n, m))
+            S_inv = np.empty((n, m, 3, 3))
+            gate_pairs(x, P, z, R, d2, S_inv)  # d2 = nu^T S^-1 nu, S = H P H^T + R
+            rows, cols = np.empty(min(n, m), dtype=np.int64), np.empty(min(n, m), dtype=np.int64)
+            k = trivial_assignment(d2, cfg.gate_chi2, rows, cols)
+            if k >= 0:  # no two gated pairs share a track or a measurement: they are the assignment
+                rows, cols = rows[:k], cols[:k]
+            else:  # Hungarian on the gated cost
+                rows, cols = linear_sum_assignment(np.where(d2 <= cfg.gate_chi2, d2, _GATED_COST))
+                ok = d2[rows, cols] <= cfg.gate_chi2
+                rows, cols = rows[ok], cols[ok]
+            if rows.size < m:
+                unmatched &= ~np.any(d2 <= cfg.birth_gate_chi2, axis=0)  # no births near live tracks
+            if rows.size:
+                adapt = self._hits[rows] >= cfg.adapt_after_hits
+                if not cfg.adaptive:
+                    adapt[:] = False
+                self._bank.update(rows, cols, z, R, t, S_inv, adapt)  # Eq. 10-11
+                self._hits[rows] += 1
+                self._last_seen_s[rows] = t
+                self._confirmed[rows] |= self._hits[rows] >= cfg.confirm_hits
         self._last_pairs = (self._ids[rows], cols)
 
-        unseen = t - self._last_seen_s
-        if unseen.size and unseen.max() > min(cfg.t_drop_s, cfg.tentative_drop_s) + _TIME_EPS_S:
+        if n and t - self._last_seen_s.min() > min(cfg.t_drop_s, cfg.tentative_drop_s) + _TIME_EPS_S:
             limit = np.where(self._confirmed, cfg.t_drop_s, cfg.tentative_drop_s) + _TIME_EPS_S
-            drop = unseen > limit
-        else:
-            drop = None
-        if drop is not None and drop.any():
-            keep = ~drop
-            self._bank.keep(keep)
-            self._ids, self._hits = self._ids[keep], self._hits[keep]
-            self._last_seen_s, self._confirmed = self._last_seen_s[keep], self._confirmed[keep]
+            drop = t - self._last_seen_s > limit
+            if drop.any():
+                keep = ~drop
+                self._bank.keep(keep)
+                self._ids, self._hits = self._ids[keep], self._hits[keep]
+                self._last_seen_s, self._confirmed = self._last_seen_s[keep], self._confirmed[keep]
 
+        if rows.size == m:
+            return
         unmatched[cols] = False
         born = np.flatnonzero(unmatched)
         if born.size:
@@ -367,7 +369,7 @@ class MultiTargetTracker:
             return []
         x, P = self._bank.states()
         acc = self._bank.acc_covs()[sel] + self.config.sigma_acc_mps2**2 * np.eye(3)
-        extra = self._inflation(self._time_s, t, self._last_seen_s[sel], self._confirmed[sel])
+        extra = self._inflation(self._coast_s(self._time_s, t, self._last_seen_s[sel], self._confirmed[sel]))
         xs, Ps = predict_batch(x[sel], P[sel], t - self._time_s, acc, extra)
         out = []
         for j, i in enumerate(sel):

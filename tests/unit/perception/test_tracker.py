@@ -169,7 +169,7 @@ def test_numpy_and_filterpy_backends_agree_on_a_cluttered_scene():
     """Births, misses, false positives, pruning and the AKF adaptation: identical tracks to 1e-9."""
     rng = np.random.default_rng(5)
     cfg = TrackerConfig(filter="akf")
-    fast, ref = MultiTargetTracker(cfg, "numpy"), MultiTargetTracker(cfg, "filterpy")
+    fast, ref = MultiTargetTracker(cfg, "numba"), MultiTargetTracker(cfg, "filterpy")
     starts = rng.uniform(-4, 4, (3, 3))
     vels = rng.normal(0, 1.0, (3, 3))
     for k in range(120):
