@@ -98,6 +98,10 @@ class DmpcConfig:
             more neighbours than this are cut to the nearest ones (chosen: 8).
         max_obstacle_planes: number of static-obstacle half-space slots per
             horizon step (0 disables them; chosen: 0).
+        obstacle_culling: leave out an obstacle half-space at a step where
+            the QP's own velocity and input limits already imply it (no
+            feasible plan can reach the plane then, so the solution is the
+            same; see ``DmpcProblem._fill_obstacles``). Chosen: True.
         terminal_halt: if true, v[K] = 0 (and a[K] = 0 for the triple
             integrator), DMPC-Swarm Eq. 13e; makes a shifted plan a feasible
             candidate, i.e. recursive feasibility of the BVC problem.
@@ -137,6 +141,7 @@ class DmpcConfig:
     conflict_substeps: int = 4
     max_neighbours: int = 8
     max_obstacle_planes: int = 0
+    obstacle_culling: bool = True
     terminal_halt: bool = False
     osqp_eps_abs: float = 1e-4
     osqp_eps_rel: float = 1e-4
@@ -183,6 +188,8 @@ class DmpcConfig:
             raise ValueError(f"max_neighbours={self.max_neighbours!r}: an integer >= 1")
         if not isinstance(self.max_obstacle_planes, (int, np.integer)) or self.max_obstacle_planes < 0:
             raise ValueError(f"max_obstacle_planes={self.max_obstacle_planes!r}: an integer >= 0")
+        if not isinstance(self.obstacle_culling, bool):
+            raise ValueError(f"obstacle_culling={self.obstacle_culling!r}: True or False")
         if not isinstance(self.terminal_halt, bool):
             raise ValueError(f"terminal_halt={self.terminal_halt!r}: True or False")
         _positive("osqp_eps_abs", self.osqp_eps_abs)
