@@ -38,9 +38,12 @@ class TrackerConfig:
         sigma_acc_mps2: standard deviation of the white-noise acceleration of
             the fixed process noise, per axis [m/s^2]. It is the whole process
             noise of ``"kf"`` and the floor under the adaptive part of
-            ``"akf"`` (the paper gives no value; 0.5 m/s^2 suits a slowly
-            manoeuvring or hovering neighbour, so the two filters differ only
-            by the adaptation).
+            ``"akf"``. MP-CDE Table I gives no process noise (nor a KF
+            baseline setting), so both filters share this one value and differ
+            only by the adaptation. 0.5 m/s^2 suits a slowly manoeuvring or
+            hovering neighbour; measured on the synthetic benchmark (seeds
+            100-104): a KF at 0.8 beats the AKF at 0.5 m/s targets, at 0.5
+            the AKF is better at every speed, at 0.3 both lag in turns.
         adapt_scale: factor ``c`` on the covariance-matching estimate of the
             adaptive acceleration covariance, ``A_hat = c K_v D+ K_v^T / dt^2``
             [-] (see :mod:`perception.kalman_cv`).
@@ -48,26 +51,40 @@ class TrackerConfig:
             associated measurements (birth included) [-]; before that the gain
             is dominated by the unknown initial velocity and covariance
             matching would read the velocity's convergence as acceleration.
-        sigma_acc_max_mps2: cap on the adaptive acceleration standard deviation
-            per axis [m/s^2] (a quadrotor's acceleration is bounded; the cap
-            keeps one wild innovation from blowing the covariance up).
+        sigma_acc_max_mps2: cap on the adaptive acceleration, as the square
+            root of the trace of one covariance-matching estimate [m/s^2].
+            A neighbour's acceleration is bounded (our planners cap it at
+            4 m/s^2: ``planners.trajectory_cost`` and the DMPC config); 6 m/s^2
+            leaves room for a foreign drone. The cap matters when an
+            association goes wrong: a swapped measurement reads as a huge
+            manoeuvre, and with the former cap of 20 m/s^2 two tracks born
+            0.7 m apart inflated to trace(A) ~ 60 m^2/s^4, widened their gates
+            and swapped targets for 0.4 s (seed 1 at 0.5 m/s: 10 ID switches;
+            none at 6). On seeds 100-104 the cap changed no RMSE by more than
+            0.006.
         init_vel_std_mps: velocity standard deviation per axis of a new track
-            [m/s] (a track is born from one position; its velocity is unknown
-            up to about the neighbours' top speed).
+            [m/s]. A track is born from one position with zero velocity and
+            this (large) uncertainty, so its second and third measurements set
+            the velocity as a two-point estimate would, weighted by their
+            noise; 2 m/s covers the neighbours' top speed per axis.
         gate_chi2: chi-square gate on the squared Mahalanobis distance of the
-            innovation [-]. Default 16.27, the 99.9 % quantile of chi-square
-            with 3 degrees of freedom. MP-CDE prints 7.38, which is the 97.5 %
-            quantile with 2 degrees of freedom (an image-plane gate); on 3-D
-            positions it keeps only about 94 % of true measurements, and with
-            a CV filter that lags in turns it broke tracks often (measured on
-            the synthetic benchmark, 3 seeds x 30 s: 17-81 ID switches for the
-            AKF at 7.38 against 0-11 at 16.27). Set 7.38 to follow the paper.
+            innovation [-]. Default 25.0, about the 99.998 % quantile of
+            chi-square with 3 degrees of freedom. MP-CDE prints 7.38, which is
+            the 97.5 % quantile with 2 degrees of freedom (an image-plane
+            gate); on 3-D positions it keeps only about 94 % of true
+            measurements, and with a CV filter that lags in turns it breaks
+            tracks often (measured on the synthetic benchmark, seeds 100-104,
+            AKF at 0.5 / 1 / 2 m/s: 6 / 58 / 184 ID switches and position
+            RMSE 0.076 / 0.195 / 0.296 m at 7.38, against 4 / 1 / 15 and
+            0.061 / 0.087 / 0.138 m at 25; 16.27, the 99.9 % quantile, gave
+            4 / 3 / 19 and 0.061 / 0.092 / 0.143 m). Set 7.38 to follow the paper.
         birth_gate_chi2: an unmatched measurement starts a new track only if
             its squared Mahalanobis distance to every live track exceeds this
-            [-] (30, about 5.5 standard deviations). Without it a true
+            [-] (40, about 6 standard deviations). Without it a true
             measurement that falls just outside ``gate_chi2`` spawns a
             duplicate track that then steals measurements from the original
-            (measured: 14-27 AKF ID switches with 16.27 instead of 30).
+            (measured as above: 7 / 18 AKF ID switches at 1 / 2 m/s with the
+            birth gate equal to ``gate_chi2`` = 25 instead of 1 / 15 at 40).
         t_hold_s: a confirmed track without a matched measurement for longer
             than this keeps predicting (Eq. 9) and becomes ``coasting`` with
             linearly inflated covariance [s] (MP-CDE Table I, 0.6 s).
@@ -96,10 +113,10 @@ class TrackerConfig:
     sigma_acc_mps2: float = 0.5
     adapt_scale: float = 1.0
     adapt_after_hits: int = 3
-    sigma_acc_max_mps2: float = 20.0
+    sigma_acc_max_mps2: float = 6.0
     init_vel_std_mps: float = 2.0
-    gate_chi2: float = 16.27
-    birth_gate_chi2: float = 30.0
+    gate_chi2: float = 25.0
+    birth_gate_chi2: float = 40.0
     t_hold_s: float = 0.6
     t_drop_s: float = 1.0
     coast_pos_inflation_m2ps: float = 0.1
