@@ -230,3 +230,27 @@ def test_config_defaults_follow_mp_cde_table_i():
     cfg = TrackerConfig()
     assert (cfg.alpha_ema, cfg.t_hold_s, cfg.t_drop_s, cfg.filter) == (0.3, 0.6, 1.0, "akf")
     assert cfg.adaptive and not TrackerConfig(filter="kf").adaptive
+
+
+@pytest.mark.parametrize("backend", ["numba", "filterpy"])
+def test_conflicting_gates_are_resolved_by_the_minimum_cost_assignment(backend):
+    """Two tracks 0.1 m apart, both measurements inside both gates: the pairing of least total d2 wins."""
+    cfg = TrackerConfig(filter="kf")
+    tr = MultiTargetTracker(cfg, backend)
+    a, b = np.array([0.0, 0.0, 1.0]), np.array([0.1, 0.0, 1.0])
+    for k in range(5):
+        tr.update(k * DT, [_meas(a, k * DT), _meas(b, k * DT)])
+    (ta, tb) = sorted(tr.tracks(), key=lambda x: x.pos_world[0])
+    t = 5 * DT
+    za, zb = a + [0.03, 0.0, 0.0], b + [0.03, 0.0, 0.0]  # za is 0.07 m from track b, inside its gate too
+    tr.update(t, [_meas(zb, t), _meas(za, t)])
+    x = {ta.track_id: ta.state_world, tb.track_id: tb.state_world}
+
+    def d2(track, z):  # without the process noise: a lower bound on S, so an upper bound on d2
+        S = (transition_matrix(DT) @ tr_cov[track] @ transition_matrix(DT).T)[:3, :3] + R
+        nu = z - (transition_matrix(DT) @ x[track])[:3]
+        return nu @ np.linalg.solve(S, nu)
+
+    tr_cov = {ta.track_id: ta.cov_world, tb.track_id: tb.cov_world}
+    assert d2(ta.track_id, zb) < cfg.gate_chi2 and d2(tb.track_id, za) < cfg.gate_chi2  # a real conflict
+    assert tr.last_assignment == {ta.track_id: 1, tb.track_id: 0}
