@@ -165,7 +165,7 @@ def test_predictions_follow_eq12_with_last_seen_as_stamp(rng):
     assert np.trace(later.cov_world) > np.trace(pred.position_cov(t_now + 0.5)[0])
 
 
-def test_numpy_and_filterpy_backends_agree_on_a_cluttered_scene():
+def test_numba_and_filterpy_backends_agree_on_a_cluttered_scene():
     """Births, misses, false positives, pruning and the AKF adaptation: identical tracks to 1e-9."""
     rng = np.random.default_rng(5)
     cfg = TrackerConfig(filter="akf")
