@@ -20,6 +20,7 @@ from planners.dmpc.model import (
     rollout,
 )
 from planners.dmpc.qp import DmpcProblem, DmpcResult, DmpcSolveError, QpSnapshot
+from planners.dmpc.sampling import hermite_positions, sample_predictions
 from planners.dmpc.types import DmpcPlan
 
 __all__ = [
@@ -37,7 +38,9 @@ __all__ = [
     "ellipsoidal_distance",
     "fine_position_matrices",
     "first_conflict_step",
+    "hermite_positions",
     "on_demand_constraints",
     "prediction_matrices",
     "rollout",
+    "sample_predictions",
 ]

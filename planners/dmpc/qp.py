@@ -51,6 +51,7 @@ from perception.types import NeighborPrediction
 from planners.dmpc.collision import bvc_planes, ellipsoidal_distance, on_demand_constraints
 from planners.dmpc.config import DmpcConfig
 from planners.dmpc.model import fine_position_matrices, prediction_matrices, stacked_state_matrices
+from planners.dmpc.sampling import hermite_positions, sample_predictions
 from planners.dmpc.types import DmpcPlan
 
 __all__ = ["DmpcProblem", "DmpcResult", "DmpcSolveError", "QpSnapshot"]
@@ -122,6 +123,7 @@ class DmpcResult:
         conflict_time_s: on demand: absolute time [s] of the first predicted
             conflict that was constrained (NaN if none, and always for bvc).
         slack: (n_collision_constraints,) on-demand slacks s = -alpha [m] (empty for bvc).
+        n_obstacle_rows: obstacle half-space rows kept this round (after culling).
     """
 
     plan: DmpcPlan
@@ -138,6 +140,7 @@ class DmpcResult:
     n_collision_constraints: int
     conflict_time_s: float
     slack: np.ndarray
+    n_obstacle_rows: int = 0
 
 
 class _Pattern:
@@ -301,7 +304,8 @@ class DmpcProblem:
         """Own previous plan at times ``t_s`` (n,) -> (n, 3); constant velocity from x0 without one."""
         if previous_plan is None:
             return x0[:3] + x0[3:6] * (t_s - t_now_s)[:, None]
-        return previous_plan.position(t_s)
+        plan = previous_plan
+        return hermite_positions(plan.times_s[None], plan.pos_world[None], plan.vel_world[None], t_s)[0]
 
     def _previous_input(self, t_now_s: float, previous_plan: DmpcPlan | None) -> np.ndarray:
         """u[-1]: the input the previous plan held on [t_now - h, t_now) (zeros without one)."""
@@ -359,7 +363,7 @@ class DmpcProblem:
         own_prev = own_prev_fine[S - 1 :: S]
         nb_ids = [p.neighbor_id for p in neighbour_plans]
         t_eval = np.r_[float(t_now_s), t_fine]
-        nb_all = np.array([p.position(t_eval) for p in neighbour_plans]).reshape(-1, K * S + 1, 3)
+        nb_all = sample_predictions(neighbour_plans, t_eval)  # (M, K S + 1, 3), one vectorised evaluation
         nb_now, nb_fine = nb_all[:, 0], nb_all[:, 1:]
         nb_pos = nb_fine[:, S - 1 :: S]  # (M, K, 3) at t_now + k h
 
@@ -474,7 +478,7 @@ class DmpcProblem:
         self._x_last, self._y_last = res.x, res.y
         return self._result(
             res, x0, goal, float(t_now_s), e, form_targets, n_coll, conflict_time_s,
-            t_solve - t_start, t_end - t_solve,
+            t_solve - t_start, t_end - t_solve, n_obs,
         )  # fmt: skip
 
     def _run_osqp(self, update: dict[str, np.ndarray], x_ws: np.ndarray, y_ws: np.ndarray) -> SimpleNamespace:
@@ -620,7 +624,7 @@ class DmpcProblem:
 
     def _result(
         self, res, x0: np.ndarray, goal: np.ndarray, t_now_s: float, e: np.ndarray, form_targets: np.ndarray,
-        n_coll: int, conflict_time_s: float, t_update: float, t_solve: float,
+        n_coll: int, conflict_time_s: float, t_update: float, t_solve: float, n_obs: int = 0,
     ) -> DmpcResult:  # fmt: skip
         """Unpack OSQP's result ``res`` into a :class:`DmpcResult` (states rolled out, J evaluated term by term).
 
@@ -653,4 +657,5 @@ class DmpcProblem:
             inputs=inputs.copy(), cost=float(cost), iterations=int(res.info.iter), status=str(res.info.status),
             solve_time_s=t_solve, osqp_solve_time_s=float(res.info.solve_time), update_time_s=t_update,
             n_collision_constraints=int(n_coll), conflict_time_s=conflict_time_s, slack=slack,
+            n_obstacle_rows=int(n_obs),
         )  # fmt: skip

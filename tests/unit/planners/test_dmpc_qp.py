@@ -229,3 +229,59 @@ def test_more_neighbours_than_slots_keeps_the_nearest() -> None:
         assert result.pos_world[0, 0] < -0.05
         if mode == "bvc":  # midway plane between 0 and 0.3 m, buffered: x <= 0.3 - (0.4 + 0.3) / 2 = -0.05
             assert np.all(result.pos_world[:, 0] <= -0.05 + 1e-3)
+
+
+def _obstacle_planes(cfg: DmpcConfig) -> list[tuple[np.ndarray, np.ndarray]]:
+    """A near wall the plan must respect (y >= -0.25) and two far walls no feasible plan reaches early."""
+    K = cfg.horizon_steps
+    near = (np.tile([0.0, 1.0, 0.0], (K, 1)), np.full(K, -0.25))  # y >= -0.25: active from the first steps
+    far_x = (np.array([-1.0, 0.0, 0.0]), -6.0)  # x <= 6: reachable only late in the horizon
+    far_diag = (np.tile(np.array([0.6, -0.8, 0.0]), (K, 1)), np.full(K, -5.0))  # 0.6 x - 0.8 y >= -5
+    return [near, far_x, far_diag]
+
+
+def test_culled_obstacle_rows_change_nothing_and_hold_anyway() -> None:
+    # Culling leaves out rows the velocity/input limits imply; the QP (and so its solution) is the same.
+    results = {}
+    for culling in (True, False):
+        cfg = DmpcConfig(max_obstacle_planes=3, obstacle_culling=culling, **TIGHT)
+        problem = DmpcProblem(cfg)
+        x0 = _x0(cfg, vel=(1.5, -1.0, 0.0))  # heading for the near wall
+        planes = _obstacle_planes(cfg)
+        results[culling] = problem.solve(x0, [8.0, -2.0, 1.5], [], None, t_now_s=0.0, obstacles=planes)
+        assert_kkt(problem.snapshot())
+    K = DmpcConfig().horizon_steps
+    kept, full = results[True], results[False]
+    assert full.n_obstacle_rows == 3 * K
+    assert 0 < kept.n_obstacle_rows < full.n_obstacle_rows  # something was culled, not everything
+    np.testing.assert_allclose(kept.inputs, full.inputs, atol=1e-6)
+    # Every plane, culled or not, holds at every step of the culled problem's solution.
+    for normal, offset in planes:
+        lhs = np.einsum("kd,kd->k", np.broadcast_to(normal, (K, 3)), kept.pos_world)
+        assert np.all(lhs >= np.broadcast_to(offset, (K,)) - 1e-6)
+
+
+def test_culling_keeps_a_plane_that_a_fast_plan_can_reach() -> None:
+    # A plane 1 m ahead at 2 m/s is reachable from step 2 on, so it must stay and be met.
+    cfg = DmpcConfig(max_obstacle_planes=1, **TIGHT)
+    problem = DmpcProblem(cfg)
+    x0 = _x0(cfg, vel=(2.0, 0.0, 0.0))
+    result = problem.solve(x0, [10.0, 0.0, 1.5], [], None, t_now_s=0.0, obstacles=[(np.array([-1.0, 0, 0]), -1.0)])
+    assert result.n_obstacle_rows >= cfg.horizon_steps - 2
+    assert np.all(result.pos_world[:, 0] <= 1.0 + 1e-6)
+
+
+def test_unused_on_demand_slots_have_zero_slack_and_warm_start_does_not_change_the_answer() -> None:
+    cfg = DmpcConfig(max_neighbours=3, **TIGHT)
+    x0 = _x0(cfg)
+    neighbours = [_hover_neighbour([2.0, 0.05, 1.5], 1), _hover_neighbour([1.0, 3.0, 1.5], 2)]
+    warm = DmpcProblem(cfg)
+    first = warm.solve(x0, [4.0, 0.0, 1.5], neighbours, None, t_now_s=0.0)
+    assert first.n_collision_constraints == 1
+    assert np.all(warm.snapshot().x[45 + 1 :] == 0.0)  # unused slacks pinned at 0
+    # Second round from the first plan's next state: warm-started (shifted x and y) vs a fresh problem.
+    x1 = np.r_[first.pos_world[0], first.vel_world[0]]
+    again = warm.solve(x1, [4.0, 0.0, 1.5], neighbours, first.plan, t_now_s=0.2)
+    cold = DmpcProblem(cfg).solve(x1, [4.0, 0.0, 1.5], neighbours, first.plan, t_now_s=0.2)
+    np.testing.assert_allclose(again.inputs, cold.inputs, atol=1e-5)
+    assert_kkt(warm.snapshot())
