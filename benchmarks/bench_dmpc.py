@@ -1,111 +1,136 @@
-"""Benchmark: DMPC QP solve time, on-demand collision avoidance vs buffered Voronoi cells.
+"""Benchmark: DMPC QP solve time, on-demand collision avoidance vs buffered Voronoi cells (the baseline).
 
-Scenario: 8 drones swap antipodal positions on a circle of radius 4 m
-(kinematic closed loop: each drone applies the first input of its plan
-exactly, plans exchanged every round without loss), once per seed and mode,
-the two modes interleaved in the same process. Every QP solve is timed; the
-script prints the median, p95 and mean solve time per mode over all solves,
-the median over the per-seed medians, and the BVC / on-demand ratios.
+Scenarios: the two of ``mpcde eval-dmpc`` (``formation_square``: 4 drones in a
+square formation through static obstacles; ``antipodal``: 8 drones swap across
+a circle), flown by the real :class:`mpcde.agent_dmpc.DmpcAgent` (carrot goal,
+obstacle half-spaces, formation offsets, plans over an ideal radio) but
+kinematically: no physics, each drone is exactly at its plan's state one round
+later, so a run takes seconds and both methods see comparable rounds. The two
+methods are interleaved per seed in the same process (same machine load).
+Seeds perturb the start positions by 2 cm.
 
-The reference (on-demand DMPC paper, Table 1): 3.94 ms vs 12.91 ms mean
-(ratio 3.3) in MATLAB. Project goal: on demand >= 3x faster than BVC and a
-median solve <= 0.3 ms.
+Every solved round's QP time is :attr:`planners.dmpc.DmpcResult.solve_time_s`
+(OSQP wall time: data update incl. KKT refactorisation, warm start, solve),
+the same figure eval-dmpc reports. Printed per scenario and method: median,
+p95 and mean over all solves, OSQP's own solve-phase median, iterations, the
+Python build time, mean collision and obstacle rows; then the ratio BVC /
+on-demand (the baseline measured in this run) and the goals.
 
-Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_dmpc.py [--seeds 5]``
+Floor: every round of the on-demand run is re-solved by a second problem
+(same size and settings, its own warm start) with no neighbours and no
+obstacles, i.e. the box constraints only: the cost of an OSQP solve of this
+size when nothing forces a refactorisation.
+
+Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_dmpc.py [--seeds 3]``
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import replace
 
 import numpy as np
 
-from planners.dmpc import DmpcConfig, DmpcPlan, DmpcProblem, DmpcSolveError
+from mpcde.agents import make_agent
+from mpcde.loop import prepare_run
+from mpcde.scenario import load_scenario
+from planners.dmpc import DmpcProblem, DmpcSolveError
+from sim.types import PoseEstimate, RadioMessage
+
+_IDENTITY_QUAT = np.array([0.0, 0.0, 0.0, 1.0])
 
 
-def swap_solve_times(mode: str, seed: int, n_drones: int = 8, radius_m: float = 4.0, max_rounds: int = 120) -> dict:
-    """Solve times [s] (wall of the OSQP call, OSQP's own), iterations and rows of one kinematic swap."""
-    cfg = DmpcConfig(collision_mode=mode, max_neighbours=n_drones - 1)
+def fly_kinematic(scenario: str, mode: str, seed: int, max_rounds: int = 150, floor: bool = False) -> dict:
+    """One kinematic flight of ``scenario`` with ``mode``; per-round QP figures (and the floor if asked)."""
+    cfg = load_scenario(scenario, {"seed": seed})
+    cfg = replace(cfg, planner=replace(cfg.planner, kind="dmpc"),
+                  dmpc=replace(cfg.dmpc, qp=replace(cfg.dmpc.qp, collision_mode=mode)))  # fmt: skip
+    prepared = prepare_run(cfg)
     rng = np.random.default_rng(seed)
-    h, K = cfg.step_s, cfg.horizon_steps
-    angles = 2 * np.pi * np.arange(n_drones) / n_drones
-    start = np.c_[radius_m * np.cos(angles), radius_m * np.sin(angles), np.full(n_drones, 1.5)]
-    start += rng.normal(0.0, 0.02, start.shape)
-    goal = np.c_[-start[:, :2], start[:, 2]]
-    problems = [DmpcProblem(cfg) for _ in range(n_drones)]
-    state = np.zeros((n_drones, cfg.state_dim))
-    state[:, :3] = start
-    plans = [DmpcPlan.hover(0.0, h, K, p) for p in start]
-    wall, osqp_s, update_s, iters, rows, failures = [], [], [], [], [], 0
-    rounds = max_rounds
+    starts = prepared.starts + rng.normal(0.0, 0.02, prepared.starts.shape)
+    goals = prepared.goals
+    n = len(starts)
+    agents = [make_agent(cfg, i, goals, prepared.obstacles) for i in range(n)]
+    h = agents[0].qp_config.step_s
+    pos, vel = starts.copy(), np.zeros_like(starts)
+    floor_problem = DmpcProblem(replace(agents[0].qp_config, max_obstacle_planes=0)) if floor else None
+    floor_s: list[float] = []
+    inbox: list[RadioMessage] = []
+    min_dist, rounds = np.inf, max_rounds
     for r in range(max_rounds):
-        t_now = r * h
-        predictions = [p.as_neighbor_prediction(j, p.t0_s) for j, p in enumerate(plans)]
-        new_plans = []
-        for i in range(n_drones):
-            others = predictions[:i] + predictions[i + 1 :]
-            try:
-                res = problems[i].solve(state[i], goal[i], others, plans[i], t_now_s=t_now)
-            except DmpcSolveError:
-                failures += 1
-                new_plans.append(plans[i].shifted(t_now))
-                continue
-            new_plans.append(res.plan)
-            wall.append(res.solve_time_s)
-            osqp_s.append(res.osqp_solve_time_s)
-            update_s.append(res.update_time_s)
-            iters.append(res.iterations)
-            rows.append(res.n_collision_constraints)
-        for i, plan in enumerate(new_plans):
-            state[i, :3], state[i, 3:6] = plan.pos_world[1], plan.vel_world[1]
-        plans = new_plans
-        at_goal = np.linalg.norm(state[:, :3] - goal, axis=1) < 0.1
-        if np.all(at_goal) and np.all(np.linalg.norm(state[:, 3:6], axis=1) < 0.1):
+        t = r * h
+        messages = []
+        for i, agent in enumerate(agents):
+            agent.on_pose_estimate(PoseEstimate(t, pos[i].copy(), vel[i].copy(), _IDENTITY_QUAT, np.zeros(3)))
+            agent.on_radio([m for m in inbox if m.sender_id != i])
+            msg = agent.outgoing(t)
+            messages.append(RadioMessage(i, t, t, msg))
+            if floor_problem is not None and i == 0 and agent.plan is not None:
+                x0 = np.r_[agent.plan.pos_world[0], agent.plan.vel_world[0]]
+                try:
+                    res = floor_problem.solve(x0, agent.plan.pos_world[-1], [], agent.plan, t_now_s=t)
+                    floor_s.append(res.solve_time_s)
+                except DmpcSolveError:
+                    pass
+        inbox = messages
+        for i, agent in enumerate(agents):
+            pos[i], vel[i] = agent.plan.position(t + h), agent.plan.velocity(t + h)
+        d = np.linalg.norm(pos[:, None] - pos[None], axis=-1) + np.eye(n) * 1e9
+        min_dist = min(min_dist, float(d.min()))
+        if np.all(np.linalg.norm(pos - goals, axis=1) < 0.1) and np.all(np.linalg.norm(vel, axis=1) < 0.1):
             rounds = r + 1
             break
-    return dict(wall=np.array(wall), osqp=np.array(osqp_s), update=np.array(update_s), iters=np.array(iters),
-                rows=np.array(rows), failures=failures, rounds=rounds)  # fmt: skip
+    st = [a.stats for a in agents]
+    return dict(
+        wall=np.concatenate([s.qp_solve_s for s in st]), build=np.concatenate([s.qp_build_s for s in st]),
+        iters=np.concatenate([s.iterations for s in st]), rows=np.concatenate([s.collision_rows for s in st]),
+        fallbacks=sum(s.fallbacks for s in st), rounds=rounds, min_dist=min_dist, floor=np.asarray(floor_s),
+    )  # fmt: skip
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=5, help="number of swaps per mode")
+    parser.add_argument("--seeds", type=int, default=3, help="flights per scenario and mode")
     args = parser.parse_args()
     modes = ("on_demand", "bvc")
-    runs: dict[str, list[dict]] = {m: [] for m in modes}
-    swap_solve_times("on_demand", 999)  # warm-up (imports, caches)
+    scenarios = ("formation_square", "antipodal")
+    fly_kinematic("antipodal", "on_demand", 999, max_rounds=20)  # warm-up (imports, caches)
     t0 = time.perf_counter()
-    for seed in range(args.seeds):
-        for mode in modes:  # interleaved so both see the same machine load
-            runs[mode].append(swap_solve_times(mode, seed))
-    elapsed = time.perf_counter() - t0
-    stats = {}
-    print(f"8-drone antipodal swap, {args.seeds} seeds per mode, {elapsed:.1f} s total")
-    print(f"{'mode':<10} {'solves':>6} {'median ms':>10} {'p95 ms':>8} {'mean ms':>8} "
-          f"{'median of seed medians':>23} {'osqp-only median':>17} {'update ms':>10} "
-          f"{'iters med/p95':>14} {'rows':>5} {'fails':>5} {'rounds':>7}")  # fmt: skip
-    for mode in modes:
-        wall = np.concatenate([r["wall"] for r in runs[mode]]) * 1e3
-        osqp_ms = np.concatenate([r["osqp"] for r in runs[mode]]) * 1e3
-        upd = np.concatenate([r["update"] for r in runs[mode]]) * 1e3
-        iters = np.concatenate([r["iters"] for r in runs[mode]])
-        rows = np.concatenate([r["rows"] for r in runs[mode]])
-        seed_medians = [np.median(r["wall"]) * 1e3 for r in runs[mode]]
-        stats[mode] = dict(median=np.median(wall), p95=np.percentile(wall, 95), mean=wall.mean(),
-                           seed_median=np.median(seed_medians), osqp_median=np.median(osqp_ms))  # fmt: skip
-        print(
-            f"{mode:<10} {wall.size:>6} {np.median(wall):>10.3f} {np.percentile(wall, 95):>8.3f} {wall.mean():>8.3f} "
-            f"{np.median(seed_medians):>23.3f} {np.median(osqp_ms):>17.3f} {np.median(upd):>10.3f} "
-            f"{int(np.median(iters)):>6}/{int(np.percentile(iters, 95)):<7} {rows.mean():>5.1f} "
-            f"{sum(r['failures'] for r in runs[mode]):>5} {np.mean([r['rounds'] for r in runs[mode]]):>7.1f}"
-        )
-    od, bvc = stats["on_demand"], stats["bvc"]
-    print(f"ratio BVC / on-demand: median {bvc['median'] / od['median']:.2f}x, p95 {bvc['p95'] / od['p95']:.2f}x, "
-          f"mean {bvc['mean'] / od['mean']:.2f}x, OSQP-only median {bvc['osqp_median'] / od['osqp_median']:.2f}x "
-          "(paper, Table 1: mean 12.91 / 3.94 ms = 3.28x)")  # fmt: skip
-    print(f"goal: on-demand median <= 0.3 ms: {'met' if od['median'] <= 0.3 else 'NOT met'} ({od['median']:.3f} ms); "
-          f"ratio >= 3x on the median: {'met' if bvc['median'] / od['median'] >= 3 else 'NOT met'}")  # fmt: skip
+    runs = {(s, m): [] for s in scenarios for m in modes}
+    for scen in scenarios:
+        for seed in range(args.seeds):
+            for mode in modes:  # interleaved so both see the same machine load
+                runs[(scen, mode)].append(fly_kinematic(scen, mode, seed, floor=(mode == "on_demand")))
+    print(f"kinematic flights through DmpcAgent, {args.seeds} seeds per scenario and mode, "
+          f"{time.perf_counter() - t0:.1f} s total; QP times in ms")  # fmt: skip
+    head = (f"{'scenario':<17} {'mode':<10} {'solves':>6} {'median':>7} {'p95':>7} {'mean':>7} {'iters med/p95':>13} "
+            f"{'build':>6} {'coll rows':>9} {'fallbk':>6} {'rounds':>6} {'min d m':>7}")  # fmt: skip
+    print(head)
+    print("-" * len(head))
+    med = {}
+    for scen in scenarios:
+        for mode in modes:
+            rs = runs[(scen, mode)]
+            wall = np.concatenate([r["wall"] for r in rs]) * 1e3
+            iters = np.concatenate([r["iters"] for r in rs])
+            med[(scen, mode)] = np.median(wall)
+            print(
+                f"{scen:<17} {mode:<10} {wall.size:>6} {np.median(wall):>7.3f} {np.percentile(wall, 95):>7.3f} "
+                f"{wall.mean():>7.3f} {int(np.median(iters)):>6}/{int(np.percentile(iters, 95)):<6} "
+                f"{np.median(np.concatenate([r['build'] for r in rs])) * 1e3:>6.3f} "
+                f"{np.concatenate([r['rows'] for r in rs]).mean():>9.2f} {sum(r['fallbacks'] for r in rs):>6} "
+                f"{np.mean([r['rounds'] for r in rs]):>6.1f} {min(r['min_dist'] for r in rs):>7.3f}"
+            )
+        floor = np.concatenate([r["floor"] for r in runs[(scen, "on_demand")]]) * 1e3
+        print(f"{scen:<17} {'floor':<10} {floor.size:>6} {np.median(floor):>7.3f} {np.percentile(floor, 95):>7.3f} "
+              f"{floor.mean():>7.3f}   (same QP size, box constraints only)")  # fmt: skip
+    print()
+    for scen in scenarios:
+        od, bvc = med[(scen, "on_demand")], med[(scen, "bvc")]
+        print(f"{scen}: median BVC / on-demand = {bvc / od:.2f}x (goal >= 3x: {'met' if bvc / od >= 3 else 'NOT met'}); "
+              f"on-demand median {od:.3f} ms (goal <= 0.3 ms: {'met' if od <= 0.3 else 'NOT met'})")  # fmt: skip
+    print("paper, Table 1 (MATLAB): mean 12.91 / 3.94 ms = 3.28x")
 
 
 if __name__ == "__main__":

@@ -115,6 +115,9 @@ class DmpcConfig:
             benchmarks/bench_dmpc.py, on-demand median solve about 0.20 ->
             0.15-0.17 ms, same ratio to BVC).
         osqp_polish: run OSQP's solution polishing (exact active-set solve).
+        osqp_scaling: OSQP's Ruiz equilibration iterations (OSQP default 10).
+            OSQP re-runs them on every matrix update, so they are part of
+            each round's refactorisation cost (see ``DmpcProblem``).
     """
 
     horizon_steps: int = 15
@@ -148,6 +151,7 @@ class DmpcConfig:
     osqp_max_iter: int = 10000
     osqp_check_termination: int = 5
     osqp_polish: bool = False
+    osqp_scaling: int = 4
 
     def __post_init__(self) -> None:
         if not isinstance(self.horizon_steps, (int, np.integer)) or self.horizon_steps < 2:
@@ -198,6 +202,8 @@ class DmpcConfig:
             raise ValueError(f"osqp_max_iter={self.osqp_max_iter!r}: an integer >= 1")
         if not isinstance(self.osqp_check_termination, (int, np.integer)) or self.osqp_check_termination < 1:
             raise ValueError(f"osqp_check_termination={self.osqp_check_termination!r}: an integer >= 1")
+        if not isinstance(self.osqp_scaling, (int, np.integer)) or self.osqp_scaling < 0:
+            raise ValueError(f"osqp_scaling={self.osqp_scaling!r}: an integer >= 0")
         if not isinstance(self.osqp_polish, bool):
             raise ValueError(f"osqp_polish={self.osqp_polish!r}: True or False")
 

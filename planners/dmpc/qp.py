@@ -262,6 +262,7 @@ class DmpcProblem:
             verbose=False, eps_abs=cfg.osqp_eps_abs, eps_rel=cfg.osqp_eps_rel,
             max_iter=cfg.osqp_max_iter, polishing=cfg.osqp_polish,
             adaptive_rho_interval=25, warm_starting=True, check_termination=cfg.osqp_check_termination,
+            scaling=cfg.osqp_scaling,
         )  # fmt: skip
         self._P, self._A = P, A
         self._q = np.zeros(n)
