@@ -54,7 +54,7 @@ def fly_kinematic(scenario: str, mode: str, seed: int, max_rounds: int = 150, fl
     agents = [make_agent(cfg, i, goals, prepared.obstacles) for i in range(n)]
     h = agents[0].qp_config.step_s
     pos, vel = starts.copy(), np.zeros_like(starts)
-    floor_problem = DmpcProblem(replace(agents[0].qp_config, max_obstacle_planes=0)) if floor else None
+    floor_problem = DmpcProblem(agents[0].qp_config) if floor else None  # same slots, left empty
     floor_s: list[float] = []
     inbox: list[RadioMessage] = []
     min_dist, rounds = np.inf, max_rounds

@@ -20,6 +20,7 @@ from planners.dmpc.model import (
     rollout,
 )
 from planners.dmpc.qp import DmpcProblem, DmpcResult, DmpcSolveError, QpSnapshot
+from planners.dmpc.reach import implied_half_spaces, reach_boxes
 from planners.dmpc.sampling import hermite_positions, sample_predictions
 from planners.dmpc.types import DmpcPlan
 
@@ -39,8 +40,10 @@ __all__ = [
     "fine_position_matrices",
     "first_conflict_step",
     "hermite_positions",
+    "implied_half_spaces",
     "on_demand_constraints",
     "prediction_matrices",
+    "reach_boxes",
     "rollout",
     "sample_predictions",
 ]

@@ -32,8 +32,47 @@ sparsity pattern sized for the maximum number of collision rows
 (``max_neighbours``; K x ``max_neighbours`` for BVC); an unused row keeps its
 structural entries at value 0 with bounds (-inf, inf). Each round only
 ``q``, ``l``, ``u`` and ``Ax`` (``Px`` when the number of formation neighbours
-changes) are updated and the solver is warm-started with the previous solution
-shifted by one step.
+changes) are updated and the solver is warm-started with the previous primal
+AND dual solution shifted by one step (:meth:`DmpcProblem._shifted_warm_start`).
+
+Speed (issue 6 goals; measured with ``benchmarks/bench_dmpc.py`` and replays of
+the QPs recorded in ``mpcde eval-dmpc``, OMP_NUM_THREADS=1, shared 2-core box):
+
+* Where the time goes. OSQP 1.1 (qdldl) on this size: about 7-10 us per ADMM
+  iteration, and any ``Ax``/``Px`` update costs a KKT refactorisation
+  (0.06-0.3 ms, of which OSQP's Ruiz re-equilibration is half at its default
+  of 10 passes, hence ``osqp_scaling = 4``). On-demand rows change only in
+  rounds with a conflict, so most on-demand rounds need no refactorisation;
+  BVC planes and obstacle planes change every round.
+* One slack per on-demand row, as in the paper (on-demand DMPC Sec. 3.4,
+  alpha_ij per neighbour). An UNUSED slot's slack is pinned at 0 with price 0:
+  the same optimum, but without it the bound s >= 0 carried the multiplier
+  xi = 5e4 of the linear price in every round, which slowed ADMM
+  (formation_square: median 48 -> 30 iterations, mean 175 -> 71).
+* Condensed (dense in U) rather than sparse (states as variables with
+  dynamics equalities): a sparse prototype of the same QP (135 variables, 90
+  equalities) took 6-8.4 us per iteration against 7-10.5 us condensed, with a
+  cheaper refactorisation (0.12 vs 0.28 ms with 4 obstacles), but each
+  on-demand slot's row would need either a step-local pattern per step
+  (K x slots rows, the size of BVC) or a dense row across all states; neither
+  gains enough to reach the 0.3 ms floor (below), so the condensed form stays.
+* Obstacle rows that the velocity and input limits already imply are culled
+  (:meth:`DmpcProblem._fill_obstacles`; exactly the same feasible set) for
+  both methods; in formation_square this leaves about two thirds of them.
+* OSQP's Python wrapper is bypassed for update/warm start/solve
+  (:meth:`DmpcProblem._run_osqp`, about 0.05 ms per round).
+* Kept at their values: ``eps_abs = eps_rel = 1e-4`` (1e-3 saved about 3 %
+  on formation_square, not worth a looser constraint tolerance),
+  ``check_termination = 5`` (1, 2 and 10 measured no better),
+  ``adaptive_rho_interval = 25`` (0 = OSQP's timing rule, 10 and 50 no better;
+  without adaptive rho ADMM needs thousands of iterations here), rho and
+  sigma (1, 0.01 / 1e-4 no better), no polishing.
+
+Floor: a round with no collision or obstacle row (nothing to refactorise,
+box constraints only) costs about 0.12-0.16 ms. formation_square's obstacle
+planes change every round (a new tangent plane per step), so each of its
+rounds pays a refactorisation plus about 25 iterations: about 0.4 ms median
+for either method, above the 0.3 ms goal.
 """
 
 from __future__ import annotations
@@ -51,6 +90,8 @@ from perception.types import NeighborPrediction
 from planners.dmpc.collision import bvc_planes, ellipsoidal_distance, on_demand_constraints
 from planners.dmpc.config import DmpcConfig
 from planners.dmpc.model import fine_position_matrices, prediction_matrices, stacked_state_matrices
+from planners.dmpc.qp_result import DmpcResult, DmpcSolveError, QpSnapshot
+from planners.dmpc.reach import implied_half_spaces, reach_boxes
 from planners.dmpc.sampling import hermite_positions, sample_predictions
 from planners.dmpc.types import DmpcPlan
 
@@ -59,88 +100,6 @@ __all__ = ["DmpcProblem", "DmpcResult", "DmpcSolveError", "QpSnapshot"]
 _INF = 1e30  # OSQP_INFTY
 _CULL_MARGIN_M = 0.01  # an obstacle row is culled only if the reach boxes clear it by this [m]
 _ACCEPTED = (osqp.SolverStatus.OSQP_SOLVED, osqp.SolverStatus.OSQP_SOLVED_INACCURATE)
-
-
-@dataclass(frozen=True)
-class QpSnapshot:
-    """The QP as OSQP last saw it, with its solution (for KKT checks and error reports).
-
-    Attributes:
-        P: (n, n) upper-triangular CSC cost matrix.
-        q: (n,) linear cost.
-        A: (m, n) CSC constraint matrix.
-        l: (m,) lower bounds (-1e30 = -inf).
-        u: (m,) upper bounds (1e30 = inf).
-        x: (n,) primal solution (None before a solve).
-        y: (m,) dual solution, OSQP sign convention (y > 0 on active upper bounds).
-        status: OSQP status string.
-    """
-
-    P: sp.csc_matrix
-    q: np.ndarray
-    A: sp.csc_matrix
-    l: np.ndarray
-    u: np.ndarray
-    x: np.ndarray | None
-    y: np.ndarray | None
-    status: str
-
-
-class DmpcSolveError(RuntimeError):
-    """OSQP did not solve the DMPC QP (infeasible, iteration limit...).
-
-    Attributes:
-        status: OSQP status string.
-        snapshot: the :class:`QpSnapshot` that failed.
-    """
-
-    def __init__(self, status: str, snapshot: QpSnapshot) -> None:
-        super().__init__(f"DMPC QP not solved: OSQP status {status!r}")
-        self.status = status
-        self.snapshot = snapshot
-
-
-@dataclass(frozen=True)
-class DmpcResult:
-    """Solution of one DMPC round.
-
-    Attributes:
-        plan: the new plan from t_now (K+1 samples, the first is x0).
-        pos_world: (K, 3) predicted positions p[1..K] [m].
-        vel_world: (K, 3) predicted velocities v[1..K] [m/s].
-        acc_world: (K, 3) accelerations [m/s^2]: the inputs u[0..K-1] (double) or a[1..K] (triple).
-        inputs: (K, 3) optimal inputs u[0..K-1] (acceleration [m/s^2] or jerk [m/s^3]).
-        cost: J at the solution (all terms, constants included).
-        iterations: OSQP iterations.
-        status: OSQP status string ("solved" or "solved inaccurate").
-        solve_time_s: wall time [s] of everything OSQP does this round: the data
-            update (including the KKT refactorisation when A or P changed),
-            the warm start and the solve.
-        osqp_solve_time_s: OSQP's own solve-phase time [s] (C code only, no refactorisation).
-        update_time_s: wall time [s] spent in Python building this round's
-            constraints and cost (before handing them to OSQP).
-        n_collision_constraints: active collision rows (on demand: planes at k_c; bvc: K x neighbours).
-        conflict_time_s: on demand: absolute time [s] of the first predicted
-            conflict that was constrained (NaN if none, and always for bvc).
-        slack: (n_collision_constraints,) on-demand slacks s = -alpha [m] (empty for bvc).
-        n_obstacle_rows: obstacle half-space rows kept this round (after culling).
-    """
-
-    plan: DmpcPlan
-    pos_world: np.ndarray
-    vel_world: np.ndarray
-    acc_world: np.ndarray
-    inputs: np.ndarray
-    cost: float
-    iterations: int
-    status: str
-    solve_time_s: float
-    osqp_solve_time_s: float
-    update_time_s: float
-    n_collision_constraints: int
-    conflict_time_s: float
-    slack: np.ndarray
-    n_obstacle_rows: int = 0
 
 
 class _Pattern:
@@ -546,57 +505,18 @@ class DmpcProblem:
         rows = [nb_pos[i] - np.asarray(offsets[j], float).reshape(1, 3) for i, j in enumerate(nb_ids) if j in offsets]
         return np.array(rows).reshape(-1, self.config.horizon_steps, 3)
 
-    def _reach_boxes(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Two boxes that contain p[k] for EVERY input meeting this QP's box constraints.
-
-        Used to cull obstacle half-spaces that no feasible plan can reach (see
-        :meth:`_fill_obstacles`). With t_k = k h, per axis:
-
-        * velocity box, around p0: under the zero-order hold the velocity is
-          piecewise linear (double) or quadratic (triple) between samples, so
-          p[k] - p[k-1] = h (v[k-1] + v[k]) / 2 (- h^3 j / 12 for the triple
-          integrator, Simpson), and |v[k]| <= v_max is a constraint for
-          k = 1..K while v[0] = v0:
-              |p[k] - p0| <= h (|v0| + v_max) / 2 + (k - 1) h v_max (+ k h^3 j_max / 12);
-        * input box, around the free response p0 + t_k v0 (+ t_k^2 a0 / 2):
-              |p[k] - free_k| <= a_max t_k^2 / 2 (double)  or  j_max t_k^3 / 6 (triple),
-          from |u| <= a_max (|j| <= j_max) on every step.
-
-        Args:
-            x0: (6,) or (9,) initial state.
-
-        Returns:
-            centre_v (K, 3), half_v (K, 3), centre_a (K, 3), half_a (K, 3) [m].
-        """
-        cfg = self.config
-        K, h = cfg.horizon_steps, cfg.step_s
-        k = np.arange(1, K + 1, dtype=float)[:, None]
-        t = k * h
-        p0, v0 = x0[:3], x0[3:6]
-        half_v = h * (np.abs(v0)[None] + cfg.v_max) / 2 + (k - 1) * h * cfg.v_max  # sum of trapezoids
-        if cfg.model == "double":
-            centre_a = p0[None] + t * v0[None]
-            half_a = np.broadcast_to(cfg.a_max * t**2 / 2, (K, 3))  # |sum of input effects| <= a_max t^2 / 2
-        else:
-            half_v = half_v + k * h**3 * cfg.j_max / 12  # Simpson correction of each trapezoid
-            centre_a = p0[None] + t * v0[None] + t**2 * x0[6:9][None] / 2
-            half_a = np.broadcast_to(cfg.j_max * t**3 / 6, (K, 3))
-        return np.broadcast_to(p0, (K, 3)), half_v, centre_a, half_a
-
     def _fill_obstacles(self, obstacles: Sequence | None, free_pos: np.ndarray, x0: np.ndarray) -> int:
         """Obstacle rows normal^T (A0 x0 + Lambda U)[k] >= offset; returns the number kept.
 
         Culling (``config.obstacle_culling``): a row is left out (bounds
         -inf..inf, coefficients 0) when every position that the QP's own box
-        constraints allow at step k already satisfies it by ``_CULL_MARGIN_M``:
-        min over a reach box B_k of normal^T p >= offset + margin, with
-        min_{p in B} n^T p = n^T c - sum_d |n_d| r_d for a box of centre c and
-        half-widths r (:meth:`_reach_boxes`, either box). Such a row is implied
-        by the velocity (or input) limits, so the feasible set, and hence the
-        QP's solution, is exactly the same with or without it: culling can
-        never drop a constraint that could be active. The margin covers the
-        box rows being met only to OSQP's tolerance. Both collision modes
-        share this code (a fair comparison).
+        constraints allow at step k satisfies it with ``_CULL_MARGIN_M`` to
+        spare (:mod:`planners.dmpc.reach`). Such a row is implied by the
+        velocity (or input) limits, so the feasible set, and hence the QP's
+        solution, is exactly the same with or without it: culling never drops
+        a constraint that could be active. The margin covers the box rows
+        being met only to OSQP's tolerance. Both collision modes share this
+        code (a fair comparison).
         """
         K, O = self.config.horizon_steps, self.config.max_obstacle_planes
         obstacles = list(obstacles or [])
@@ -608,12 +528,7 @@ class DmpcProblem:
             offsets[i] = np.broadcast_to(np.asarray(off, float), (K,))
         used = offsets > -_INF
         if self.config.obstacle_culling and used.any():
-            implied = np.zeros_like(used)
-            centre_v, half_v, centre_a, half_a = self._reach_boxes(x0)
-            for centre, half in ((centre_v, half_v), (centre_a, half_a)):
-                lowest = np.einsum("okd,kd->ok", normals, centre) - np.einsum("okd,kd->ok", np.abs(normals), half)
-                implied |= lowest >= offsets + _CULL_MARGIN_M  # min over the box of n^T p
-            used &= ~implied
+            used &= ~implied_half_spaces(normals, offsets, reach_boxes(self.config, x0), _CULL_MARGIN_M)
             normals[~used] = 0.0
         coef = np.einsum("okd,kdc->okc", normals, self._Lambda_pos_blocks)
         self._set_dynamic(self._obs_slice, coef[:, self._lower_mask].ravel())
