@@ -281,7 +281,8 @@ class DmpcAgent:
         self.goal_world = np.asarray(goal_world, float).reshape(3)
         self.config = config
         self.obstacles = tuple(obstacles)
-        qp = config.qp if self.obstacles else replace(config.qp, max_obstacle_planes=0)
+        # Its planes are vertical (obstacle_half_spaces), so the QP may drop their z columns.
+        qp = replace(config.qp, vertical_obstacle_planes=True) if self.obstacles else replace(config.qp, max_obstacle_planes=0)
         self.qp_config = qp
         self.problem = DmpcProblem(qp)
         self.start_delay_s = float(start_delay_s)

@@ -102,6 +102,12 @@ class DmpcConfig:
             the QP's own velocity and input limits already imply it (no
             feasible plan can reach the plane then, so the solution is the
             same; see ``DmpcProblem._fill_obstacles``). Chosen: True.
+        vertical_obstacle_planes: every obstacle half-space has a horizontal
+            normal (vertical planes, as the agent builds around trees and
+            boxes); its rows then hold only the x, y input columns, a third
+            fewer entries in every KKT refactorisation (formation_square:
+            about 9 % faster rounds). A plane with a z component is then
+            rejected. Chosen default: False (general planes).
         terminal_halt: if true, v[K] = 0 (and a[K] = 0 for the triple
             integrator), DMPC-Swarm Eq. 13e; makes a shifted plan a feasible
             candidate, i.e. recursive feasibility of the BVC problem.
@@ -145,6 +151,7 @@ class DmpcConfig:
     max_neighbours: int = 8
     max_obstacle_planes: int = 0
     obstacle_culling: bool = True
+    vertical_obstacle_planes: bool = False
     terminal_halt: bool = False
     osqp_eps_abs: float = 1e-4
     osqp_eps_rel: float = 1e-4
@@ -192,6 +199,8 @@ class DmpcConfig:
             raise ValueError(f"max_neighbours={self.max_neighbours!r}: an integer >= 1")
         if not isinstance(self.max_obstacle_planes, (int, np.integer)) or self.max_obstacle_planes < 0:
             raise ValueError(f"max_obstacle_planes={self.max_obstacle_planes!r}: an integer >= 0")
+        if not isinstance(self.vertical_obstacle_planes, bool):
+            raise ValueError(f"vertical_obstacle_planes={self.vertical_obstacle_planes!r}: True or False")
         if not isinstance(self.obstacle_culling, bool):
             raise ValueError(f"obstacle_culling={self.obstacle_culling!r}: True or False")
         if not isinstance(self.terminal_halt, bool):

@@ -190,8 +190,10 @@ class DmpcProblem:
             self._n_coll_rows = M * K
         # Obstacle half-spaces (dynamic values).
         self._row_obs = row
+        # Obstacle rows: x, y input columns only for vertical planes (a third fewer entries to factorise).
+        self._obs_mask = lower & ((np.arange(3 * K) % 3 != 2)[None, :] if cfg.vertical_obstacle_planes else True)
         if O:
-            kk, cc = np.nonzero(lower)
+            kk, cc = np.nonzero(self._obs_mask)
             r = (np.arange(O)[:, None] * K + kk[None, :]).ravel()
             self._obs_slice = pat.add(row + r, np.tile(cc, O), np.zeros(r.size))
             row += O * K
@@ -527,11 +529,13 @@ class DmpcProblem:
             normals[i] = np.broadcast_to(np.asarray(nrm, float), (K, 3))
             offsets[i] = np.broadcast_to(np.asarray(off, float), (K,))
         used = offsets > -_INF
+        if self.config.vertical_obstacle_planes and np.any(normals[..., 2] != 0.0):
+            raise ValueError("obstacles: a normal with a z component, but vertical_obstacle_planes=True")
         if self.config.obstacle_culling and used.any():
             used &= ~implied_half_spaces(normals, offsets, reach_boxes(self.config, x0), _CULL_MARGIN_M)
             normals[~used] = 0.0
         coef = np.einsum("okd,kdc->okc", normals, self._Lambda_pos_blocks)
-        self._set_dynamic(self._obs_slice, coef[:, self._lower_mask].ravel())
+        self._set_dynamic(self._obs_slice, coef[:, self._obs_mask].ravel())
         rows = slice(self._row_obs, self._row_obs + O * K)
         lo = offsets - np.einsum("okd,kd->ok", normals, free_pos)  # n^T Lambda U >= offset - n^T A0 x0
         self._l[rows] = np.where(used, lo, -_INF).ravel()

@@ -196,6 +196,9 @@ INVALID = [
     ("max_neighbours", 0),
     ("max_obstacle_planes", -1),
     ("terminal_halt", "yes"),
+    ("vertical_obstacle_planes", 1),
+    ("obstacle_culling", "no"),
+    ("osqp_scaling", -1),
     ("osqp_max_iter", 0),
 ]
 
@@ -285,3 +288,17 @@ def test_unused_on_demand_slots_have_zero_slack_and_warm_start_does_not_change_t
     cold = DmpcProblem(cfg).solve(x1, [4.0, 0.0, 1.5], neighbours, first.plan, t_now_s=0.2)
     np.testing.assert_allclose(again.inputs, cold.inputs, atol=1e-4)  # [m/s^2]; both solved to 1e-8
     assert_kkt(warm.snapshot())
+
+
+def test_vertical_obstacle_pattern_gives_the_same_plan_and_rejects_tilted_planes() -> None:
+    plans = {}
+    for vertical in (False, True):
+        cfg = DmpcConfig(max_obstacle_planes=3, vertical_obstacle_planes=vertical, **TIGHT)
+        problem = DmpcProblem(cfg)
+        x0 = _x0(cfg, vel=(1.5, -1.0, 0.0))
+        plans[vertical] = problem.solve(x0, [8.0, -2.0, 1.5], [], None, t_now_s=0.0, obstacles=_obstacle_planes(cfg))
+        assert_kkt(problem.snapshot())
+    np.testing.assert_allclose(plans[True].inputs, plans[False].inputs, atol=1e-6)
+    tilted = DmpcProblem(DmpcConfig(max_obstacle_planes=1, vertical_obstacle_planes=True))
+    with pytest.raises(ValueError, match="vertical_obstacle_planes"):
+        tilted.solve(_x0(DmpcConfig()), [1.0, 0, 1.5], [], None, t_now_s=0.0, obstacles=[(np.array([0.0, 0.6, 0.8]), 0.0)])
