@@ -6,7 +6,10 @@ heatmap (CenterNet's peak finder) and exceeds the score threshold; at most
 box from its size and offset heads (conventions in
 :mod:`perception.detector.model`). Two peaks of the same drone can survive the
 3x3 pool when the drone is large, so greedy IoU NMS (:func:`nms_xyxy`) runs
-after the boxes are formed.
+after the boxes are formed. The converse limit (CenterNet's "centre point
+collision"): two drones whose image centres fall within about one cell
+(4-8 px) of each other leave one peak, so the smaller, usually farther one is
+not reported in that frame.
 """
 
 from __future__ import annotations
