@@ -139,7 +139,7 @@ def box_depth_m(depth_m: np.ndarray, box_xyxy: np.ndarray, cfg: BackprojectionCo
     z = z[np.isfinite(z)].astype(np.float64)
     if z.size == 0:
         return float("nan"), 0
-    z_p = float(np.percentile(z, cfg.foreground_percentile))
+    z_p = float(np.percentile(z, cfg.foreground_percentile, method="lower"))  # a sample: the band is never empty
     band = cfg.band_m + 3.0 * _depth_std_m(z_p, cfg)
     fg = z[np.abs(z - z_p) <= band]
     return float(np.median(fg)), int(fg.size)
