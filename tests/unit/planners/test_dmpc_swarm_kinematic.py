@@ -21,8 +21,8 @@ Distances are ellipsoidal (the constraints' metric). Two figures are checked:
   drones move 0.8 m relative in one step of 0.2 s, so a step can cut a corner.
 
 Measured over seeds 0-4 (ideal exchange), at round times / continuous:
-on demand 0.400-0.477 / 0.291-0.476 m, BVC 0.411-0.573 / 0.327-0.499 m;
-with 20 % loss, continuous: on demand 0.392-0.431 m, BVC 0.317-0.469 m.
+on demand 0.405-0.465 / 0.388-0.459 m, BVC 0.408-0.530 / 0.311-0.522 m;
+with 20 % loss, continuous: on demand 0.397-0.444 m, BVC 0.339-0.537 m.
 """
 
 from __future__ import annotations
