@@ -81,6 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--out", required=True, type=Path)
     ev.add_argument("--measurements", choices=["synthetic", "pipeline"], nargs="+", default=["synthetic"])
     ev.add_argument("--seeds", type=int, default=3, help="repeats per row (seeds 0..N-1)")
+    ev.add_argument("--weights", type=Path, default=None, help="detector checkpoint of the pipeline source (default: the shipped one)")
     ev.add_argument("--quiet", action="store_true")
     ed = sub.add_parser("eval-dmpc", help="on-demand DMPC vs buffered Voronoi cells (the paper's Table 1) -> results.json")
     ed.add_argument("--out", required=True, type=Path)
@@ -199,7 +200,10 @@ def _cmd_eval_tracking(args: argparse.Namespace) -> int:
         raise ConfigError("--seeds", args.seeds, "an integer >= 1")
     _check_out_dir(args.out)
     # run_eval_tracking validates its options before it creates or writes anything
-    results = run_eval_tracking(args.out, measurements=tuple(args.measurements), seeds=tuple(range(args.seeds)), progress=not args.quiet)
+    results = run_eval_tracking(
+        args.out, measurements=tuple(args.measurements), seeds=tuple(range(args.seeds)), progress=not args.quiet,
+        detector_weights=None if args.weights is None else str(args.weights),
+    )  # fmt: skip
     print(format_table(results))
     print(f"-> {args.out / 'results.json'}")
     return 0

@@ -21,8 +21,10 @@ Euclidean distance, within ``MATCH_RADIUS_M``.
 
 Measurement sources (:class:`MeasurementSource`): ``"synthetic"``
 (:class:`SyntheticMeasurements`) is truth plus range-dependent noise, random
-misses, short occlusions and false positives. ``"pipeline"`` (render -> detect
--> back-project) will plug in as another source once the detector exists.
+misses, short occlusions and false positives. ``"pipeline"``
+(:class:`mpcde.tracking_pipeline.PipelineMeasurements`) renders the observer's
+camera, runs the shipped detector and back-projects with the observer's own
+pose estimate.
 """
 
 from __future__ import annotations
@@ -310,12 +312,15 @@ class SyntheticMeasurements:
         return Measurement(pos_world=z, cov_world=cov, time_s=t)
 
 
-def _source(name: str) -> MeasurementSource:
+def _source(name: str, detector_weights: str | None = None) -> MeasurementSource:
+    """The named measurement source; the pipeline loads (and so checks) its detector weights here."""
     if name == "synthetic":
         return SyntheticMeasurements()
     if name == "pipeline":
-        raise ValueError("measurements='pipeline': not available yet (needs the detector); allowed: 'synthetic'")
-    raise ValueError(f"measurements={name!r}: allowed: 'synthetic'")
+        from mpcde.tracking_pipeline import PipelineMeasurements
+
+        return PipelineMeasurements(weights=detector_weights)
+    raise ValueError(f"measurements={name!r}: allowed: 'synthetic', 'pipeline'")
 
 
 @dataclass
@@ -431,6 +436,7 @@ def run_eval_tracking(
     duration_s: float = 30.0,
     progress: bool = True,
     tracker_config: TrackerConfig | None = None,
+    detector_weights: str | None = None,
 ) -> dict:
     """Score the trackers on every (speed, filter, measurement source); write results, table and plots.
 
@@ -441,16 +447,19 @@ def run_eval_tracking(
             ``tracking_<speed>mps.png`` per speed.
         speeds_mps: nominal target speeds [m/s].
         filters: ``"akf"`` and/or ``"kf"``.
-        measurements: measurement sources; only ``"synthetic"`` exists yet.
+        measurements: measurement sources, ``"synthetic"`` and/or ``"pipeline"``
+            (:class:`mpcde.tracking_pipeline.PipelineMeasurements`: render ->
+            detect -> back-project; both filters see the same measurements).
         seeds: one run per seed; seed ``s`` has ``1 + s % 3`` targets.
         duration_s: length of each run [s].
         progress: show a tqdm progress bar.
         tracker_config: base tracker settings (its ``filter`` is overridden).
+        detector_weights: the pipeline's detector checkpoint; None: the shipped weights.
 
     Returns:
         The results dict written to ``results.json``.
     """
-    sources = [_source(m) for m in measurements]  # fails before anything is written
+    sources = [_source(m, detector_weights) for m in measurements]  # fails before anything is written
     base = tracker_config if tracker_config is not None else TrackerConfig()
     configs = {f: TrackerConfig(**{**base.__dict__, "filter": f}) for f in filters}
     if not speeds_mps or any(not (float(v) > 0) for v in speeds_mps):

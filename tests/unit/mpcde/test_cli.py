@@ -3,11 +3,12 @@
 from mpcde.cli import main
 
 
-def test_eval_tracking_rejects_an_unavailable_source_before_writing(tmp_path, capsys):
+def test_eval_tracking_pipeline_with_missing_weights_is_refused_before_writing(tmp_path, capsys):
     out = tmp_path / "et"
-    assert main(["eval-tracking", "--out", str(out), "--measurements", "pipeline", "--quiet"]) == 2
+    argv = ["eval-tracking", "--out", str(out), "--measurements", "pipeline", "--weights", str(tmp_path / "none.pt"), "--quiet"]
+    assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "pipeline" in err[0]
+    assert len(err) == 1 and "weights" in err[0] and "missing" in err[0]
     assert not out.exists()
 
 

@@ -58,12 +58,24 @@ def test_table_and_plots_are_written(tiny_run):
     assert (out / "tracking_2mps.png").stat().st_size > 1000
 
 
-def test_pipeline_measurements_are_refused_before_anything_is_written(tmp_path):
+def test_an_unknown_source_or_bad_weights_are_refused_before_anything_is_written(tmp_path):
     out = tmp_path / "never"
     with pytest.raises(ValueError) as err:
-        run_eval_tracking(out, measurements=("pipeline",), progress=False)
-    assert str(err.value) == "measurements='pipeline': not available yet (needs the detector); allowed: 'synthetic'"
+        run_eval_tracking(out, measurements=("lidar",), progress=False)
+    assert str(err.value) == "measurements='lidar': allowed: 'synthetic', 'pipeline'"
+    with pytest.raises(ValueError, match="weights"):
+        run_eval_tracking(out, measurements=("pipeline",), progress=False, detector_weights=str(tmp_path / "none.pt"))
     assert not out.exists()
+
+
+@pytest.mark.slow
+def test_pipeline_rows_track_rendered_drones(tmp_path):
+    """Render -> detect -> back-project -> track, 6 s at 1 m/s, 2 targets: both filters track to a few cm."""
+    res = run_eval_tracking(tmp_path / "p", speeds_mps=(1.0,), measurements=("pipeline",), seeds=(1,), duration_s=6.0, progress=False)
+    rows = {r["filter"]: r for r in res["rows"]}
+    assert set(rows) == {"akf", "kf"} and all(r["measurements"] == "pipeline" for r in rows.values())
+    assert rows["akf"]["pos_rmse_m"] < 0.15 and rows["akf"]["vel_rmse_mps"] < 0.6
+    assert rows["akf"]["id_switches"] == 0
 
 
 def test_synthetic_noise_follows_the_range_model_and_drops_detections():
