@@ -69,7 +69,7 @@ class DmpcResult:
         status: OSQP status string ("solved" or "solved inaccurate").
         solve_time_s: wall time [s] of everything OSQP does this round: the data
             update (including the KKT refactorisation when A or P changed),
-            the warm start and the solve.
+            the warm start (shifting the previous solution included) and the solve.
         osqp_solve_time_s: OSQP's own solve-phase time [s] (C code only, no refactorisation).
         update_time_s: wall time [s] spent in Python building this round's
             constraints and cost (before handing them to OSQP).
