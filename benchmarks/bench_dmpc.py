@@ -16,10 +16,11 @@ p95 and mean over all solves, OSQP's own solve-phase median, iterations, the
 Python build time, mean collision and obstacle rows; then the ratio BVC /
 on-demand (the baseline measured in this run) and the goals.
 
-Floor: every round of the on-demand run is re-solved by a second problem
-(same size and settings, its own warm start) with no neighbours and no
-obstacles, i.e. the box constraints only: the cost of an OSQP solve of this
-size when nothing forces a refactorisation.
+Floor: drone 0's every round of the on-demand run is solved again by a
+second problem of the same size and settings (its own warm start) with the
+same state, carrot goal, previous plan and formation cost but no obstacle
+planes and no collision rows (box constraints only): what a round costs when
+nothing forces a KKT refactorisation.
 
 Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_dmpc.py [--seeds 3]``
 """
@@ -54,8 +55,21 @@ def fly_kinematic(scenario: str, mode: str, seed: int, max_rounds: int = 150, fl
     agents = [make_agent(cfg, i, goals, prepared.obstacles) for i in range(n)]
     h = agents[0].qp_config.step_s
     pos, vel = starts.copy(), np.zeros_like(starts)
-    floor_problem = DmpcProblem(agents[0].qp_config) if floor else None  # same slots, left empty
     floor_s: list[float] = []
+    if floor:  # drone 0's every round again, without obstacle and collision rows (module docstring)
+        floor_problem = DmpcProblem(replace(agents[0].qp_config, collision_mode="on_demand"))
+        solve = agents[0].problem.solve
+
+        def solve_and_floor(x0, goal, neighbours, previous, offsets=None, *, t_now_s, obstacles=None):
+            result = solve(x0, goal, neighbours, previous, offsets, t_now_s=t_now_s, obstacles=obstacles)
+            try:  # formation neighbours kept for the cost when there is a formation (they never conflict there)
+                kept = neighbours if offsets else []
+                floor_s.append(floor_problem.solve(x0, goal, kept, previous, offsets, t_now_s=t_now_s).solve_time_s)
+            except DmpcSolveError:
+                pass
+            return result
+
+        agents[0].problem.solve = solve_and_floor
     inbox: list[RadioMessage] = []
     min_dist, rounds = np.inf, max_rounds
     for r in range(max_rounds):
@@ -66,13 +80,6 @@ def fly_kinematic(scenario: str, mode: str, seed: int, max_rounds: int = 150, fl
             agent.on_radio([m for m in inbox if m.sender_id != i])
             msg = agent.outgoing(t)
             messages.append(RadioMessage(i, t, t, msg))
-            if floor_problem is not None and i == 0 and agent.plan is not None:
-                x0 = np.r_[agent.plan.pos_world[0], agent.plan.vel_world[0]]
-                try:
-                    res = floor_problem.solve(x0, agent.plan.pos_world[-1], [], agent.plan, t_now_s=t)
-                    floor_s.append(res.solve_time_s)
-                except DmpcSolveError:
-                    pass
         inbox = messages
         for i, agent in enumerate(agents):
             pos[i], vel[i] = agent.plan.position(t + h), agent.plan.velocity(t + h)
