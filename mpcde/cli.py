@@ -103,6 +103,12 @@ def _check_out_dir(out: Path) -> None:
         raise ConfigError("--out", str(out), f"{parent} is not writable")
 
 
+def _at_least(option: str, value: int, minimum: int) -> None:
+    """Refuse an integer option below ``minimum`` (one-line ConfigError)."""
+    if value < minimum:
+        raise ConfigError(option, value, f"an integer >= {minimum}")
+
+
 def _cmd_fly(args: argparse.Namespace) -> int:
     from mpcde.loop import prepare_run, run_scenario
     from mpcde.run_folder import RunFolder
@@ -153,12 +159,9 @@ def _cmd_fly(args: argparse.Namespace) -> int:
 def _cmd_train_detector(args: argparse.Namespace) -> int:
     from mpcde.train_detector import run_train_detector
 
-    if args.frames < 16:
-        raise ConfigError("--frames", args.frames, "an integer >= 16")
-    if args.val_frames < 8:
-        raise ConfigError("--val-frames", args.val_frames, "an integer >= 8")
-    if args.epochs < 1:
-        raise ConfigError("--epochs", args.epochs, "an integer >= 1")
+    _at_least("--frames", args.frames, 16)
+    _at_least("--val-frames", args.val_frames, 8)
+    _at_least("--epochs", args.epochs, 1)
     if not (args.minutes > 0):
         raise ConfigError("--minutes", args.minutes, "> 0")
     _check_out_dir(args.out)
@@ -181,10 +184,8 @@ def _cmd_eval_detector(args: argparse.Namespace) -> int:
     from mpcde.eval_detector import format_table, run_eval_detector
     from perception.detector.detector import DroneDetector
 
-    if args.frames < 1:
-        raise ConfigError("--frames", args.frames, "an integer >= 1")
-    if args.workers < 1:
-        raise ConfigError("--workers", args.workers, "an integer >= 1")
+    _at_least("--frames", args.frames, 1)
+    _at_least("--workers", args.workers, 1)
     _check_out_dir(args.out)
     DroneDetector.load(args.weights)  # a missing or corrupt file fails here, before anything is written
     run_eval_detector(args.out, weights=args.weights, n_frames=args.frames, progress=not args.quiet, workers=args.workers)
@@ -196,8 +197,7 @@ def _cmd_eval_detector(args: argparse.Namespace) -> int:
 def _cmd_eval_tracking(args: argparse.Namespace) -> int:
     from mpcde.eval_tracking import format_table, run_eval_tracking
 
-    if args.seeds < 1:
-        raise ConfigError("--seeds", args.seeds, "an integer >= 1")
+    _at_least("--seeds", args.seeds, 1)
     _check_out_dir(args.out)
     # run_eval_tracking validates its options before it creates or writes anything
     results = run_eval_tracking(
@@ -212,8 +212,7 @@ def _cmd_eval_tracking(args: argparse.Namespace) -> int:
 def _cmd_eval_dmpc(args: argparse.Namespace) -> int:
     from mpcde.eval_dmpc import format_table, run_eval_dmpc
 
-    if args.seeds < 1:
-        raise ConfigError("--seeds", args.seeds, "an integer >= 1")
+    _at_least("--seeds", args.seeds, 1)
     _check_out_dir(args.out)
     results = run_eval_dmpc(args.out, methods=tuple(args.methods), scenarios=tuple(args.scenarios), seeds=tuple(range(args.seeds)), progress=not args.quiet)
     print(format_table(results))
