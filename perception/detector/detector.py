@@ -7,7 +7,8 @@ shape (``optimize_for_inference`` fuses conv + ReLU; eager when
 ``compile_graph=False``); one forward pass serves every frame handed to
 :meth:`DroneDetector.detect` (one per drone of a swarm tick). It reads only
 :class:`sim.types.RgbdFrame` (image, depth, intrinsics, pose estimate): never a
-segmentation.
+segmentation. Constructing one keeps large tensor buffers in the process heap
+(:mod:`perception.detector.allocator`).
 
 Checkpoint (``torch.save`` of a dict): ``format`` = ``CHECKPOINT_FORMAT``,
 ``model_config`` (dict of :class:`ModelConfig`), ``state_dict`` (training
@@ -23,6 +24,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
+from perception.detector.allocator import keep_large_allocations
 from perception.detector.decode import decode_outputs
 from perception.detector.model import DetectorNet, ModelConfig, encode_frames, fold_batchnorm
 from perception.types import Detection
@@ -64,6 +66,7 @@ class DroneDetector:
         self.nms_iou = nms_iou
         self.compile_graph = compile_graph
         self._graphs: dict[tuple[int, ...], torch.jit.ScriptModule] = {}
+        keep_large_allocations()  # ~1 ms per frame of page faults otherwise (perception/detector/allocator.py)
 
     def _forward(self, x: torch.Tensor) -> torch.Tensor:
         """Network outputs; with ``compile_graph`` a traced, frozen graph per input shape (conv + ReLU fused)."""

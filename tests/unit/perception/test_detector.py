@@ -173,3 +173,14 @@ def test_detector_takes_rgbd_frames_only(detector, rendered):
     frames, _, _ = rendered
     with pytest.raises(ValueError, match="score_threshold"):
         detector.detect(frames[:1], score_threshold=1.5)
+
+
+def test_allocator_thresholds_are_applied_once_on_glibc():
+    import platform
+
+    from perception.detector.allocator import keep_large_allocations
+
+    first = keep_large_allocations()
+    assert keep_large_allocations() is first
+    if platform.system() == "Linux" and platform.libc_ver()[0] == "glibc":
+        assert first is True
