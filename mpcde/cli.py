@@ -181,7 +181,7 @@ def _cmd_train_detector(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval_detector(args: argparse.Namespace) -> int:
-    from mpcde.eval_detector import format_table, run_eval_detector
+    from mpcde.eval_detector import run_eval_detector
     from perception.detector.detector import DroneDetector
 
     _at_least("--frames", args.frames, 1)
