@@ -190,19 +190,21 @@ def centre_out_of_view(pos_world: np.ndarray, K: np.ndarray, transform_camera_to
 
     Args:
         pos_world: (n, 3) drone centres [m].
-        K: (3, 3) intrinsics (pixel centres at integers).
-        transform_camera_to_world: (4, 4) camera pose.
+        K: (3, 3) intrinsics (pixel centres at integers), or (n, 3, 3), one per centre.
+        transform_camera_to_world: (4, 4) camera pose, or (n, 4, 4), one per centre.
         shape_px: (H, W) image size.
 
     Returns:
         (n,) bool.
     """
     T = np.asarray(transform_camera_to_world, float)
-    p_c = (np.asarray(pos_world, float).reshape(-1, 3) - T[:3, 3]) @ T[:3, :3]  # rows of R^T (p - t)
-    z = p_c[:, 2]
+    K = np.asarray(K, float)
+    delta = np.asarray(pos_world, float).reshape(-1, 3) - T[..., :3, 3]
+    p_c = np.einsum("...ji,...j->...i", T[..., :3, :3], delta)  # R^T (p - t)
+    z = p_c[..., 2]
     with np.errstate(divide="ignore", invalid="ignore"):
-        u = K[0, 0] * p_c[:, 0] / z + K[0, 2]
-        v = K[1, 1] * p_c[:, 1] / z + K[1, 2]
+        u = K[..., 0, 0] * p_c[..., 0] / z + K[..., 0, 2]
+        v = K[..., 1, 1] * p_c[..., 1] / z + K[..., 1, 2]
     H, W = shape_px
     inside = (z > 0) & (u >= -0.5) & (u <= W - 0.5) & (v >= -0.5) & (v <= H - 0.5)
     return ~inside
@@ -454,8 +456,6 @@ def load_dataset(folder: Path, max_frames: int | None = None) -> dict[str, np.nd
                 parts.setdefault(key, []).append(a)
             offset += z["rgb"].shape[0]
     data = {k: np.concatenate(v) for k, v in parts.items()}
-    shape = data["rgb"].shape[1:3]
-    for f in np.unique(data["box_frame"]):  # the truncation rule, also for shards written before it
-        rows = np.nonzero(data["box_frame"] == f)[0]
-        data["box_ignore"][rows] |= centre_out_of_view(data["box_pos_world"][rows], data["K"][f], data["transform_camera_to_world"][f], shape)
+    f = data["box_frame"]  # the truncation rule, also for shards written before it
+    data["box_ignore"] |= centre_out_of_view(data["box_pos_world"], data["K"][f], data["transform_camera_to_world"][f], data["rgb"].shape[1:3])
     return data
