@@ -47,7 +47,8 @@ from sim.camera_rig import CameraRig
 from sim.ground_truth import TrueState
 from sim.obstacles import ObstacleSpec
 from sim.pose_estimate import PoseEstimateConfig, PoseEstimator
-from sim.rotations import quat_xyzw_from_rotation
+from sim.quadrotor_params import GRAVITY_MPS2
+from sim.rotations import quat_xyzw_from_rotation, rotation_from_thrust_axis_and_yaw
 from sim.scene import SceneSpec
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -55,7 +56,6 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = ["PipelineMeasurements", "PipelineRun", "background_trees", "flat_attitudes"]
 
-GRAVITY_MPS2 = 9.81
 _TREE_COLOURS = ((0.45, 0.32, 0.2, 1.0), (0.3, 0.3, 0.3, 1.0), (0.25, 0.45, 0.2, 1.0), (0.6, 0.55, 0.45, 1.0))
 
 
@@ -74,11 +74,7 @@ def flat_attitudes(vel_world: np.ndarray, acc_world: np.ndarray) -> np.ndarray:
     z_b = thrust / np.linalg.norm(thrust, axis=-1, keepdims=True)
     v = np.asarray(vel_world, float)
     yaw = np.where(np.hypot(v[..., 0], v[..., 1]) > 0.05, np.arctan2(v[..., 1], v[..., 0]), 0.0)
-    x_c = np.stack([np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)], axis=-1)
-    y_b = np.cross(z_b, x_c)
-    y_b /= np.linalg.norm(y_b, axis=-1, keepdims=True)
-    x_b = np.cross(y_b, z_b)
-    return np.stack([x_b, y_b, z_b], axis=-1)
+    return rotation_from_thrust_axis_and_yaw(z_b, yaw)
 
 
 def background_trees(seed: int, n: int, observer_pos_world: np.ndarray, observer_yaw_rad: float) -> tuple[ObstacleSpec, ...]:

@@ -24,16 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.quadrotor_params import GRAVITY_MPS2, QuadrotorParams
-from sim.rotations import vee
+from sim.rotations import cross_rows, rotation_from_thrust_axis_and_yaw, vee
 
 __all__ = ["ControllerGains", "SE3Controller"]
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of (N, 3) arrays (np.cross costs ~10x more at small N)."""
-    return np.stack(
-        [a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2], a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1
-    )
 
 
 @dataclass(frozen=True)
@@ -124,18 +117,14 @@ class SE3Controller:
         b3 = R[:, :, 2]
         thrust = np.einsum("ni,ni->n", F_d, b3)  # f = F_d . R e3
         b3_d = F_d / np.linalg.norm(F_d, axis=1, keepdims=True)
-        b1_c = np.stack([np.cos(ref_yaw), np.sin(ref_yaw), np.zeros_like(ref_yaw)], axis=1)
-        b2_d = _cross(b3_d, b1_c)
-        b2_d /= np.linalg.norm(b2_d, axis=1, keepdims=True)
-        b1_d = _cross(b2_d, b3_d)
-        R_d = np.stack([b1_d, b2_d, b3_d], axis=2)
+        R_d = rotation_from_thrust_axis_and_yaw(b3_d, ref_yaw)
         RdT_R = np.einsum("nji,njk->nik", R_d, R)
         e_R = 0.5 * vee(RdT_R - np.transpose(RdT_R, (0, 2, 1)))  # e_R = 1/2 vee(R_d^T R - R^T R_d)
         omega_d = np.zeros_like(ang_vel_body)
         omega_d[:, 2] = ref_yaw_rate
         e_W = ang_vel_body - np.einsum("nji,njk,nk->ni", R, R_d, omega_d)  # Omega - R^T R_d Omega_d
         J_omega = self.J * ang_vel_body
-        M = -self.k_R * e_R - self.k_W * e_W + _cross(ang_vel_body, J_omega)
+        M = -self.k_R * e_R - self.k_W * e_W + cross_rows(ang_vel_body, J_omega)
         return np.concatenate([np.maximum(thrust, 0.0)[:, None], M], axis=1)
 
     def reset(self, index: int | None = None) -> None:
