@@ -39,7 +39,8 @@ from scipy.optimize import linear_sum_assignment
 
 from perception.tracker import COASTING, CONFIRMED, Measurement, MultiTargetTracker, range_noise_cov
 from perception.tracker_config import TrackerConfig
-from sim.camera import CameraConfig, rotation_camera_to_body
+from sim.camera import CameraConfig
+from sim.camera_rig import CameraRig
 
 __all__ = [
     "MATCH_RADIUS_M",
@@ -194,8 +195,8 @@ def camera_pose(scenario: TrackingScenario, camera: CameraConfig) -> tuple[np.nd
     """
     c, s = np.cos(scenario.observer_yaw_rad), np.sin(scenario.observer_yaw_rad)
     rotation_body_to_world = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    pos_world = scenario.observer_pos_world + rotation_body_to_world @ np.asarray(camera.mount_offset_body_m, float)
-    return pos_world, rotation_body_to_world @ rotation_camera_to_body(camera.mount_pitch_deg)
+    T = CameraRig(camera, seed=0).transform_camera_to_world(np.asarray(scenario.observer_pos_world, float), rotation_body_to_world)
+    return T[:3, 3], T[:3, :3]
 
 
 def in_camera_view(

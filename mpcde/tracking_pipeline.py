@@ -21,7 +21,7 @@ Choices (written here because the issue is silent on them):
   evaluates perception and tracking, and a flown target would only add the
   controller's few-centimetre tracking error to a truth the tracker never sees.
 * **Observer.** Hovers at the scenario's ``observer_pos_world`` with heading
-  ``observer_yaw_rad`` (0 when the scenario has none), level. Its camera pose
+  ``observer_yaw_rad``, level. Its camera pose
   comes from :class:`sim.pose_estimate.PoseEstimator` (default
   :class:`sim.pose_estimate.PoseEstimateConfig`: 1 cm white noise, 5 mm/sqrt(s)
   drift, 2 mrad heading noise), so measurements carry the observer's own
@@ -36,10 +36,11 @@ Choices (written here because the issue is silent on them):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
+from mpcde.eval_tracking import TrackingScenario, camera_pose, in_camera_view
 from perception.backprojection import BackprojectionConfig, backproject
 from perception.tracker import Measurement
 from sim.camera import CameraConfig
@@ -48,11 +49,8 @@ from sim.ground_truth import TrueState
 from sim.obstacles import ObstacleSpec
 from sim.pose_estimate import PoseEstimateConfig, PoseEstimator
 from sim.quadrotor_params import GRAVITY_MPS2
-from sim.rotations import quat_xyzw_from_rotation, rotation_from_thrust_axis_and_yaw
+from sim.rotations import quat_xyzw_from_rotation, quat_xyzw_from_yaw, rotation_from_quat_xyzw, rotation_from_thrust_axis_and_yaw
 from sim.scene import SceneSpec
-
-if TYPE_CHECKING:  # pragma: no cover
-    from mpcde.eval_tracking import TrackingScenario
 
 __all__ = ["PipelineMeasurements", "PipelineRun", "background_trees", "flat_attitudes"]
 
@@ -97,7 +95,8 @@ class PipelineRun:
         frames: per frame time, the back-projected measurements.
         n_detections: detections over all frames.
         n_without_depth: detections dropped for lack of valid depth.
-        n_visible: (frame, target) pairs whose target centre projects inside the image in front of the camera.
+        n_visible: (frame, target) pairs whose target centre is inside the camera's view
+            (:func:`mpcde.eval_tracking.in_camera_view`, no margin).
     """
 
     frames: list[list[Measurement]]
@@ -127,6 +126,7 @@ class PipelineMeasurements:
     weights: str | None = None
     n_background_trees: int = 10
     batch_frames: int = 6
+    _detector: Any = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.n_background_trees, int) and self.n_background_trees >= 0):
@@ -135,18 +135,18 @@ class PipelineMeasurements:
             raise ValueError(f"batch_frames={self.batch_frames!r}: an integer >= 1")
         from perception.detector.detector import DroneDetector
 
-        DroneDetector.load(self.weights)  # a missing or corrupt checkpoint fails at construction
+        # loaded once: a missing or corrupt checkpoint fails at construction, and every run reuses it
+        object.__setattr__(self, "_detector", DroneDetector.load(self.weights))
 
-    def measure(self, scenario: "TrackingScenario", seed: int) -> list[list[Measurement]]:
+    def measure(self, scenario: TrackingScenario, seed: int) -> list[list[Measurement]]:
         """Per-frame measurements of ``scenario`` (seeded by ``seed``: depth noise, pose error, background)."""
         return self.run(scenario, seed).frames
 
-    def run(self, scenario: "TrackingScenario", seed: int) -> PipelineRun:
+    def run(self, scenario: TrackingScenario, seed: int) -> PipelineRun:
         """:meth:`measure` with the run's detection counts."""
-        from perception.detector.detector import DroneDetector
         from sim.renderer import SceneRenderer
 
-        detector = DroneDetector.load(self.weights)
+        detector = self._detector
         times = np.asarray(scenario.times_s, float)
         pos = np.asarray(scenario.target_pos_world, float)
         vel = np.asarray(scenario.target_vel_world, float)
@@ -155,11 +155,13 @@ class PipelineMeasurements:
         quat = quat_xyzw_from_rotation(flat_attitudes(vel, acc).reshape(-1, 3, 3)).reshape(n_frames, n_targets, 4)
 
         observer = np.asarray(scenario.observer_pos_world, float)
-        yaw = float(getattr(scenario, "observer_yaw_rad", 0.0))
-        c, s = np.cos(yaw), np.sin(yaw)
-        R_obs = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        yaw = float(scenario.observer_yaw_rad)
+        quat_obs = quat_xyzw_from_yaw(yaw)
+        R_obs = rotation_from_quat_xyzw(quat_obs)
         rig = CameraRig(self.camera, seed)
-        T_true = rig.transform_camera_to_world(observer, R_obs)
+        cam_pos_world, R_cw = camera_pose(scenario, self.camera)
+        T_true = np.eye(4)
+        T_true[:3, :3], T_true[:3, 3] = R_cw, cam_pos_world
         estimator = PoseEstimator(self.pose_estimate, 1, seed)
         spec = SceneSpec(obstacles=background_trees(seed, self.n_background_trees, observer, yaw), n_drones=n_targets)
         renderer = SceneRenderer(spec, self.camera)
@@ -170,9 +172,9 @@ class PipelineMeasurements:
             for k, t in enumerate(times):
                 renderer.set_drone_poses(pos[k], quat[k])
                 raw = renderer.render(T_true, own_drone=None)
-                n_visible += int(np.count_nonzero(_in_view(pos[k], T_true, rig.K, self.camera)))
+                n_visible += int(np.count_nonzero(in_camera_view(pos[k], cam_pos_world, R_cw, self.camera, 0.0)))
                 truth = TrueState(
-                    time_s=float(t), pos_world=observer[None], vel_world=np.zeros((1, 3)), quat_xyzw=quat_xyzw_from_rotation(R_obs)[None],
+                    time_s=float(t), pos_world=observer[None], vel_world=np.zeros((1, 3)), quat_xyzw=quat_obs[None],
                     rotation_body_to_world=R_obs[None], ang_vel_body=np.zeros((1, 3)), obstacle_contact=np.zeros(1, bool), failed=np.zeros(1, bool),
                 )  # fmt: skip
                 estimate = estimator.update(truth)[0]
@@ -188,13 +190,3 @@ class PipelineMeasurements:
             renderer.close()
         return PipelineRun(frames=frames, n_detections=n_det, n_without_depth=n_nodepth, n_visible=n_visible)
 
-
-def _in_view(pos_world: np.ndarray, transform_camera_to_world: np.ndarray, K: np.ndarray, camera: CameraConfig) -> np.ndarray:
-    """(n,) whether each (n, 3) point projects inside the image in front of the camera."""
-    T = transform_camera_to_world
-    p_c = (pos_world - T[:3, 3]) @ T[:3, :3]  # R^T (p - t) row-wise
-    z = p_c[:, 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = K[0, 0] * p_c[:, 0] / z + K[0, 2]
-        v = K[1, 1] * p_c[:, 1] / z + K[1, 2]
-    return (z > 0.1) & (u >= 0) & (u <= camera.width_px - 1) & (v >= 0) & (v <= camera.height_px - 1)
