@@ -182,12 +182,10 @@ def _cmd_train_detector(args: argparse.Namespace) -> int:
 
 def _cmd_eval_detector(args: argparse.Namespace) -> int:
     from mpcde.eval_detector import run_eval_detector
-    from perception.detector.detector import DroneDetector
 
     _at_least("--frames", args.frames, 1)
     _at_least("--workers", args.workers, 1)
     _check_out_dir(args.out)
-    DroneDetector.load(args.weights)  # a missing or corrupt file fails here, before anything is written
     run_eval_detector(args.out, weights=args.weights, n_frames=args.frames, progress=not args.quiet, workers=args.workers)
     print((args.out / "results.txt").read_text().rstrip())
     print(f"-> {args.out / 'results.json'}")

@@ -301,8 +301,6 @@ def _train(out_dir, data_dir, train, val, epochs, seed, progress, batch_size, cr
     bar.close()
     train_s = time.perf_counter() - t_start
 
-    weights_path = out_dir / "drone_detector.pt"
-    torch.save({"format": CHECKPOINT_FORMAT, "model_config": model.to_dict(), "state_dict": net.state_dict(), "score_threshold": 0.3}, weights_path)
     predictions = predict_dataset(net, val)
     threshold = choose_threshold(predictions, val)
     val_metrics = evaluate_detections(predictions, val, threshold)
