@@ -11,7 +11,6 @@ alone is also printed.
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,7 @@ import torch
 from perception.detector import DroneDetector
 from perception.detector.model import encode_frames
 from sim.types import RgbdFrame
+from timing import median_ms
 
 FIXTURE = Path(__file__).resolve().parents[1] / "data" / "detector" / "fixture" / "test" / "shard_00000.npz"
 
@@ -31,14 +31,8 @@ def _frames(n: int) -> list[RgbdFrame]:
 
 
 def _median_ms(fn, repeats: int) -> float:
-    for _ in range(5):
-        fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times) * 1e3)
+    """:func:`timing.median_ms` after 5 warm-up calls (torch's allocator and thread pool settle)."""
+    return median_ms(fn, repeats, warmup=5)
 
 
 def main() -> None:

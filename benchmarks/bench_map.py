@@ -18,8 +18,6 @@ ratios against baselines measured in the same run:
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
@@ -31,19 +29,15 @@ from perception.types import OccupancySnapshot
 from planners.path_search import search_path
 from sim.types import RgbdFrame
 
+import timing  # benchmarks/timing.py, beside this script
+
 W_PX, H_PX = 320, 240
 REPEATS = 15
 
 
 def median_ms(fn, repeats: int = REPEATS) -> float:
-    """Median wall time [ms] of ``fn()`` over ``repeats`` calls (after one warm-up call)."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return 1e3 * float(np.median(times))
+    """:func:`timing.median_ms` with this benchmark's default repeats."""
+    return timing.median_ms(fn, repeats)
 
 
 def forest(rng: np.random.Generator, half_m: float = 10.0, density_per_m2: float = 0.08) -> np.ndarray:

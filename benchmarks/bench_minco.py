@@ -35,6 +35,7 @@ from perception.types import NeighborPrediction, OccupancySnapshot
 from planners.minco import MincoS3, _energy_and_grad
 from planners.path_search import PathSearchConfig, search_path
 from planners.trajectory_optimizer import TrajectoryOptimizerConfig, build_trajectory_problem, solve
+from timing import median_ms
 
 GCOPTER_US = {5: 1.5, 20: 6.8}
 
@@ -112,13 +113,8 @@ class NumpyMinco:
 
 
 def _median_us(fn, repeats: int) -> float:
-    fn()
-    times = np.empty(repeats)
-    for k in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times[k] = time.perf_counter() - t
-    return float(np.median(times) * 1e6)
+    """Median wall time [us] of ``fn()`` (:func:`timing.median_ms`, one warm-up call)."""
+    return 1e3 * median_ms(fn, repeats)
 
 
 def bench_minco_evaluation(repeats: int = 5000) -> None:

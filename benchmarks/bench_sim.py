@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
 from dataclasses import replace
 
 import numpy as np
@@ -32,16 +31,7 @@ from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import SceneSpec
 from sim.types import FlatOutputReference
 from sim.world import World
-
-
-def median_ms(fn, repeats: int) -> float:
-    fn()  # warm-up (compiles numba kernels, fills caches)
-    ts = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return 1e3 * float(np.median(ts))
+from timing import median_ms
 
 
 def render_bench(repeats: int) -> None:
