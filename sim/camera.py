@@ -134,8 +134,18 @@ def opengl_view_from_camera_to_world(transform_camera_to_world: np.ndarray) -> l
 def opengl_projection_from_intrinsics(K: np.ndarray, width_px: int, height_px: int, near_m: float, far_m: float) -> list[float]:
     """PyBullet projection matrix (16 floats, column-major) reproducing K exactly.
 
-    OpenCV pixel centres sit at integer coordinates, OpenGL's at +0.5, hence
-    c_gl = c + 0.5. With image row 0 at the top::
+    With this matrix the window coordinates are ``x_w = fx X/Z + cx_gl`` and
+    ``y_w = H - fy Y/Z - cy_gl`` (camera frame X right, Y down, Z forward).
+    PyBullet's TinyRenderer covers pixel column ``i`` when its centre
+    ``x_w = i`` is inside a triangle (centres at integer window coordinates,
+    not at +0.5 as in OpenGL proper) and stores window row ``y_w`` as image
+    row ``H - 1 - y_w``. OpenCV's pixel ``(u, v)`` has its centre at integer
+    ``(u, v)``, so K is reproduced with ``cx_gl = cx`` and ``cy_gl = cy + 1``.
+    Measured (``tests/unit/sim/test_camera.py``): the silhouette edges of boxes
+    fall within the first covered pixel, with no half-pixel shift. (An earlier
+    ``c_gl = c + 0.5`` shifted every render by +0.5 px in u and -0.5 px in v,
+    which back-projection read as a 1-2 cm lateral bias at 2-6 m.) With image
+    row 0 at the top::
 
         P = [[2 fx / W, 0, 1 - 2 cx_gl / W, 0],
              [0, 2 fy / H, 2 cy_gl / H - 1, 0],
@@ -143,7 +153,7 @@ def opengl_projection_from_intrinsics(K: np.ndarray, width_px: int, height_px: i
              [0, 0, -1, 0]]
     """
     fx, fy = K[0, 0], K[1, 1]
-    cx, cy = K[0, 2] + 0.5, K[1, 2] + 0.5
+    cx, cy = K[0, 2], K[1, 2] + 1.0  # TinyRenderer's pixel centres and row flip (docstring)
     W, H, n, f = float(width_px), float(height_px), float(near_m), float(far_m)
     P = np.array(
         [
