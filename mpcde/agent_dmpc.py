@@ -41,7 +41,11 @@ never sees another drone's state except through the radio. For each step k of
 its previous plan the nearest point of each obstacle's footprint gives a
 vertical separating plane n_k^T p[k] >= n_k^T c_k + r_robot + margin (the
 tangent plane at the nearest point, pushed out by the inflation), for the
-``max_obstacle_planes`` nearest obstacles.
+``max_obstacle_planes`` nearest obstacles. The inflation is the obstacle
+safety radius r_obs of on-demand DMPC design goal 4. How the QP uses the
+planes is ``qp.obstacle_avoidance``: a row at every step, or on demand (one
+row per obstacle at its first predicted conflict, the paper's mechanism and
+the default with ``collision_mode: on_demand``; :mod:`planners.dmpc.obstacle`).
 """
 
 from __future__ import annotations
@@ -128,6 +132,7 @@ class DmpcRoundStats:
         qp_build_s: per solved round, Python time [s] building the round's constraints.
         iterations: per solved round, OSQP iterations.
         collision_rows: per solved round, active collision constraints.
+        obstacle_rows: per solved round, obstacle rows in the QP (after culling; on demand: conflicts).
         statuses: count per OSQP status (failures included).
         fallbacks: rounds flown on the previous plan because OSQP failed.
         state_resets: rounds whose x0 came from the estimate (it disagreed with the plan, or no plan yet).
@@ -141,6 +146,7 @@ class DmpcRoundStats:
     qp_build_s: list[float] = field(default_factory=list)
     iterations: list[int] = field(default_factory=list)
     collision_rows: list[int] = field(default_factory=list)
+    obstacle_rows: list[int] = field(default_factory=list)
     statuses: dict[str, int] = field(default_factory=dict)
     fallbacks: int = 0
     state_resets: int = 0
@@ -407,6 +413,7 @@ class DmpcAgent:
             self.stats.qp_build_s.append(res.update_time_s)
             self.stats.iterations.append(res.iterations)
             self.stats.collision_rows.append(res.n_collision_constraints)
+            self.stats.obstacle_rows.append(res.n_obstacle_rows)
             self.plan = res.plan
         p = self.plan
         self._sampler = PlanSampler(p)
@@ -440,6 +447,7 @@ class DmpcAgent:
             "drone_id": self.drone_id,
             "planner": "dmpc",
             "collision_mode": self.qp_config.collision_mode,
+            "obstacle_avoidance": self.qp_config.obstacle_mode if self.qp_config.max_obstacle_planes else None,
             "rounds": len(s.qp_solve_s) + s.fallbacks,
             "solves": len(s.qp_solve_s),
             "fallbacks": s.fallbacks,
@@ -454,5 +462,7 @@ class DmpcAgent:
             "qp_build_ms_median": stat(np.asarray(s.qp_build_s) * 1e3, 50),
             "mean_iterations": float(np.mean(s.iterations)) if s.iterations else None,
             "mean_collision_rows": float(np.mean(s.collision_rows)) if s.collision_rows else None,
+            "mean_obstacle_rows": float(np.mean(s.obstacle_rows)) if s.obstacle_rows else None,
+            "obstacle_row_rounds": int(np.count_nonzero(s.obstacle_rows)),
             "qp_solve_ms": [round(float(v), 5) for v in solve_ms],
         }

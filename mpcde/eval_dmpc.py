@@ -6,13 +6,23 @@ acceleration, QP solve time and mission time; 3.94 ms vs 12.91 ms QP, 27.66 s
 vs 30.65 s mission) on this package's scenarios, flown closed-loop with the
 quadrotor physics and SE(3) controller (cameras off: the DMPC agents plan from
 the radio and their own pose estimate only, so rendering would change nothing
-but the wall time). Each (scenario, method) pair is flown once per seed with
-the scenario's own settings, ``planner.kind: dmpc`` and
-``dmpc.qp.collision_mode`` set to the method; methods are interleaved in one
-process so they see the same machine load.
+but the wall time). Each (scenario, method, obstacles) variant is flown once
+per seed with the scenario's own settings, ``planner.kind: dmpc``,
+``dmpc.qp.collision_mode`` set to the method and
+``dmpc.qp.obstacle_avoidance`` set to the obstacle mode; variants are
+interleaved in one process so they see the same machine load.
 
-Per row (pooled over seeds): collisions (drone-drone + drone-obstacle events,
-summed), the minimum inter-drone centre distance [m], the median and 95th
+Variants: each method with its paired obstacle mode (the paper's comparison:
+on-demand collision AND obstacle avoidance, on-demand DMPC Sec. 3.4, vs BVC
+with an obstacle row at every step), plus, in scenarios with obstacles and
+when ``every_step_variant`` is set, on-demand collision avoidance with
+every-step obstacle rows (the two halves of the mechanism separately).
+
+Per row (pooled over seeds): the obstacle mode (null without obstacles),
+collisions (drone-drone + drone-obstacle events, summed), the minimum
+inter-drone centre distance [m], the minimum obstacle clearance [m] (surface
+distance minus the robot radius, :mod:`mpcde.metrics`; null without
+obstacles), the median and 95th
 percentile of every solved round's QP time [ms] over all drones (OSQP's wall
 time per round: data update, refactorisation when the constraints changed,
 warm start and solve; the Python that builds the constraints is reported
@@ -42,10 +52,11 @@ from mpcde.scenario import load_scenario
 __all__ = ["ROW_KEYS", "format_table", "formation_error", "run_eval_dmpc"]
 
 ROW_KEYS = (
-    "method", "scenario", "collisions", "min_distance_m", "qp_ms_median", "qp_ms_p95",
-    "mission_time_s", "path_length_m", "mean_speed_mps", "mean_accel_mps2",
+    "method", "obstacles", "scenario", "collisions", "min_distance_m", "min_obstacle_clearance_m",
+    "qp_ms_median", "qp_ms_p95", "mission_time_s", "path_length_m", "mean_speed_mps", "mean_accel_mps2",
 )  # fmt: skip
 _METHODS = ("on_demand", "bvc")
+_PAIRED = {"on_demand": "on_demand", "bvc": "every_step"}  # DmpcConfig.obstacle_avoidance = "auto"
 _PAPER = {"on_demand": (3.94, 27.66, 21.3, 0.77, 0.48), "bvc": (12.91, 30.65, 22.0, 0.72, 0.66)}
 
 
@@ -67,8 +78,8 @@ def formation_error(pos_world: np.ndarray, offsets_world: np.ndarray) -> np.ndar
     return np.sum(((dist - ref[None]) ** 2)[:, off_diag], axis=1)
 
 
-def _fly(scenario: str, method: str, seed: int, duration_s: float | None) -> dict[str, Any]:
-    """One closed-loop flight; returns its metrics, pooled QP times and details."""
+def _fly(scenario: str, method: str, obstacles: str, seed: int, duration_s: float | None) -> dict[str, Any]:
+    """One closed-loop flight (``obstacles``: the obstacle mode); returns its metrics, pooled QP times and details."""
     overrides: dict[str, Any] = {"seed": int(seed)}
     if duration_s is not None:
         overrides["duration_s"] = float(duration_s)
@@ -76,7 +87,7 @@ def _fly(scenario: str, method: str, seed: int, duration_s: float | None) -> dic
     cfg = replace(
         cfg,
         planner=replace(cfg.planner, kind="dmpc"),
-        dmpc=replace(cfg.dmpc, qp=replace(cfg.dmpc.qp, collision_mode=method)),
+        dmpc=replace(cfg.dmpc, qp=replace(cfg.dmpc.qp, collision_mode=method, obstacle_avoidance=obstacles)),
         run=replace(cfg.run, cameras=False),
     )
     prepared = prepare_run(cfg)
@@ -85,12 +96,14 @@ def _fly(scenario: str, method: str, seed: int, duration_s: float | None) -> dic
     agents = m.pop("agents", [])
     qp_ms = np.concatenate([np.asarray(a["qp_solve_ms"], float) for a in agents]) if agents else np.zeros(0)
     detail = {
-        "scenario": scenario, "method": method, "seed": int(seed), "success": m["success"],
+        "scenario": scenario, "method": method, "obstacles": obstacles if prepared.obstacles else None,
+        "seed": int(seed), "success": m["success"],
         "arrived": m["arrived"], "n_drones": m["n_drones"], "collisions": m["collisions"],
         "min_distance_m": m["min_inter_drone_distance_m"], "min_obstacle_distance_m": m["min_obstacle_distance_m"],
         "mission_time_s": m["mission_time_s"], "sim_time_s": m["sim_time_s"], "real_time_factor": m["real_time_factor"],
         "solves": int(sum(a["solves"] for a in agents)), "fallbacks": int(sum(a["fallbacks"] for a in agents)),
         "state_resets": int(sum(a["state_resets"] for a in agents)),
+        "obstacle_row_rounds": int(sum(a["obstacle_row_rounds"] for a in agents)),
         "stale_plans": int(sum(a["stale_plans"] for a in agents)),
         "fresh_plans": int(sum(a["fresh_plans"] for a in agents)),
         "mean_iterations": float(np.mean([a["mean_iterations"] for a in agents if a["mean_iterations"] is not None])) if agents else None,
@@ -104,17 +117,20 @@ def _fly(scenario: str, method: str, seed: int, duration_s: float | None) -> dic
     return {"metrics": m, "qp_ms": qp_ms, "detail": detail, "log": result.log.arrays, "prepared": prepared}
 
 
-def _row(method: str, scenario: str, runs: list[dict]) -> dict[str, Any]:
-    """Pool one (method, scenario) over its seeds into a results row."""
+def _row(method: str, obstacles: str | None, scenario: str, runs: list[dict]) -> dict[str, Any]:
+    """Pool one (method, obstacles, scenario) over its seeds into a results row."""
     ms = [r["metrics"] for r in runs]
     qp = np.concatenate([r["qp_ms"] for r in runs])
     missions = [m["mission_time_s"] for m in ms]
     dists = [m["min_inter_drone_distance_m"] for m in ms if m["min_inter_drone_distance_m"] is not None]
+    clear = [m["min_obstacle_distance_m"] for m in ms if m["min_obstacle_distance_m"] is not None]
     return {
         "method": method,
+        "obstacles": obstacles,
         "scenario": scenario,
         "collisions": int(sum(m["collisions"] for m in ms)),
         "min_distance_m": float(min(dists)) if dists else None,
+        "min_obstacle_clearance_m": float(min(clear)) if clear else None,
         "qp_ms_median": float(np.median(qp)) if qp.size else None,
         "qp_ms_p95": float(np.percentile(qp, 95)) if qp.size else None,
         "mission_time_s": float(np.mean(missions)) if all(t is not None for t in missions) else None,
@@ -129,35 +145,42 @@ def _fmt(value: float | None, spec: str) -> str:
 
 
 def format_table(results: dict) -> str:
-    """Human-readable table of ``results["rows"]`` (scenario x method), with ratios BVC / on-demand."""
+    """Human-readable table of ``results["rows"]`` (scenario x variant), with QP-time ratios BVC / on-demand."""
     head = (
-        f"{'scenario':<17} {'method':<10} {'coll':>4} {'min d m':>7} {'QP med ms':>9} {'QP p95 ms':>9} "
-        f"{'mission s':>9} {'path m':>7} {'speed m/s':>9} {'acc m/s2':>8}"
+        f"{'scenario':<17} {'method':<10} {'obstacles':<10} {'coll':>4} {'min d m':>7} {'obs clr m':>9} "
+        f"{'QP med ms':>9} {'QP p95 ms':>9} {'mission s':>9} {'path m':>7} {'speed m/s':>9} {'acc m/s2':>8}"
     )
     lines = [head, "-" * len(head)]
     rows = results["rows"]
     for r in rows:
         lines.append(
-            f"{r['scenario']:<17} {r['method']:<10} {r['collisions']:>4d} {_fmt(r['min_distance_m'], '7.3f')} "
+            f"{r['scenario']:<17} {r['method']:<10} {r['obstacles'] or '-':<10} {r['collisions']:>4d} "
+            f"{_fmt(r['min_distance_m'], '7.3f')} {_fmt(r['min_obstacle_clearance_m'], '9.3f')} "
             f"{_fmt(r['qp_ms_median'], '9.3f')} {_fmt(r['qp_ms_p95'], '9.3f')} {_fmt(r['mission_time_s'], '9.2f')} "
             f"{r['path_length_m']:>7.2f} {r['mean_speed_mps']:>9.2f} {r['mean_accel_mps2']:>8.2f}"
         )
-    by = {(r["scenario"], r["method"]): r for r in rows}
     ratios = []
     for scen in dict.fromkeys(r["scenario"] for r in rows):
-        a, b = by.get((scen, "on_demand")), by.get((scen, "bvc"))
-        if a and b and a["qp_ms_median"] and b["qp_ms_median"]:
-            ratios.append(
-                f"{scen}: QP median BVC / on-demand = {b['qp_ms_median'] / a['qp_ms_median']:.2f}x, "
-                f"p95 {b['qp_ms_p95'] / a['qp_ms_p95']:.2f}x"
-            )
+        b = next((r for r in rows if r["scenario"] == scen and r["method"] == "bvc"), None)
+        for a in (r for r in rows if r["scenario"] == scen and r["method"] == "on_demand"):
+            if b and a["qp_ms_median"] and b["qp_ms_median"]:
+                label = f"on-demand ({a['obstacles']} obstacles)" if a["obstacles"] else "on-demand"
+                ratios.append(
+                    f"{scen}: QP median BVC / {label} = {b['qp_ms_median'] / a['qp_ms_median']:.2f}x, "
+                    f"p95 {b['qp_ms_p95'] / a['qp_ms_p95']:.2f}x"
+                )
     if ratios:
         lines += [""] + ratios
     return "\n".join(lines)
 
 
+def _label(method: str, obstacles: str | None) -> str:
+    """A variant's short name: the method, plus ``/<obstacle mode>`` where there are obstacles."""
+    return method if obstacles is None else f"{method}/{obstacles}"
+
+
 def _plot(out_dir: pathlib.Path, results: dict, flights: dict[tuple[str, str], dict]) -> None:
-    """Bars of QP time and mission time per (scenario, method), and top views of the first seed's flights."""
+    """Bars of QP time and mission time per (scenario, variant), and top views of the first seed's flights."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -165,27 +188,29 @@ def _plot(out_dir: pathlib.Path, results: dict, flights: dict[tuple[str, str], d
 
     rows = results["rows"]
     scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
-    methods = list(dict.fromkeys(r["method"] for r in rows))
-    by = {(r["scenario"], r["method"]): r for r in rows}
+    variants = list(dict.fromkeys((r["method"], r["obstacles"] or _PAIRED[r["method"]]) for r in rows))
+    by = {(r["scenario"], r["method"], r["obstacles"] or _PAIRED[r["method"]]): r for r in rows}
     ncol = 2 + len(flights)
     fig = Figure(figsize=(4.2 * ncol, 4.2))
     FigureCanvasAgg(fig)
     ax_qp, ax_mission = fig.add_subplot(1, ncol, 1), fig.add_subplot(1, ncol, 2)
-    width = 0.8 / max(len(methods), 1)
+    width = 0.8 / max(len(variants), 1)
     x = np.arange(len(scenarios))
-    for k, method in enumerate(methods):
-        med = [by[(s, method)]["qp_ms_median"] or 0.0 for s in scenarios]
-        p95 = [by[(s, method)]["qp_ms_p95"] or 0.0 for s in scenarios]
-        mission = [by[(s, method)]["mission_time_s"] or 0.0 for s in scenarios]
-        bars = ax_qp.bar(x + k * width, med, width, label=f"{method} median")
-        ax_qp.scatter(x + k * width, p95, marker="_", s=200, color=bars.patches[0].get_facecolor(), label=f"{method} p95")
-        ax_mission.bar(x + k * width, mission, width, label=method)
+    for k, variant in enumerate(variants):
+        name = _label(*variant)
+        got = [by.get((s, *variant)) for s in scenarios]
+        med = [(r["qp_ms_median"] or 0.0) if r else 0.0 for r in got]
+        p95 = [(r["qp_ms_p95"] or 0.0) if r else 0.0 for r in got]
+        mission = [(r["mission_time_s"] or 0.0) if r else 0.0 for r in got]
+        bars = ax_qp.bar(x + k * width, med, width, label=f"{name} median")
+        ax_qp.scatter(x + k * width, p95, marker="_", s=200, color=bars.patches[0].get_facecolor(), label=f"{name} p95")
+        ax_mission.bar(x + k * width, mission, width, label=name)
     for ax, title, unit in ((ax_qp, "QP solve time", "[ms]"), (ax_mission, "mission time", "[s]")):
-        ax.set_xticks(x + width * (len(methods) - 1) / 2, scenarios)
+        ax.set_xticks(x + width * (len(variants) - 1) / 2, scenarios)
         ax.set(title=title, ylabel=unit)
         ax.legend(fontsize=7)
     ax_qp.set_yscale("log")
-    for c, ((scen, method), flight) in enumerate(flights.items()):
+    for c, ((scen, name), flight) in enumerate(flights.items()):
         ax = fig.add_subplot(1, ncol, 3 + c)
         prepared = flight["prepared"]
         for ob in prepared.obstacles:
@@ -199,7 +224,7 @@ def _plot(out_dir: pathlib.Path, results: dict, flights: dict[tuple[str, str], d
             ax.plot(pos[:, i, 0], pos[:, i, 1], lw=1.0)
         ax.plot(*prepared.starts[:, :2].T, "ko", ms=3)
         ax.plot(*prepared.goals[:, :2].T, "kx", ms=5)
-        ax.set(title=f"{scen}, {method}", xlabel="x [m]", ylabel="y [m]", aspect="equal")
+        ax.set(title=f"{scen}, {name}", xlabel="x [m]", ylabel="y [m]", aspect="equal")
     fig.tight_layout()
     fig.savefig(out_dir / "results.png", dpi=100)
 
@@ -211,20 +236,25 @@ def run_eval_dmpc(
     seeds: Sequence[int] = (0,),
     progress: bool = True,
     duration_s: float | None = None,
+    every_step_variant: bool = True,
 ) -> dict:
-    """Fly every (scenario, method, seed) with DMPC and write the Table 1 comparison.
+    """Fly every (scenario, variant, seed) with DMPC and write the Table 1 comparison.
 
     Args:
         out_dir: output folder (created); gets ``results.json``
-            (``{"rows": [{method, scenario, collisions, min_distance_m,
-            qp_ms_median, qp_ms_p95, mission_time_s, path_length_m,
-            mean_speed_mps, mean_accel_mps2}]}``), ``results.txt``,
-            ``details.json`` and ``results.png``.
-        methods: collision-avoidance methods, ``"on_demand"`` and/or ``"bvc"``.
+            (``{"rows": [{method, obstacles, scenario, collisions,
+            min_distance_m, min_obstacle_clearance_m, qp_ms_median, qp_ms_p95,
+            mission_time_s, path_length_m, mean_speed_mps, mean_accel_mps2}]}``),
+            ``results.txt``, ``details.json`` and ``results.png``.
+        methods: collision-avoidance methods, ``"on_demand"`` and/or ``"bvc"``,
+            each flown with its paired obstacle mode (on_demand -> on_demand,
+            bvc -> every_step).
         scenarios: scenario names or files (flown with ``planner.kind: dmpc``).
-        seeds: one flight per seed and (scenario, method).
+        seeds: one flight per seed and (scenario, variant).
         progress: show a tqdm progress bar over flights.
         duration_s: override every scenario's time limit [s] (short test runs).
+        every_step_variant: also fly ``on_demand`` with every-step obstacle
+            rows in scenarios that have obstacles (when ``on_demand`` is asked).
 
     Returns:
         The results dict written to ``results.json``.
@@ -243,26 +273,33 @@ def run_eval_dmpc(
         raise ValueError("seeds=(): at least one seed")
     if duration_s is not None and not duration_s > 0:
         raise ValueError(f"duration_s={duration_s!r}: > 0 [s]")
-    for scen in scenarios:  # fail on a bad scenario before flying anything
-        prepare_run(load_scenario(scen, {"duration_s": duration_s} if duration_s is not None else None))
+    has_obstacles = {}  # fail on a bad scenario before flying anything
+    for scen in scenarios:
+        prepared = prepare_run(load_scenario(scen, {"duration_s": duration_s} if duration_s is not None else None))
+        has_obstacles[scen] = bool(prepared.obstacles)
     out_dir = pathlib.Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
 
     from tqdm import tqdm
 
-    bar = tqdm(total=len(scenarios) * len(methods) * len(seeds), disable=not progress, desc="eval-dmpc")
-    runs: dict[tuple[str, str], list[dict]] = {(s, m): [] for s in scenarios for m in methods}
+    variants: dict[str, list[tuple[str, str | None]]] = {}  # per scenario: (method, obstacle mode or None)
+    for scen in scenarios:
+        variants[scen] = [(m, _PAIRED[m] if has_obstacles[scen] else None) for m in methods]
+        if has_obstacles[scen] and every_step_variant and "on_demand" in methods:
+            variants[scen].append(("on_demand", "every_step"))
+    bar = tqdm(total=sum(map(len, variants.values())) * len(seeds), disable=not progress, desc="eval-dmpc")
+    runs: dict[tuple[str, str, str | None], list[dict]] = {(s, *v): [] for s in scenarios for v in variants[s]}
     flights: dict[tuple[str, str], dict] = {}
     for scen in scenarios:
         for seed in seeds:
-            for method in methods:  # interleaved: both methods under the same machine load
-                flight = _fly(scen, method, seed, duration_s)
-                runs[(scen, method)].append(flight)
+            for method, obstacles in variants[scen]:  # interleaved: all variants under the same machine load
+                flight = _fly(scen, method, obstacles or _PAIRED[method], seed, duration_s)
+                runs[(scen, method, obstacles)].append(flight)
                 if seed == seeds[0]:
-                    flights[(scen, method)] = flight
+                    flights[(scen, _label(method, obstacles))] = flight
                 bar.update(1)
     bar.close()
-    results = {"rows": [_row(m, s, runs[(s, m)]) for s in scenarios for m in methods]}
+    results = {"rows": [_row(m, o, s, runs[(s, m, o)]) for s in scenarios for m, o in variants[s]]}
     (out_dir / "results.json").write_text(json.dumps(results, indent=2) + "\n")
     details = [f["detail"] for key in runs for f in runs[key]]
     (out_dir / "details.json").write_text(json.dumps(details, indent=2) + "\n")
@@ -271,8 +308,9 @@ def run_eval_dmpc(
         for m, p in _PAPER.items()
     )
     notes = "\n".join(
-        f"  {d['scenario']:<17} {d['method']:<10} seed {d['seed']}: arrived {d['arrived']}/{d['n_drones']}, "
-        f"{d['solves']} solves, {d['fallbacks']} fallbacks, {d['stale_plans']} stale plans, "
+        f"  {d['scenario']:<17} {_label(d['method'], d['obstacles']):<20} seed {d['seed']}: "
+        f"arrived {d['arrived']}/{d['n_drones']}, {d['solves']} solves, {d['fallbacks']} fallbacks, "
+        f"{d['stale_plans']} stale plans, {d['obstacle_row_rounds']} rounds with obstacle rows, "
         f"mean {d['mean_iterations']:.0f} OSQP iterations, build {d['qp_build_ms_median']:.3f} ms (median)"
         + (f", formation error mean {d['formation_error_mean_m2']:.3f} m^2" if "formation_error_mean_m2" in d else "")
         for d in details

@@ -19,6 +19,7 @@ from planners.dmpc.model import (
     prediction_matrices,
     rollout,
 )
+from planners.dmpc.obstacle import ObstacleConflicts, ObstacleRows, obstacle_conflicts, obstacle_rows, stack_obstacles
 from planners.dmpc.qp import DmpcProblem, DmpcResult, DmpcSolveError, QpSnapshot
 from planners.dmpc.reach import implied_half_spaces, reach_boxes
 from planners.dmpc.sampling import hermite_positions, sample_predictions
@@ -31,6 +32,8 @@ __all__ = [
     "DmpcProblem",
     "DmpcResult",
     "DmpcSolveError",
+    "ObstacleConflicts",
+    "ObstacleRows",
     "OnDemandConstraints",
     "PredictionMatrices",
     "QpSnapshot",
@@ -41,9 +44,12 @@ __all__ = [
     "first_conflict_step",
     "hermite_positions",
     "implied_half_spaces",
+    "obstacle_conflicts",
+    "obstacle_rows",
     "on_demand_constraints",
     "prediction_matrices",
     "reach_boxes",
     "rollout",
     "sample_predictions",
+    "stack_obstacles",
 ]

@@ -20,6 +20,7 @@ __all__ = ["DmpcConfig"]
 
 _MODELS = ("double", "triple")
 _COLLISION_MODES = ("on_demand", "bvc")
+_OBSTACLE_MODES = ("auto", "on_demand", "every_step")
 
 
 def _positive(name: str, value: float) -> None:
@@ -96,8 +97,21 @@ class DmpcConfig:
             8-drone swap with S = 1).
         max_neighbours: number of neighbour slots in the QP (fixed sparsity);
             more neighbours than this are cut to the nearest ones (chosen: 8).
-        max_obstacle_planes: number of static-obstacle half-space slots per
-            horizon step (0 disables them; chosen: 0).
+        max_obstacle_planes: number of static obstacles the QP takes (one
+            half-space per obstacle: a slot per horizon step with
+            ``every_step``, one slot per obstacle with ``on_demand``; 0
+            disables them; chosen: 0).
+        obstacle_avoidance: how the obstacle half-spaces enter the QP:
+            ``"every_step"`` (one hard row per obstacle and horizon step, the
+            conventional form), ``"on_demand"`` (on-demand DMPC Sec. 3.4 applied
+            to "known obstacle positions": the own previous plan is checked
+            against each obstacle's half-spaces and ONE hard row is added for an
+            obstacle only when it predicts a conflict, at the time chosen by
+            ``on_demand_time``; :mod:`planners.dmpc.obstacle`) or ``"auto"``
+            (default: pairs with ``collision_mode``, on_demand -> on_demand as in
+            the paper, bvc -> every_step as the conventional baseline; resolved
+            by :attr:`obstacle_mode`, so ``replace(cfg, collision_mode=...)``
+            re-pairs it).
         obstacle_culling: leave out an obstacle half-space at a step where
             the QP's own velocity and input limits already imply it (no
             feasible plan can reach the plane then, so the solution is the
@@ -150,6 +164,7 @@ class DmpcConfig:
     conflict_substeps: int = 4
     max_neighbours: int = 8
     max_obstacle_planes: int = 0
+    obstacle_avoidance: str = "auto"
     obstacle_culling: bool = True
     vertical_obstacle_planes: bool = False
     terminal_halt: bool = False
@@ -199,6 +214,8 @@ class DmpcConfig:
             raise ValueError(f"max_neighbours={self.max_neighbours!r}: an integer >= 1")
         if not isinstance(self.max_obstacle_planes, (int, np.integer)) or self.max_obstacle_planes < 0:
             raise ValueError(f"max_obstacle_planes={self.max_obstacle_planes!r}: an integer >= 0")
+        if self.obstacle_avoidance not in _OBSTACLE_MODES:
+            raise ValueError(f"obstacle_avoidance={self.obstacle_avoidance!r}: one of {', '.join(_OBSTACLE_MODES)}")
         if not isinstance(self.vertical_obstacle_planes, bool):
             raise ValueError(f"vertical_obstacle_planes={self.vertical_obstacle_planes!r}: True or False")
         if not isinstance(self.obstacle_culling, bool):
@@ -220,6 +237,13 @@ class DmpcConfig:
     def state_dim(self) -> int:
         """Dimension of the state: 6 (double) or 9 (triple)."""
         return 6 if self.model == "double" else 9
+
+    @property
+    def obstacle_mode(self) -> str:
+        """``obstacle_avoidance`` resolved: ``"on_demand"`` or ``"every_step"`` ("auto" follows ``collision_mode``)."""
+        if self.obstacle_avoidance != "auto":
+            return self.obstacle_avoidance
+        return "on_demand" if self.collision_mode == "on_demand" else "every_step"
 
     @property
     def horizon_s(self) -> float:

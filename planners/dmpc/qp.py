@@ -12,7 +12,8 @@ P = A0_p x0 + Lambda_p U (on-demand DMPC Eq. 10, :mod:`planners.dmpc.model`)::
     s.t. p_min <= p[k] <= p_max,  |v[k]| <= v_max,  |a| <= a_max  (|j| <= j_max)   (box, per axis)
          on demand: a_m^T p(t_c) + s_m >= b_m,  0 <= s_m <= s_max                  (Sec. 3.4)
          bvc:       a_mk^T p[k] >= b_mk  for every neighbour m and step k            (Eq. 15)
-         obstacles: n_ok^T p[k] >= c_ok                                             (half-spaces)
+         obstacles: n_ok^T p[k] >= c_ok  every step, or on demand only at the        (half-spaces,
+                    first predicted conflict of each obstacle (one row per slot)     planners.dmpc.obstacle)
          optional terminal halt: v[K] = 0 (a[K] = 0)                                (DMPC-Swarm Eq. 13e)
 
 with d_ij the desired offset p_j - p_i (on-demand DMPC design goal 2),
@@ -89,8 +90,8 @@ from perception.types import NeighborPrediction
 from planners.dmpc.collision import bvc_planes, ellipsoidal_distance, on_demand_constraints
 from planners.dmpc.config import DmpcConfig
 from planners.dmpc.model import fine_position_matrices, prediction_matrices, stacked_state_matrices
+from planners.dmpc.obstacle import ObstacleConflicts, obstacle_rows
 from planners.dmpc.qp_result import DmpcResult, DmpcSolveError, QpSnapshot
-from planners.dmpc.reach import implied_half_spaces, reach_boxes
 from planners.dmpc.sampling import hermite_positions, sample_predictions
 from planners.dmpc.types import DmpcPlan
 
@@ -189,13 +190,16 @@ class DmpcProblem:
             self._n_coll_rows = M * K
         # Obstacle half-spaces (dynamic values).
         self._row_obs = row
-        # Obstacle rows: x, y input columns only for vertical planes (a third fewer entries to factorise).
-        self._obs_mask = lower & ((np.arange(3 * K) % 3 != 2)[None, :] if cfg.vertical_obstacle_planes else True)
+        # Obstacle rows: x, y input columns only for vertical planes (a third fewer entries to factorise);
+        # every_step: one row per obstacle and step (lower-triangular), on_demand: one dense row per slot.
+        xy = (np.arange(3 * K) % 3 != 2)[None, :] if cfg.vertical_obstacle_planes else True
+        self._obs_steps = K if cfg.obstacle_mode == "every_step" else 1
+        self._obs_mask = (lower if self._obs_steps == K else np.ones((1, 3 * K), bool)) & xy
         if O:
             kk, cc = np.nonzero(self._obs_mask)
-            r = (np.arange(O)[:, None] * K + kk[None, :]).ravel()
+            r = (np.arange(O)[:, None] * self._obs_steps + kk[None, :]).ravel()
             self._obs_slice = pat.add(row + r, np.tile(cc, O), np.zeros(r.size))
-            row += O * K
+            row += O * self._obs_steps
         self._n_rows = row
         A, self._A_coo_to_csc = pat.to_csc((row, n))
         self._Ax = A.data.copy()
@@ -234,9 +238,12 @@ class DmpcProblem:
             self._step_blocks.append((self._row_jerk, 1, 3))
         if cfg.collision_mode == "bvc":
             self._step_blocks.append((self._row_coll, M, 1))
-        if O:
+        if O and self._obs_steps == K:
             self._step_blocks.append((self._row_obs, O, 1))
         self._snapshot: QpSnapshot | None = None
+        self._obstacle_conflicts: ObstacleConflicts | None = None
+        self._coll_coef, self._slack_coef = np.zeros((M, 3 * K)), np.zeros(M)  # on-demand slot values
+        self._obs_coef = np.zeros((O, 3 * K))  # on-demand obstacle slot values
 
     # ------------------------------------------------------------------ build
     def _assemble_P(self, n_form: int) -> sp.csc_matrix:
@@ -253,6 +260,11 @@ class DmpcProblem:
 
     def _set_dynamic(self, sl: slice, values: np.ndarray) -> None:
         self._Ax[self._A_coo_to_csc[sl]] = values
+
+    @property
+    def obstacle_conflicts(self) -> ObstacleConflicts | None:
+        """The last round's on-demand obstacle conflicts (None before one, or with ``every_step``)."""
+        return self._obstacle_conflicts
 
     def snapshot(self) -> QpSnapshot | None:
         """The QP and solution of the last :meth:`solve` (None before the first)."""
@@ -362,8 +374,9 @@ class DmpcProblem:
             )  # fmt: skip
             keep = np.argsort(cons.distance_m)[:M]  # nearest first if more than the slots
             n_coll = keep.size
-            coef = np.zeros((M, 3 * K))
-            slack_coef = np.zeros(M)
+            # Unused slots keep their last coefficients (their bounds are -inf..inf and their slack is
+            # pinned at 0, so they constrain nothing): a round whose conflicts end leaves A unchanged.
+            coef, slack_coef = self._coll_coef, self._slack_coef
             if n_coll:
                 conflict_time_s = float(t_fine[cons.step_index])  # first conflicting check time
                 j_c = cons.time_index[keep]  # (n,) constrained check times
@@ -395,7 +408,7 @@ class DmpcProblem:
 
         n_obs = 0
         if cfg.max_obstacle_planes:
-            n_obs = self._fill_obstacles(obstacles, free_pos, x0)
+            n_obs = self._fill_obstacles(obstacles, free_pos, x0, own_prev)
         elif obstacles:
             raise ValueError(f"obstacles: {len(obstacles)} planes given but max_obstacle_planes=0")
 
@@ -425,7 +438,7 @@ class DmpcProblem:
             update["Px"] = self._P.data
         t_solve = time.perf_counter()
         if self._x_last is not None:
-            x_ws, y_ws = self._shifted_warm_start(n_coll)
+            x_ws, y_ws = self._shifted_warm_start(n_coll, n_obs)
         else:
             x_ws, y_ws = np.zeros(self._P.shape[0]), np.zeros(self._n_rows)
         res = self._run_osqp(update, x_ws, y_ws)
@@ -466,14 +479,15 @@ class DmpcProblem:
         core.solve()
         return SimpleNamespace(x=np.array(core.solution.x), y=np.array(core.solution.y), info=core.info)
 
-    def _shifted_warm_start(self, n_coll: int) -> tuple[np.ndarray, np.ndarray]:
+    def _shifted_warm_start(self, n_coll: int, n_obs: int) -> tuple[np.ndarray, np.ndarray]:
         """Previous primal and dual solutions shifted by one step (the receding horizon).
 
         Inputs u[1..K-1] become u[0..K-2] and u[K-1] is repeated; the
         multipliers of every step-indexed row block (position, velocity and
         acceleration boxes, BVC planes, obstacle planes) shift the same way.
-        On-demand rows (one per neighbour slot, not per step) keep their
-        multipliers; unused on-demand slots start at 0.
+        On-demand rows (one per neighbour or obstacle slot, not per step) keep
+        their multipliers; unused on-demand slots (the first ``n_coll``
+        neighbour and ``n_obs`` obstacle slots are used) start at 0.
 
         Returns:
             x (n,) and y (m,) for OSQP's warm start.
@@ -488,6 +502,8 @@ class DmpcProblem:
         if self.config.collision_mode == "on_demand":
             x[n_u + n_coll :] = 0.0
             y[self._row_coll + n_coll : self._row_coll + self._n_coll_rows] = 0.0
+        if self._obs_steps == 1:
+            y[self._row_obs + n_obs : self._n_rows] = 0.0
         return x, y
 
     def _nearest(self, own_prev: np.ndarray, nb_pos: np.ndarray, count: int) -> np.ndarray:
@@ -506,40 +522,29 @@ class DmpcProblem:
         rows = [nb_pos[i] - np.asarray(offsets[j], float).reshape(1, 3) for i, j in enumerate(nb_ids) if j in offsets]
         return np.array(rows).reshape(-1, self.config.horizon_steps, 3)
 
-    def _fill_obstacles(self, obstacles: Sequence | None, free_pos: np.ndarray, x0: np.ndarray) -> int:
-        """Obstacle rows normal^T (A0 x0 + Lambda U)[k] >= offset; returns the number kept.
+    def _fill_obstacles(
+        self, obstacles: Sequence | None, free_pos: np.ndarray, x0: np.ndarray, own_prev: np.ndarray
+    ) -> int:
+        """Obstacle rows (every step or on demand, :func:`planners.dmpc.obstacle.obstacle_rows`); returns the number used.
 
-        Culling (``config.obstacle_culling``): a row is left out (bounds
-        -inf..inf, coefficients 0) when every position that the QP's own box
-        constraints allow at step k satisfies it with ``_CULL_MARGIN_M`` to
-        spare (:mod:`planners.dmpc.reach`). Such a row is implied by the
-        velocity (or input) limits, so the feasible set, and hence the QP's
-        solution, is exactly the same with or without it: culling never drops
-        a constraint that could be active. The margin covers the box rows
-        being met only to OSQP's tolerance. Both collision modes share this
-        code (a fair comparison).
+        Culled rows (implied by the box constraints with ``_CULL_MARGIN_M`` to
+        spare; the margin covers the box rows being met only to OSQP's
+        tolerance) are left unused: exactly the same feasible set. Both
+        collision modes share this code (a fair comparison).
         """
-        K, O = self.config.horizon_steps, self.config.max_obstacle_planes
-        obstacles = list(obstacles or [])
-        if len(obstacles) > O:
-            raise ValueError(f"obstacles: {len(obstacles)} planes given, max_obstacle_planes={O}")
-        normals, offsets = np.zeros((O, K, 3)), np.full((O, K), -_INF)
-        for i, (nrm, off) in enumerate(obstacles):
-            normals[i] = np.broadcast_to(np.asarray(nrm, float), (K, 3))
-            offsets[i] = np.broadcast_to(np.asarray(off, float), (K,))
-        used = offsets > -_INF
-        if self.config.vertical_obstacle_planes and np.any(normals[..., 2] != 0.0):
+        if self.config.vertical_obstacle_planes and any(np.any(np.asarray(n, float)[..., 2] != 0.0) for n, _ in obstacles or []):
             raise ValueError("obstacles: a normal with a z component, but vertical_obstacle_planes=True")
-        if self.config.obstacle_culling and used.any():
-            used &= ~implied_half_spaces(normals, offsets, reach_boxes(self.config, x0), _CULL_MARGIN_M)
-            normals[~used] = 0.0
-        coef = np.einsum("okd,kdc->okc", normals, self._Lambda_pos_blocks)
-        self._set_dynamic(self._obs_slice, coef[:, self._obs_mask].ravel())
-        rows = slice(self._row_obs, self._row_obs + O * K)
-        lo = offsets - np.einsum("okd,kd->ok", normals, free_pos)  # n^T Lambda U >= offset - n^T A0 x0
-        self._l[rows] = np.where(used, lo, -_INF).ravel()
-        self._u[rows] = _INF
-        return int(used.sum())
+        rows = obstacle_rows(self.config, obstacles, x0, free_pos, self._Lambda_pos_blocks, own_prev, _CULL_MARGIN_M)
+        self._obstacle_conflicts = rows.conflicts
+        coef = rows.coef
+        if self._obs_steps == 1:  # on demand: unused slots keep their last coefficients (bounds -inf..inf),
+            self._obs_coef[: rows.count] = coef[: rows.count]  # so a round whose conflicts end leaves A unchanged
+            coef = self._obs_coef
+        mask = np.broadcast_to(self._obs_mask, (self.config.max_obstacle_planes,) + self._obs_mask.shape)
+        self._set_dynamic(self._obs_slice, coef.reshape(mask.shape)[mask])
+        self._l[self._row_obs : self._n_rows] = rows.lower
+        self._u[self._row_obs : self._n_rows] = _INF
+        return rows.count
 
     def _result(
         self, res, x0: np.ndarray, goal: np.ndarray, t_now_s: float, e: np.ndarray, form_targets: np.ndarray,

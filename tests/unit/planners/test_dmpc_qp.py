@@ -54,7 +54,9 @@ CASES = {
     "on_demand_triple": dict(collision_mode="on_demand", model="triple"),
     "bvc_double": dict(collision_mode="bvc", model="double"),
     "bvc_triple_halt": dict(collision_mode="bvc", model="triple", terminal_halt=True),
-    "on_demand_formation_obstacles": dict(collision_mode="on_demand", max_obstacle_planes=2, terminal_halt=True),
+    "on_demand_formation_obstacles": dict(
+        collision_mode="on_demand", max_obstacle_planes=2, terminal_halt=True, obstacle_avoidance="every_step"
+    ),
 }
 
 
@@ -247,7 +249,7 @@ def test_culled_obstacle_rows_change_nothing_and_hold_anyway() -> None:
     # Culling leaves out rows the velocity/input limits imply; the QP (and so its solution) is the same.
     results = {}
     for culling in (True, False):
-        cfg = DmpcConfig(max_obstacle_planes=3, obstacle_culling=culling, **TIGHT)
+        cfg = DmpcConfig(max_obstacle_planes=3, obstacle_culling=culling, obstacle_avoidance="every_step", **TIGHT)
         problem = DmpcProblem(cfg)
         x0 = _x0(cfg, vel=(1.5, -1.0, 0.0))  # heading for the near wall
         planes = _obstacle_planes(cfg)
@@ -266,7 +268,7 @@ def test_culled_obstacle_rows_change_nothing_and_hold_anyway() -> None:
 
 def test_culling_keeps_a_plane_that_a_fast_plan_can_reach() -> None:
     # A plane 1 m ahead at 2 m/s is reachable from step 2 on, so it must stay and be met.
-    cfg = DmpcConfig(max_obstacle_planes=1, **TIGHT)
+    cfg = DmpcConfig(max_obstacle_planes=1, obstacle_avoidance="every_step", **TIGHT)
     problem = DmpcProblem(cfg)
     x0 = _x0(cfg, vel=(2.0, 0.0, 0.0))
     result = problem.solve(x0, [10.0, 0.0, 1.5], [], None, t_now_s=0.0, obstacles=[(np.array([-1.0, 0, 0]), -1.0)])
