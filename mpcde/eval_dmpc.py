@@ -141,7 +141,8 @@ def _row(method: str, obstacles: str | None, scenario: str, runs: list[dict]) ->
 
 
 def _fmt(value: float | None, spec: str) -> str:
-    return "-" if value is None else format(value, spec)
+    """``value`` formatted with ``spec`` (e.g. ``"7.3f"``), or ``-`` right-aligned to the same width."""
+    return format("-", f">{spec.split('.')[0]}") if value is None else format(value, spec)
 
 
 def format_table(results: dict) -> str:

@@ -44,7 +44,10 @@ the QPs recorded in ``mpcde eval-dmpc``, OMP_NUM_THREADS=1, shared 2-core box):
   (0.06-0.3 ms, of which OSQP's Ruiz re-equilibration is half at its default
   of 10 passes, hence ``osqp_scaling = 4``). On-demand rows change only in
   rounds with a conflict, so most on-demand rounds need no refactorisation;
-  BVC planes and obstacle planes change every round.
+  BVC planes and every-step obstacle planes change every round. An unused
+  on-demand slot (neighbour or obstacle) keeps its last coefficients with
+  bounds (-inf, inf), so the round in which a conflict ends needs no
+  refactorisation either.
 * One slack per on-demand row, as in the paper (on-demand DMPC Sec. 3.4,
   alpha_ij per neighbour). An UNUSED slot's slack is pinned at 0 with price 0:
   the same optimum, but without it the bound s >= 0 carried the multiplier
@@ -70,10 +73,17 @@ the QPs recorded in ``mpcde eval-dmpc``, OMP_NUM_THREADS=1, shared 2-core box):
   sigma (1, 0.01 / 1e-4 no better), no polishing.
 
 Floor: a round with no collision or obstacle row (nothing to refactorise,
-box constraints only) costs about 0.12-0.16 ms. formation_square's obstacle
-planes change every round (a new tangent plane per step), so each of its
-rounds pays a refactorisation plus about 25 iterations: about 0.4 ms median
-for either method, above the 0.3 ms goal.
+box constraints only) costs about 0.12-0.16 ms. With every-step obstacle rows,
+formation_square's obstacle planes change every round (a new tangent plane
+per step), so each of its rounds pays a refactorisation plus about 25
+iterations: about 0.4 ms median for either method. With on-demand obstacle
+rows (the paper's mechanism) only rounds with a predicted obstacle conflict
+refactorise: about half of formation_square's rounds (the obstacles lie on
+the drones' straight lines; the unconstrained optimum of every round while
+passing one goes through it, so its row is needed every round), and those
+rounds take about 40 iterations (median 0.38 ms against 0.13 ms without):
+overall median about 0.24-0.26 ms, BVC / on-demand about 2x (measured in
+``mpcde eval-dmpc``; see the report of issue 6).
 """
 
 from __future__ import annotations
@@ -318,6 +328,8 @@ class DmpcProblem:
             obstacles: static obstacle half-spaces ``(normal, offset)`` with
                 normal (3,) or (K, 3) and offset scalar or (K,), meaning
                 normal^T p[k] >= offset [m]; at most ``max_obstacle_planes``.
+                Every step, or on demand only at each obstacle's first
+                predicted conflict of ``previous_plan`` (``obstacle_avoidance``).
 
         Raises:
             DmpcSolveError: OSQP did not return a solution (carries the QP).
