@@ -40,16 +40,15 @@ from typing import Any
 
 import numpy as np
 
-from mpcde.eval_tracking import TrackingScenario, camera_pose, in_camera_view
+from mpcde.eval_tracking import TrackingScenario, camera_pose, hover_truth, in_camera_view
 from perception.backprojection import BackprojectionConfig, backproject
 from perception.tracker import Measurement
 from sim.camera import CameraConfig
 from sim.camera_rig import CameraRig
-from sim.ground_truth import TrueState
 from sim.obstacles import ObstacleSpec
 from sim.pose_estimate import PoseEstimateConfig, PoseEstimator
 from sim.quadrotor_params import GRAVITY_MPS2
-from sim.rotations import quat_xyzw_from_rotation, quat_xyzw_from_yaw, rotation_from_quat_xyzw, rotation_from_thrust_axis_and_yaw
+from sim.rotations import quat_xyzw_from_rotation, rotation_from_thrust_axis_and_yaw
 from sim.scene import SceneSpec
 
 __all__ = ["PipelineMeasurements", "PipelineRun", "background_trees", "flat_attitudes"]
@@ -156,8 +155,6 @@ class PipelineMeasurements:
 
         observer = np.asarray(scenario.observer_pos_world, float)
         yaw = float(scenario.observer_yaw_rad)
-        quat_obs = quat_xyzw_from_yaw(yaw)
-        R_obs = rotation_from_quat_xyzw(quat_obs)
         rig = CameraRig(self.camera, seed)
         cam_pos_world, R_cw = camera_pose(scenario, self.camera)
         T_true = np.eye(4)
@@ -173,11 +170,7 @@ class PipelineMeasurements:
                 renderer.set_drone_poses(pos[k], quat[k])
                 raw = renderer.render(T_true, own_drone=None)
                 n_visible += int(np.count_nonzero(in_camera_view(pos[k], cam_pos_world, R_cw, self.camera, 0.0)))
-                truth = TrueState(
-                    time_s=float(t), pos_world=observer[None], vel_world=np.zeros((1, 3)), quat_xyzw=quat_obs[None],
-                    rotation_body_to_world=R_obs[None], ang_vel_body=np.zeros((1, 3)), obstacle_contact=np.zeros(1, bool), failed=np.zeros(1, bool),
-                )  # fmt: skip
-                estimate = estimator.update(truth)[0]
+                estimate = estimator.update(hover_truth(float(t), observer, yaw))[0]
                 pending.append(rig.frame(0, k, float(t), raw, estimate))  # depth noise seeded by (seed, 0, k)
                 if len(pending) == self.batch_frames or k == n_frames - 1:
                     for frame, dets in zip(pending, detector.detect(pending)):

@@ -16,6 +16,7 @@ from mpcde.eval_tracking import (
     make_scenario,
     run_eval_tracking,
 )
+from sim.pose_estimate import PoseEstimateConfig
 
 ROW_KEYS = {"speed_mps", "filter", "measurements", "pos_rmse_m", "vel_rmse_mps", "id_switches", "nees"}
 
@@ -78,23 +79,54 @@ def test_pipeline_rows_track_rendered_drones(tmp_path):
     assert rows["akf"]["id_switches"] == 0
 
 
-def test_synthetic_noise_follows_the_range_model_and_drops_detections():
+def test_synthetic_noise_follows_the_ray_model_and_drops_detections():
+    """With a perfect pose estimate the errors are the along / across-ray model; each measurement carries it."""
     scenario = make_scenario(1.0, 1, 40.0, seed=3)
-    source = SyntheticMeasurements(p_occlusion=0.0, false_positive_rate=0.0, p_miss=0.2)
+    source = SyntheticMeasurements(p_occlusion=0.0, false_positive_rate=0.0, p_miss=0.2, pose_estimate=PoseEstimateConfig(0, 0, 0, 0, 0))
     frames = source.measure(scenario, seed=3)
     assert len(frames) == scenario.times_s.size
     detected = [k for k, f in enumerate(frames) if f]
     assert abs(len(detected) / len(frames) - 0.8) < 0.03
     z = np.array([frames[k][0].pos_world for k in detected])
     truth = scenario.target_pos_world[detected, 0]
-    rng_m = np.linalg.norm(truth - scenario.observer_pos_world, axis=1)
-    normalised = (z - truth) / (0.02 + 0.01 * rng_m)[:, None]
-    assert abs(normalised.std() - 1.0) < 0.05
-    assert abs(normalised.mean()) < 0.05
-    # each measurement carries the model's covariance at its measured range
+    cam_pos, _ = camera_pose(scenario, source.camera)
+    offset = truth - cam_pos
+    rng_m = np.linalg.norm(offset, axis=1)
+    e = offset / rng_m[:, None]
+    err = z - truth
+    along = np.sum(err * e, axis=1)
+    across = err - along[:, None] * e
+    std_along, std_across = source.noise_std_m(rng_m)
+    assert abs((along / std_along).std() - 1.0) < 0.05 and abs((along / std_along).mean()) < 0.05
+    # two independent across-ray components: the squared norm over std^2 averages 2
+    assert abs(np.mean(np.sum(across**2, axis=1) / std_across**2) - 2.0) < 0.25  # 3.5 sigma of the mean of 800 samples
+    # each measurement carries the model's covariance at its measured range and ray
     m = frames[detected[0]][0]
-    std = 0.02 + 0.01 * np.linalg.norm(m.pos_world - scenario.observer_pos_world)
-    np.testing.assert_allclose(m.cov_world, std**2 * np.eye(3))
+    o = m.pos_world - cam_pos
+    a, c = source.noise_std_m(np.linalg.norm(o))
+    u = o / np.linalg.norm(o)
+    np.testing.assert_allclose(m.cov_world, c**2 * (np.eye(3) - np.outer(u, u)) + a**2 * np.outer(u, u), atol=1e-12)
+
+
+def test_synthetic_measurements_carry_the_observer_pose_error():
+    """Pose white noise of 5 cm (and near-zero sensor noise) shows in the errors and in the covariance."""
+    scenario = make_scenario(0.5, 1, 20.0, seed=4)
+    pose = PoseEstimateConfig(pos_noise_m=0.05, vel_noise_mps=0.0, yaw_noise_rad=0.0, pos_drift_m_per_sqrt_s=0.0, yaw_drift_rad_per_sqrt_s=0.0)
+    tiny = dict(along_std_base_m=1e-4, along_std_quadratic_per_m=0.0, across_std_base_m=1e-4, across_std_per_range=0.0)
+    source = SyntheticMeasurements(p_occlusion=0.0, false_positive_rate=0.0, p_miss=0.0, pose_estimate=pose, **tiny)
+    frames = source.measure(scenario, seed=4)
+    err = np.array([f[0].pos_world - scenario.target_pos_world[k, 0] for k, f in enumerate(frames) if f])
+    assert len(err) > 400
+    np.testing.assert_allclose(err.std(axis=0), 0.05, rtol=0.1)
+    cov = frames[0][0].cov_world
+    np.testing.assert_allclose(np.diag(cov), 0.05**2 + 1e-8, rtol=1e-6)
+
+
+def test_synthetic_noise_parameters_are_checked():
+    with pytest.raises(ValueError, match="along_std_base_m=-0.1"):
+        SyntheticMeasurements(along_std_base_m=-0.1)
+    with pytest.raises(ValueError, match="across_std_base_m=0"):
+        SyntheticMeasurements(across_std_base_m=0.0, across_std_per_range=0.0)
 
 
 def test_scenarios_are_seeded_and_manoeuvre():
