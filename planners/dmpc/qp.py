@@ -82,8 +82,8 @@ refactorise: about half of formation_square's rounds (the obstacles lie on
 the drones' straight lines; the unconstrained optimum of every round while
 passing one goes through it, so its row is needed every round), and those
 rounds take about 40 iterations (median 0.38 ms against 0.13 ms without):
-overall median about 0.24-0.26 ms, BVC / on-demand about 2x (measured in
-``mpcde eval-dmpc``; see the report of issue 6).
+overall median 0.25 ms, BVC / on-demand 2.1x in ``mpcde eval-dmpc`` (2.3x in
+the kinematic bench), not the 3x goal; see :mod:`planners.dmpc.obstacle`.
 """
 
 from __future__ import annotations
