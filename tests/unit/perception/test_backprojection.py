@@ -3,7 +3,14 @@
 import numpy as np
 import pytest
 
-from perception.backprojection import BackprojectionConfig, backproject, box_depth_m, measurement_from_pixel
+from perception.backprojection import (
+    BackprojectionConfig,
+    backproject,
+    box_depth_m,
+    measurement_from_pixel,
+    pose_noise_cov,
+    ray_covariance,
+)
 from perception.tracker import Measurement
 from perception.types import Detection
 from sim.camera import CameraConfig, apply_depth_sensor_model, intrinsics
@@ -109,3 +116,25 @@ def test_rendered_drones_back_project_to_their_true_centres():
     for m, i in zip(result.measurements, range(1, 5)):
         range_m = np.linalg.norm(pos[i] - T[:3, 3])
         assert np.linalg.norm(m.pos_world - pos[i]) < 0.05 + 0.01 * range_m, f"drone {i} at {range_m:.1f} m"
+
+
+def test_pose_noise_covariance_matches_sampled_pose_errors(rng):
+    """Position noise moves the point, heading noise swings it about the vertical through the camera."""
+    offset = np.array([4.0, -1.5, 0.7])
+    pos_std, yaw_std = 0.02, 0.01
+    n = 200_000
+    dyaw = yaw_std * rng.standard_normal(n)
+    c, s = np.cos(dyaw), np.sin(dyaw)
+    swung = np.stack([c * offset[0] - s * offset[1], s * offset[0] + c * offset[1], np.full(n, offset[2])], axis=1)
+    samples = swung + pos_std * rng.standard_normal((n, 3))
+    np.testing.assert_allclose(np.cov(samples.T), pose_noise_cov(offset, pos_std, yaw_std), atol=3e-5)
+
+
+def test_ray_covariance_has_the_given_std_along_and_across_the_ray():
+    e = np.array([2.0, 1.0, -2.0]) / 3.0
+    cov = ray_covariance(e, 0.05, 0.01)
+    assert e @ cov @ e == pytest.approx(0.05**2)
+    across = np.cross(e, [0.0, 0.0, 1.0])
+    across /= np.linalg.norm(across)
+    assert across @ cov @ across == pytest.approx(0.01**2)
+    assert np.trace(cov) == pytest.approx(0.05**2 + 2 * 0.01**2)
