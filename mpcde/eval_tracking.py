@@ -257,7 +257,7 @@ class SyntheticMeasurements:
     error), ``r`` the range. Defaults: fitted to the ``"pipeline"`` source's
     errors with a perfect pose estimate on the tuning seeds 100-104
     (0.5 and 2 m/s, 30 s each, render -> detect -> back-project;
-    ``mpcde eval-tracking`` scores seeds 0-2): along-ray std 0.011 / 0.014 /
+    ``mpcde eval-tracking`` scores seeds 0-9): along-ray std 0.011 / 0.014 /
     0.022 / 0.035 / 0.049 m and across-ray std per axis 0.010 / 0.009 /
     0.010 / 0.011 / 0.011 m in the 1 m range bins from 2 to 7 m (the model
     gives 0.011 / 0.017 / 0.025 / 0.035 / 0.047 and 0.008 / 0.009 / 0.010 /
@@ -518,7 +518,7 @@ def run_eval_tracking(
     speeds_mps: Sequence[float] = (0.5, 1.0, 2.0),
     filters: Sequence[str] = ("akf", "kf"),
     measurements: Sequence[str] = ("synthetic",),
-    seeds: Sequence[int] = (0, 1, 2),
+    seeds: Sequence[int] = tuple(range(10)),
     duration_s: float = 30.0,
     progress: bool = True,
     tracker_config: TrackerConfig | None = None,
@@ -536,7 +536,11 @@ def run_eval_tracking(
         measurements: measurement sources, ``"synthetic"`` and/or ``"pipeline"``
             (:class:`mpcde.tracking_pipeline.PipelineMeasurements`: render ->
             detect -> back-project; both filters see the same measurements).
-        seeds: one run per seed; seed ``s`` has ``1 + s % 3`` targets.
+        seeds: one run per seed; seed ``s`` has ``1 + s % 3`` targets. Ten by
+            default: at 0.5 m/s the AKF and the KF differ by about 1 mm of
+            position RMSE, less than the spread between 3-seed runs (seeds
+            0-2 gave the KF 0.057 m against the AKF's 0.058 m in pipeline
+            mode; seeds 0-9 give 0.050 against 0.049).
         duration_s: length of each run [s].
         progress: show a tqdm progress bar.
         tracker_config: base tracker settings (its ``filter`` is overridden).
