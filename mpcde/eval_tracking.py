@@ -199,8 +199,7 @@ def camera_pose(scenario: TrackingScenario, camera: CameraConfig) -> tuple[np.nd
     hovering drone, level); the camera sits at ``camera.mount_offset_body_m``
     with the optical frame of :func:`sim.camera.rotation_camera_to_body`.
     """
-    c, s = np.cos(scenario.observer_yaw_rad), np.sin(scenario.observer_yaw_rad)
-    rotation_body_to_world = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    rotation_body_to_world = rotation_from_quat_xyzw(quat_xyzw_from_yaw(scenario.observer_yaw_rad))
     T = CameraRig(camera, seed=0).transform_camera_to_world(np.asarray(scenario.observer_pos_world, float), rotation_body_to_world)
     return T[:3, 3], T[:3, :3]
 
@@ -350,13 +349,12 @@ class SyntheticMeasurements:
         ).reshape(n_frames, n)
         tan_h, tan_v = np.tan(np.radians(self.camera.hfov_deg) / 2), np.tan(np.radians(self.camera.vfov_deg) / 2)
         observer = np.asarray(scenario.observer_pos_world, float)
+        rotation_body_to_world = rotation_from_quat_xyzw(quat_xyzw_from_yaw(scenario.observer_yaw_rad))
         estimator = PoseEstimator(self.pose_estimate, 1, seed)
         frames: list[list[Measurement]] = []
         for k, t in enumerate(scenario.times_s):
             estimate = estimator.update(hover_truth(float(t), observer, scenario.observer_yaw_rad))[0]
-            d_yaw = float(np.arctan2(*rotation_from_quat_xyzw(estimate.quat_xyzw)[[1, 0], 0])) - scenario.observer_yaw_rad
-            c, s = np.cos(d_yaw), np.sin(d_yaw)
-            R_err = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])  # heading error about world z
+            R_err = rotation_from_quat_xyzw(estimate.quat_xyzw) @ rotation_body_to_world.T  # heading error about world z
             cam_est = estimate.pos_world + R_err @ (cam_pos_world - observer)  # the camera where the observer thinks it is
             truths: list[np.ndarray] = []
             for j in range(n):
