@@ -35,7 +35,7 @@ Choices (written here because the issue is silent on them):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -112,7 +112,10 @@ class PipelineMeasurements:
         name: the source's name in results (``"pipeline"``).
         camera: the observer's camera.
         pose_estimate: the observer's self-localisation error model.
-        backprojection: depth window and covariance model of the back-projection.
+        backprojection: depth window and covariance model of the back-projection;
+            its pose-noise terms (``pose_pos_std_m``, ``pose_yaw_std_rad``) are
+            replaced by ``pose_estimate``'s white noise, the uncertainty the
+            observer's own localisation reports.
         weights: detector checkpoint; None: the shipped weights.
         n_background_trees: clutter trees behind the targets' region.
         batch_frames: frames per detector forward pass (as 6 drones' frames would be).
@@ -160,6 +163,8 @@ class PipelineMeasurements:
         T_true = np.eye(4)
         T_true[:3, :3], T_true[:3, 3] = R_cw, cam_pos_world
         estimator = PoseEstimator(self.pose_estimate, 1, seed)
+        pe = self.pose_estimate
+        backprojection = replace(self.backprojection, pose_pos_std_m=pe.pos_noise_m, pose_yaw_std_rad=pe.yaw_noise_rad)
         spec = SceneSpec(obstacles=background_trees(seed, self.n_background_trees, observer, yaw), n_drones=n_targets)
         renderer = SceneRenderer(spec, self.camera)
         frames: list[list[Measurement]] = []
@@ -174,7 +179,7 @@ class PipelineMeasurements:
                 pending.append(rig.frame(0, k, float(t), raw, estimate))  # depth noise seeded by (seed, 0, k)
                 if len(pending) == self.batch_frames or k == n_frames - 1:
                     for frame, dets in zip(pending, detector.detect(pending)):
-                        result = backproject(frame, dets, self.backprojection)
+                        result = backproject(frame, dets, backprojection)
                         n_det += len(dets)
                         n_nodepth += int(result.skipped.size)
                         frames.append(list(result.measurements))
