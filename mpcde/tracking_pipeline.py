@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from mpcde.eval_tracking import TrackingScenario, camera_pose, hover_truth, in_camera_view
+from mpcde.tracking_scenario import TrackingScenario, camera_pose, hover_truth, in_camera_view
 from perception.backprojection import BackprojectionConfig, backproject
 from perception.tracker import Measurement
 from sim.camera import CameraConfig
