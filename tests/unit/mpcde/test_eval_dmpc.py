@@ -14,7 +14,7 @@ def test_short_eval_writes_exactly_the_schema(tmp_path):
     assert set(data) == {"rows"} and len(data["rows"]) == 2
     for row in data["rows"]:
         assert tuple(sorted(row)) == tuple(sorted(ROW_KEYS))
-        assert row["qp_ms_median"] > 0 and row["collisions"] == 0
+        assert row["qp_ms_median"] > 0 and row["qp_ms_mean"] > 0 and row["collisions"] == 0
     assert {r["method"] for r in data["rows"]} == {"on_demand", "bvc"}
     assert all(r["obstacles"] is None and r["min_obstacle_clearance_m"] is None for r in data["rows"])  # none there
     assert (tmp_path / "results.txt").read_text().startswith(format_table(data).splitlines()[0])
