@@ -171,11 +171,10 @@ def format_table(results: dict) -> str:
                 label = f"on-demand ({a['obstacles']} obstacles)" if a["obstacles"] else "on-demand"
                 ratios.append(
                     f"{scen}: QP median BVC / {label} = {b['qp_ms_median'] / a['qp_ms_median']:.2f}x, "
-                    f"p95 {b['qp_ms_p95'] / a['qp_ms_p95']:.2f}x, mean {b['qp_ms_mean'] / a['qp_ms_mean']:.2f}x "
-                    "(paper, Table 1: mean 12.91 / 3.94 ms = 3.28x)"
+                    f"p95 {b['qp_ms_p95'] / a['qp_ms_p95']:.2f}x, mean {b['qp_ms_mean'] / a['qp_ms_mean']:.2f}x"
                 )
     if ratios:
-        lines += [""] + ratios
+        lines += [""] + ratios + ["(paper, Table 1: mean 12.91 / 3.94 ms = 3.28x)"]
     return "\n".join(lines)
 
 
