@@ -56,9 +56,9 @@ round. Tried and dropped: rows at every step of the conflict run (median
 absolute times (0.33 ms), ``first_conflict`` (obstacle clearance -0.008 m:
 the plane faces the drone and it slips round it).
 
-Where the ~40-50 iterations of a conflict round come from (kinematic bench,
-formation_square seed 0, drone 0; refactorisation 0.09 ms, iterations
-0.33-0.36 ms of a conflict round): not from the solver's settings or the
+Where a conflict round's iterations come from (kinematic bench,
+formation_square seed 0, drone 0: median 50 iterations, 0.33-0.36 ms, plus
+0.09 ms of refactorisation): not from the solver's settings or the
 multiplier's warm start. Measured without effect on the conflict rounds'
 median of 45-60 iterations: Ruiz passes 0 / 10 (0 doubles them), rho 0.01 /
 1, sigma 1e-4, relaxation alpha 1.4 / 1.8, adaptive-rho interval 10, the
