@@ -71,6 +71,30 @@ leaves the other steps free to cut the disc (the previous plan's clearance
 at the next round's deepest step is down to -0.47 m when a conflict starts
 far ahead), so the new optimum lies far from the shifted previous one, and
 ADMM's linear convergence pays for the distance.
+
+Two ways round that, built and measured (kinematic bench, formation_square
+seed 0, medians of drone rounds; single-row on demand 0.30-0.36 ms and
+BVC 0.64-0.81 ms in the same runs), then dropped:
+
+* A wall held for the whole pass: on an obstacle's first conflict the plane
+  is frozen in world coordinates and applied (hard) at every step of the
+  previous plan within 0.3 m of the obstacle, K rows per slot whose
+  coefficients never change (the window moves through the bounds only), so
+  A changes once per pass. While the drone passes, rounds took about 20
+  iterations without refactorisation, as hoped; but while the window grows
+  on the approach they took 100-375, and the frozen plane is the wrong one
+  there: the deepest conflict step of a plan that ends inside the obstacle
+  is its end, so the tangent plane faces the drone (41 fallbacks, median
+  1.40 ms). Turned sideways (normal perpendicular to the plan's direction,
+  offset from the footprint's support function): no fallback, but median
+  0.89 ms, 80 iterations, and the swarm had not arrived after 150 rounds.
+* Routing the carrot round the obstacles (shortest path on the visibility
+  graph of the footprints grown by the inflation + 0.3 m, carrot the
+  farthest path point in line of sight): rounds with an obstacle row fell
+  only from 49 % to 42 %, because formation keeping pulls each drone off its
+  own path towards its neighbours', back into the obstacles; median
+  0.28 ms against 0.74 ms for BVC (2.6x), mean 0.62 against 1.15 ms (1.9x,
+  worse than the straight carrot's 2.6x), mission 86 rounds against 70.
 """
 
 from __future__ import annotations
