@@ -48,10 +48,8 @@ collision, minimum obstacle clearance 0.227 m beyond the robot radius on
 demand against 0.208 m every step (planned: 0.25 m); obstacle rows in 49 % of
 the rounds (138 of 284: while a drone passes an obstacle on its straight line
 the unconstrained optimum goes through it, so every such round needs its
-row). Those rounds refactorise and take about 40 ADMM iterations: one row per
-obstacle leaves the plan free to cut the disc at the neighbouring steps, so
-the deepest point of the next conflict moves by a step or two from round to
-round. Tried and dropped: rows at every step of the conflict run (median
+row). Those rounds refactorise and take several times the iterations of the
+others (why: below). Tried and dropped: rows at every step of the conflict run (median
 0.35 ms, 80 iterations in conflict rounds), keeping last round's rows at their
 absolute times (0.33 ms), ``first_conflict`` (obstacle clearance -0.008 m:
 the plane faces the drone and it slips round it).
@@ -73,8 +71,7 @@ far ahead), so the new optimum lies far from the shifted previous one, and
 ADMM's linear convergence pays for the distance.
 
 Two ways round that, built and measured (kinematic bench, formation_square
-seed 0, medians of drone rounds; single-row on demand 0.30-0.36 ms and
-BVC 0.64-0.81 ms in the same runs), then dropped:
+seed 0, medians over all drones' rounds), then dropped:
 
 * A wall held for the whole pass: on an obstacle's first conflict the plane
   is frozen in world coordinates and applied (hard) at every step of the
@@ -85,16 +82,19 @@ BVC 0.64-0.81 ms in the same runs), then dropped:
   on the approach they took 100-375, and the frozen plane is the wrong one
   there: the deepest conflict step of a plan that ends inside the obstacle
   is its end, so the tangent plane faces the drone (41 fallbacks, median
-  1.40 ms). Turned sideways (normal perpendicular to the plan's direction,
+  1.40 ms; single-row on demand 0.30 ms and BVC 0.64 ms in the same run).
+  Turned sideways (normal perpendicular to the plan's direction,
   offset from the footprint's support function): no fallback, but median
-  0.89 ms, 80 iterations, and the swarm had not arrived after 150 rounds.
+  0.89 ms, 80 iterations (single-row 0.36 ms, BVC 0.81 ms in the same run),
+  and the swarm had not arrived after 150 rounds.
 * Routing the carrot round the obstacles (shortest path on the visibility
   graph of the footprints grown by the inflation + 0.3 m, carrot the
   farthest path point in line of sight): rounds with an obstacle row fell
   only from 49 % to 42 %, because formation keeping pulls each drone off its
-  own path towards its neighbours', back into the obstacles; median
-  0.28 ms against 0.74 ms for BVC (2.6x), mean 0.62 against 1.15 ms (1.9x,
-  worse than the straight carrot's 2.6x), mission 86 rounds against 70.
+  own path towards its neighbours', back into the obstacles. With both
+  methods routed: median 0.28 ms on demand against 0.74 ms BVC (2.6x), mean
+  0.62 against 1.15 ms (1.9x, below the straight carrot's 2.5-2.8x in the
+  runs above), mission 86 rounds against 70 with the straight carrot.
 """
 
 from __future__ import annotations
