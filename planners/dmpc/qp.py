@@ -101,6 +101,7 @@ from planners.dmpc.collision import bvc_planes, ellipsoidal_distance, on_demand_
 from planners.dmpc.config import DmpcConfig
 from planners.dmpc.model import fine_position_matrices, prediction_matrices, stacked_state_matrices
 from planners.dmpc.obstacle import ObstacleConflicts, obstacle_rows
+from planners.dmpc.pattern import SparsePattern
 from planners.dmpc.qp_result import DmpcResult, DmpcSolveError, QpSnapshot
 from planners.dmpc.sampling import hermite_positions, sample_predictions
 from planners.dmpc.types import DmpcPlan
@@ -110,34 +111,6 @@ __all__ = ["DmpcProblem", "DmpcResult", "DmpcSolveError", "QpSnapshot"]
 _INF = 1e30  # OSQP_INFTY
 _CULL_MARGIN_M = 0.01  # an obstacle row is culled only if the reach boxes clear it by this [m]
 _ACCEPTED = (osqp.SolverStatus.OSQP_SOLVED, osqp.SolverStatus.OSQP_SOLVED_INACCURATE)
-
-
-class _Pattern:
-    """COO entries accumulated block by block; dynamic blocks remember where they land in CSC data."""
-
-    def __init__(self) -> None:
-        self.rows: list[np.ndarray] = []
-        self.cols: list[np.ndarray] = []
-        self.vals: list[np.ndarray] = []
-        self.count = 0
-
-    def add(self, rows: np.ndarray, cols: np.ndarray, vals: np.ndarray) -> slice:
-        """Append entries; returns their slice in COO order."""
-        self.rows.append(np.asarray(rows, int).ravel())
-        self.cols.append(np.asarray(cols, int).ravel())
-        self.vals.append(np.asarray(vals, float).ravel())
-        start = self.count
-        self.count += self.rows[-1].size
-        return slice(start, self.count)
-
-    def to_csc(self, shape: tuple[int, int]) -> tuple[sp.csc_matrix, np.ndarray]:
-        """(CSC matrix with explicit zeros kept, coo_to_csc (nnz,) index map)."""
-        rows, cols = np.concatenate(self.rows), np.concatenate(self.cols)
-        tag = sp.coo_matrix((np.arange(1, self.count + 1, dtype=float), (rows, cols)), shape=shape).tocsc()
-        coo_to_csc = np.empty(self.count, int)
-        coo_to_csc[tag.data.astype(int) - 1] = np.arange(self.count)
-        data = np.concatenate(self.vals)[tag.data.astype(int) - 1]
-        return sp.csc_matrix((data, tag.indices, tag.indptr), shape=shape), coo_to_csc
 
 
 class DmpcProblem:
@@ -165,7 +138,7 @@ class DmpcProblem:
         lower = np.arange(3 * K)[None, :] < 3 * (np.arange(K)[:, None] + 1)  # (K, 3K): inputs 0..k-1 reach p[k]
         self._lower_mask = lower
 
-        pat = _Pattern()
+        pat = SparsePattern()
         row = 0
 
         def add_dense(block: np.ndarray, col0: int = 0) -> int:
