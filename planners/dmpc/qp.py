@@ -198,6 +198,11 @@ class DmpcProblem:
         self._H_form = 2.0 * cfg.weight_formation * mats.Lambda_pos.T @ mats.Lambda_pos
         iu = np.triu_indices(self._n_u)
         self._P_triu = iu
+        n_s = self._n_slack
+        P_pat = SparsePattern()  # dense U block (upper triangle) + slack diagonal; values set in _assemble_P
+        slack = self._n_u + np.arange(n_s)
+        P_pat.add(np.r_[iu[0], slack], np.r_[iu[1], slack], np.zeros(iu[0].size + n_s))
+        self._P_pattern, self._P_coo_to_csc = P_pat.to_csc((n, n))
         P = self._assemble_P(0)
         self._n_form = 0
 
@@ -230,16 +235,16 @@ class DmpcProblem:
 
     # ------------------------------------------------------------------ build
     def _assemble_P(self, n_form: int) -> sp.csc_matrix:
-        """Upper-triangular CSC P for ``n_form`` formation neighbours (dense U block + slack diagonal)."""
+        """Upper-triangular CSC P for ``n_form`` formation neighbours (dense U block + slack diagonal).
+
+        A new matrix on the fixed pattern (a :class:`QpSnapshot` may hold the previous one).
+        """
         H = self._H_base + n_form * self._H_form
-        iu = self._P_triu
-        n = self._n_u + self._n_slack
-        rows = np.concatenate([iu[0], self._n_u + np.arange(self._n_slack)])
-        cols = np.concatenate([iu[1], self._n_u + np.arange(self._n_slack)])
-        vals = np.concatenate([H[iu], np.full(self._n_slack, 2.0 * self.config.weight_slack_quadratic)])
-        tag = sp.coo_matrix((np.arange(1, rows.size + 1, dtype=float), (rows, cols)), shape=(n, n)).tocsc()
-        order = tag.data.astype(int) - 1
-        return sp.csc_matrix((vals[order], tag.indices, tag.indptr), shape=(n, n))
+        vals = np.r_[H[self._P_triu], np.full(self._n_slack, 2.0 * self.config.weight_slack_quadratic)]
+        data = np.empty_like(vals)
+        data[self._P_coo_to_csc] = vals
+        pat = self._P_pattern
+        return sp.csc_matrix((data, pat.indices, pat.indptr), shape=pat.shape)
 
     def _set_dynamic(self, sl: slice, values: np.ndarray) -> None:
         self._Ax[self._A_coo_to_csc[sl]] = values
