@@ -18,6 +18,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from perception.types import Detection
 from planners.min_jerk_line import MinJerkLine
 from sim.types import FlatOutputReference, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
 
@@ -27,9 +28,12 @@ __all__ = ["Agent", "AgentCounters", "OnboardAgent"]
 class OnboardAgent(Protocol):
     """What the loop may call on an onboard agent, and all it may hand it.
 
-    Inputs are only the drone's own pose estimate, its own camera frames and
-    its radio inbox; outputs are a controller reference and a broadcast
-    payload. Every planner stack (placeholder, DMPC, MP-CDE) implements this.
+    Inputs are only the drone's own pose estimate, its own camera frames (with
+    the boxes its own detector found in that frame, for an agent that sets
+    ``detector_request``; the loop runs the drones' detectors in one batch,
+    :mod:`mpcde.onboard_detection`) and its radio inbox; outputs are a
+    controller reference and a broadcast payload. Every planner stack
+    (placeholder, DMPC, MP-CDE) implements this.
     """
 
     drone_id: int
@@ -37,7 +41,7 @@ class OnboardAgent(Protocol):
 
     def on_pose_estimate(self, estimate: PoseEstimate) -> None: ...
 
-    def on_frame(self, frame: RgbdFrame) -> None: ...
+    def on_frame(self, frame: RgbdFrame, detections: list[Detection] | None = None) -> None: ...
 
     def on_radio(self, messages: list[RadioMessage]) -> None: ...
 
@@ -82,8 +86,8 @@ class Agent:
         if self.plan is None:
             self.plan = MinJerkLine.plan(estimate.pos_world, self.goal_world, estimate.time_s + self.start_delay_s, self.cruise_speed_mps)
 
-    def on_frame(self, frame: RgbdFrame) -> None:
-        """Take one camera frame (perception plugs in here)."""
+    def on_frame(self, frame: RgbdFrame, detections: list[Detection] | None = None) -> None:
+        """Take one camera frame (the placeholder does not perceive; ``detections`` is None)."""
         self.latest_frame = frame
         self.counters.frames += 1
 

@@ -1,22 +1,38 @@
-"""The communication-denied agent (MP-CDE): own map, front end, MINCO, replanning.
+"""The communication-denied agent (MP-CDE): detector + tracks, own map, front end, MINCO, replanning.
 
-What it uses: its own depth frames (mapped by :class:`perception.occupancy_map.OccupancyMap`,
-which masks detection boxes once a detector runs), its own pose estimate, and
-predictions of neighbours (empty until perception tracks are wired in: then
-MP-CDE Eq. 16 keeps C_s from each). What it never uses: ground truth, the radio.
+What it uses: its own camera frames with the boxes its own detector found in
+them (:mod:`mpcde.onboard_detection`), its own pose estimate, and nothing
+else. Each frame (MP-CDE Sec. IV-B, :class:`mpcde.neighbour_perception.NeighbourPerception`):
+detections are back-projected to world measurements (Eq. 7-8) and tracked by
+the adaptive Kalman tracker (Eq. 9-12); the depth frame is mapped
+(:class:`perception.occupancy_map.OccupancyMap`) with the detection boxes
+masked, so neighbours do not become walls. The tracks' predictions are the
+neighbours MINCO keeps the swarm clearance C_s from (Eq. 16). What it never
+uses: ground truth, the radio. With ``perceive_neighbours: false`` it runs no
+detector and flies blind to other drones (the map-only ablation).
 
 Replanning (MP-CDE Alg. 1 line 13 and DESIGN.md section 3): after a frame is
 mapped, replan when (a) no trajectory exists, (b) at least ``replan_period_s``
-passed since the last plan, or (c) the rest of the current trajectory comes
-closer than the clearance to an obstacle on the updated ESDF. A replan starts
+passed since the last plan, (c) the rest of the current trajectory comes
+closer than the clearance to an obstacle on the updated ESDF, or (d) within
+the next ``conflict_horizon_s`` it comes closer than C_s (ellipsoidal metric
+E = diag(1, 1, 1/c) of Eq. 16) to a tracked neighbour's prediction; (d) holds
+Alg. 1's ``min_q d_q(0) < C_s`` at its first instant and looks ahead along the
+tracks' constant-velocity predictions (MP-CDE: prediction horizons up to
+1.2 s), so that a neighbour on a collision course is answered before it is
+within C_s. A replan starts
 from the current trajectory's own state (position, velocity, acceleration) at
 the frame time, so the reference stays continuous; the front end
-(:func:`planners.path_search.search_path`) searches the map window towards the
+(:func:`planners.path_search.search_path`) searches the map window, with each
+track's capsule added as an obstacle (:mod:`planners.neighbour_field`: C_s, or
+1.2 C_s for a track unseen for longer than t_hold), towards the
 goal (clipped to the window when the goal lies outside it) and the MINCO
 optimiser (:mod:`planners.trajectory_optimizer`) refines that path on the ESDF.
-A plan that fails or leaves obstacle clearance violated is rejected; if the
-current trajectory is itself unsafe, the agent brakes to a stop along it
-(a stopping MINCO piece from its current state).
+A plan that fails or leaves obstacle clearance violated is rejected (one that
+keeps obstacle clearance but not all of C_s is kept: the optimiser's best
+separation beats the old plan's); if the current trajectory is itself unsafe
+with respect to obstacles, the agent brakes to a stop along it (a stopping
+MINCO piece from its current state).
 
 Yaw: the "tracking" mode of MP-CDE Sec. IV-A (heading along the direction of
 travel, rate-limited to ``yaw_rate_max``); the active yaw planner is not yet here.
@@ -30,9 +46,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mpcde.agent import AgentCounters
+from mpcde.neighbour_perception import NeighbourPerception
+from mpcde.onboard_detection import DetectorRequest
+from perception.backprojection import BackprojectionConfig
 from perception.map_config import MapConfig
 from perception.occupancy_map import OccupancyMap
+from perception.tracker_config import TrackerConfig
+from perception.types import Detection, NeighborPrediction
 from planners.minco import MincoTrajectory, minco_s3
+from planners.neighbour_field import with_neighbour_capsules
 from planners.path_search import PathSearchConfig, search_path
 from planners.trajectory_optimizer import TrajectoryOptimizationError, TrajectoryOptimizerConfig, build_trajectory_problem, solve
 from sim.rotations import yaw_from_rotation, rotation_from_quat_xyzw
@@ -53,7 +75,16 @@ class DeniedAgentConfig:
         replan_period_s: replan at least this often [s] (DESIGN.md: 0.5 s).
         yaw_rate_max_radps: heading rate limit [rad/s] (MP-CDE Table I: 2.0).
         start_delay_s: hover before the first departure [s].
+        swarm_clearance_m: C_s [m] kept from tracked neighbours (MP-CDE Table I: 0.7).
+        swarm_z_scale: c of the ellipsoidal metric E = diag(1, 1, 1/c) [-] (Eq. 16).
+        conflict_horizon_s: look-ahead [s] of replanning trigger (d) along the tracks' predictions.
+        perceive_neighbours: run the detector and tracker (False: map only, blind to other drones).
+        detector_weights: detector checkpoint; None: the shipped weights.
+        detector_score_threshold: keep detections scoring >= this; None: the checkpoint's own.
         map: occupancy map settings.
+        tracker: neighbour tracker settings (MP-CDE Sec. IV-B).
+        backprojection: detection back-projection settings (Eq. 7-8); its pose-noise
+            terms are replaced by the scenario's ``pose_estimate`` white noise.
     """
 
     v_max_mps: float = 1.0
@@ -63,7 +94,26 @@ class DeniedAgentConfig:
     replan_period_s: float = 0.5
     yaw_rate_max_radps: float = 2.0
     start_delay_s: float = 0.5
+    swarm_clearance_m: float = 0.7
+    swarm_z_scale: float = 2.0
+    conflict_horizon_s: float = 1.2
+    perceive_neighbours: bool = True
+    detector_weights: str | None = None
+    detector_score_threshold: float | None = None
     map: MapConfig = field(default_factory=MapConfig)
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    backprojection: BackprojectionConfig = field(default_factory=BackprojectionConfig)
+
+    def __post_init__(self) -> None:
+        for name in ("swarm_clearance_m", "conflict_horizon_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+                raise ValueError(f"{name}={v!r}: a finite number > 0")
+        if not (isinstance(self.swarm_z_scale, (int, float)) and np.isfinite(self.swarm_z_scale) and self.swarm_z_scale >= 1):
+            raise ValueError(f"swarm_z_scale={self.swarm_z_scale!r}: a finite number >= 1")
+        thr = self.detector_score_threshold
+        if thr is not None and not (isinstance(thr, (int, float)) and 0.0 <= thr <= 1.0):
+            raise ValueError(f"detector_score_threshold={thr!r}: a number in [0, 1] or null")
 
 
 @dataclass
@@ -73,6 +123,7 @@ class PlanningStats:
     replans: int = 0
     failures: int = 0
     brakes: int = 0
+    swarm_replans: int = 0
     solve_ms: list = field(default_factory=list)
     map_ms: list = field(default_factory=list)
 
@@ -94,7 +145,14 @@ class DeniedAgent:
         self.yaw: float | None = None
         self.yaw_time_s = 0.0
         c = config
-        self.optimizer = TrajectoryOptimizerConfig(v_max_mps=c.v_max_mps, a_max_mps2=c.a_max_mps2, obstacle_clearance_m=c.clearance_m)
+        self.optimizer = TrajectoryOptimizerConfig(
+            v_max_mps=c.v_max_mps, a_max_mps2=c.a_max_mps2, obstacle_clearance_m=c.clearance_m,
+            swarm_clearance_m=c.swarm_clearance_m, swarm_z_scale=c.swarm_z_scale,
+        )
+        self.perception = NeighbourPerception(c.tracker, c.backprojection) if c.perceive_neighbours else None
+        # what the loop's batched detector reads (None: no detections)
+        request = DetectorRequest(c.detector_weights, c.detector_score_threshold, "denied.detector_weights")
+        self.detector_request = request if c.perceive_neighbours else None
         self.search = PathSearchConfig()
 
     # inputs ---------------------------------------------------------------
@@ -109,19 +167,30 @@ class DeniedAgent:
         """Denied: the radio is not used (messages are counted only)."""
         self.counters.messages += len(messages)
 
-    def on_frame(self, frame: RgbdFrame) -> None:
-        """Map the frame, then replan if due or if the current plan became unsafe."""
+    def on_frame(self, frame: RgbdFrame, detections: list[Detection] | None = None) -> None:
+        """Track the detected neighbours, map the frame, then replan if due or if the plan became unsafe.
+
+        Args:
+            frame: this drone's frame.
+            detections: the boxes this drone's detector found in ``frame`` (None: no detector ran).
+        """
         self.counters.frames += 1
+        if self.perception is not None and detections is not None:
+            self.perception.update(frame, detections)
         t0 = time.perf_counter()
-        self.map.update(frame)
+        self.map.update(frame, detections or ())
         snap = self.map.snapshot()
         self.stats.map_ms.append(1e3 * (time.perf_counter() - t0))
         t = frame.time_s
         if t < self.config.start_delay_s or self.latest_estimate is None:
             return
+        neighbours = self.perception.predictions(t) if self.perception is not None else []
         unsafe = self.trajectory is not None and not self._safe(self.trajectory, snap, t)
-        if self.trajectory is None or unsafe or t - self.last_plan_time_s >= self.config.replan_period_s:
-            if not self._replan(snap, t) and unsafe:
+        conflict = self.trajectory is not None and self._swarm_conflict(self.trajectory, neighbours, t)
+        if self.trajectory is None or unsafe or conflict or t - self.last_plan_time_s >= self.config.replan_period_s:
+            replanned = self._replan(snap, neighbours, t)
+            self.stats.swarm_replans += int(replanned and conflict)
+            if not replanned and unsafe:
                 self._brake(t)
 
     def outgoing(self, time_s: float) -> None:
@@ -141,16 +210,34 @@ class DeniedAgent:
         d, _ = snap.distance_and_gradient(traj.pos(tau))
         return bool(np.min(d) >= 0.75 * self.config.clearance_m)
 
-    def _replan(self, snap, t: float) -> bool:
+    def _swarm_conflict(self, traj: MincoTrajectory, neighbours: list[NeighborPrediction], t: float) -> bool:
+        """Whether ``traj`` comes within C_s (metric E of Eq. 16) of a prediction in the next ``conflict_horizon_s``."""
+        if not neighbours:
+            return False
+        times = t + np.linspace(0.0, self.config.conflict_horizon_s, 13)
+        own = traj.pos(np.clip(times - traj.t0_s, 0.0, traj.total_duration))
+        scale = np.array([1.0, 1.0, 1.0 / np.sqrt(self.config.swarm_z_scale)])
+        for nb in neighbours:
+            d = np.linalg.norm((own - nb.position(times)) * scale, axis=1)
+            if np.min(d) < self.config.swarm_clearance_m:
+                return True
+        return False
+
+    def _replan(self, snap, neighbours: list[NeighborPrediction], t: float) -> bool:
         start = self._state_at(t)
         t0 = time.perf_counter()
-        path = search_path(snap, start[0], self.goal_world, self.config.front_end_clearance_m, self.search)
+        c = self.config
+        # the front end sees each track as a capsule (planners.neighbour_field); MINCO sees the predictions
+        front = with_neighbour_capsules(
+            snap, neighbours, t, c.conflict_horizon_s, c.swarm_clearance_m, c.tracker.t_hold_s, reach_m=c.front_end_clearance_m + 0.3
+        )
+        path = search_path(front, start[0], self.goal_world, c.front_end_clearance_m, self.search)
         if not path.found:
             self.stats.failures += 1
             return False
         goal_pva = np.stack([path.goal_used_world, np.zeros(3), np.zeros(3)])
         try:
-            problem = build_trajectory_problem(start, goal_pva, path.waypoints_world, snap, [], t, self.optimizer)
+            problem = build_trajectory_problem(start, goal_pva, path.waypoints_world, snap, neighbours, t, self.optimizer)
             result = solve(problem)
         except (TrajectoryOptimizationError, ValueError):
             self.stats.failures += 1
@@ -196,10 +283,18 @@ class DeniedAgent:
     def extra_metrics(self) -> dict:
         """Planner statistics for metrics.json."""
         s = self.stats
-        return {
+        out = {
             "replans": s.replans,
             "plan_failures": s.failures,
             "brakes": s.brakes,
+            "swarm_replans": s.swarm_replans,
             "replan_ms_median": float(np.median(s.solve_ms)) if s.solve_ms else None,
             "map_ms_median": float(np.median(s.map_ms)) if s.map_ms else None,
         }
+        if self.perception is not None:
+            c = self.perception.counts
+            out.update(
+                detections=c.detections, measurements=c.measurements, detections_without_depth=c.without_depth,
+                tracking_ms_median=float(np.median(c.update_ms)) if c.update_ms else None,
+            )
+        return out

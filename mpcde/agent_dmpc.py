@@ -312,8 +312,8 @@ class DmpcAgent:
             self.yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
         self.latest_estimate = estimate
 
-    def on_frame(self, frame: RgbdFrame) -> None:
-        """Take one camera frame (counted; DMPC plans from the radio only)."""
+    def on_frame(self, frame: RgbdFrame, detections: list | None = None) -> None:
+        """Take one camera frame (counted; DMPC plans from the radio only, so it asks for no detections)."""
         self.counters.frames += 1
 
     def on_radio(self, messages: list[RadioMessage]) -> None:

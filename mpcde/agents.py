@@ -31,9 +31,14 @@ def make_agent(cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obst
     if kind == "min_jerk_line":
         return Agent(drone_id, np.asarray(goal_world, float), cfg.planner.cruise_speed_mps, cfg.planner.start_delay_s)
     if kind == "mpcde":
+        from dataclasses import replace
+
         from mpcde.agent_denied import DeniedAgent
 
-        return DeniedAgent(drone_id, goal_world, cfg.denied)
+        # back-projection uncertainty includes the drone's own localisation noise (what its VIO reports)
+        pe = cfg.pose_estimate
+        bp = replace(cfg.denied.backprojection, pose_pos_std_m=pe.pos_noise_m, pose_yaw_std_rad=pe.yaw_noise_rad)
+        return DeniedAgent(drone_id, goal_world, replace(cfg.denied, backprojection=bp))
     if kind == "dmpc":
         from mpcde.agent_dmpc import DmpcAgent
 

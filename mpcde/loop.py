@@ -28,7 +28,9 @@ import numpy as np
 
 from mpcde.agents import make_agent
 from mpcde.metrics import MetricsAccumulator
+from mpcde.onboard_detection import BatchedDetector
 from mpcde.scenario import ScenarioConfig, build_layout, check_layout, resolve_obstacles
+from mpcde.tracking_score import TrackingScore
 from sim.camera_rig import CameraRig
 from sim.ground_truth import TrueState
 from sim.obstacles import ObstacleSpec
@@ -112,12 +114,14 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
     n = starts.shape[0]
     d = goals - starts
     start_yaw = np.arctan2(d[:, 1], d[:, 0])
+    agents = [make_agent(cfg, i, goals, prepared.obstacles) for i in range(n)]
+    detector = BatchedDetector.for_agents(agents) if cfg.run.cameras else None
     spec = SceneSpec(obstacles=prepared.obstacles, n_drones=n)
     world = World(spec, starts, start_yaw, cfg.physics)
     estimator = PoseEstimator(cfg.pose_estimate, n, cfg.seed)
     rig = CameraRig(cfg.camera, cfg.seed)
     radio = Radio(cfg.radio, n, cfg.seed, line_of_sight=lambda a, b: _line_of_sight(world, a, b))
-    agents = [make_agent(cfg, i, goals, prepared.obstacles) for i in range(n)]
+    track_score = TrackingScore()
     metrics = MetricsAccumulator(goals, prepared.obstacles, cfg.physics.quadrotor.robot_radius_m, cfg.run.goal_tolerance_m)
     log = RunLog()
     workers = cfg.run.render_workers if cfg.run.render_workers >= 0 else (os.cpu_count() or 1)
@@ -162,9 +166,11 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
                 in_flight = None
             while delivery and t >= delivery[0][0] + cfg.camera.latency_s - eps:
                 _, frames = delivery.popleft()
-                for f in frames:
-                    agents[f.drone_id].on_frame(f)
+                detections = _detect(detector, frames, agents, truth.failed)
+                for f, dets in zip(frames, detections):
+                    agents[f.drone_id].on_frame(f, dets)
                     latest_frames[f.drone_id] = f
+                _score_tracks(track_score, agents, t, truth)
                 if frame_sink is not None:
                     frame_sink(t, truth, latest_frames)
             if t >= next_radio - eps:
@@ -211,11 +217,29 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
         "render_workers": workers if pool is not None else None,
         "frames_received": int(sum(a.counters.frames for a in agents)),
     }
+    extra.update(track_score.result())
     agent_metrics = [a.extra_metrics() for a in agents if hasattr(a, "extra_metrics")]
     if agent_metrics:
         extra["agents"] = agent_metrics
     result = metrics.result(wall, truth.failed, extra)
     return RunResult(cfg, prepared.obstacles, starts, goals, result, log)
+
+
+def _detect(detector: BatchedDetector | None, frames: list[RgbdFrame], agents: list, failed: np.ndarray) -> list:
+    """Each frame's detections for the agents that ask for them (one batch), None for the others."""
+    if detector is None:
+        return [None] * len(frames)
+    wanted = [getattr(agents[f.drone_id], "detector_request", None) is not None and not failed[f.drone_id] for f in frames]
+    return detector.detect(frames, wanted)
+
+
+def _score_tracks(score: TrackingScore, agents: list, t: float, truth: TrueState) -> None:
+    """Score the perceiving agents' track predictions at ``t`` against the truth (metrics only)."""
+    alive = ~np.asarray(truth.failed, bool)
+    for a in agents:
+        perception = getattr(a, "perception", None)
+        if perception is not None and alive[a.drone_id]:
+            score.update(a.drone_id, perception.predictions(t), t, truth.pos_world, truth.vel_world, alive)
 
 
 def _finish_frames(pool: RenderPool, rig: CameraRig, in_flight: tuple, segmentations: list) -> tuple[float, list[RgbdFrame]]:

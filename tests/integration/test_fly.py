@@ -98,9 +98,9 @@ class SpyAgent(agent_module.Agent):
         SpyAgent.seen.append(("pose", type(estimate), estimate))
         super().on_pose_estimate(estimate)
 
-    def on_frame(self, frame):
+    def on_frame(self, frame, detections=None):
         SpyAgent.seen.append(("frame", type(frame), frame))
-        super().on_frame(frame)
+        super().on_frame(frame, detections)
 
     def on_radio(self, messages):
         SpyAgent.seen.append(("radio", type(messages), messages))
