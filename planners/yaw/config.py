@@ -1,0 +1,213 @@
+"""Configuration of the active yaw planner (MP-CDE Sec. IV-A, Alg. 1): :class:`YawPlannerConfig`.
+
+Defaults come from MP-CDE (Table I and the text of Sec. IV-A: t_y = 0.1 s,
+n = 12, yaw_rate_max = 2.0 rad/s, eps = 1.2, 0.1 s hysteresis, alpha = 0.6,
+beta = 0.4, 72 rays, t_hold = 0.6 s) and from the camera (RealSense D435i,
+85 deg x 58 deg, DESIGN.md section 4). Values the paper does not give are
+marked "chosen" and say why. Validation raises ``ValueError`` with the one-line
+message ``"<field>=<value!r>: allowed ..."`` (planners/ may not import mpcde;
+mpcde turns these into its ``ConfigError``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["YawPlannerConfig"]
+
+
+def _check_positive(name: str, value: object) -> None:
+    if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{name}={value!r}: allowed finite number > 0")
+
+
+def _check_non_negative(name: str, value: object) -> None:
+    if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+        raise ValueError(f"{name}={value!r}: allowed finite number >= 0")
+
+
+def _check_int(name: str, value: object, minimum: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise ValueError(f"{name}={value!r}: allowed integer >= {minimum}")
+
+
+@dataclass(frozen=True)
+class YawPlannerConfig:
+    """Settings of :class:`planners.yaw.YawPlanner`.
+
+    Attributes:
+        period_s: t_y, spacing of the yaw lattice's layers and the planner's
+            call period [s] (MP-CDE Table I: 0.1 s).
+        n_steps: n, number of lattice layers after the current yaw [-]
+            (MP-CDE: 12, i.e. a 1.2 s horizon).
+        n_candidates: m, candidate yaws per layer [-], spaced uniformly over
+            the full circle and anchored at the current yaw (candidate 0 *is*
+            the current yaw, so the lattice is reachable from it and holding
+            the yaw is always a candidate). Must satisfy
+            ``2 pi / m <= yaw_rate_max_radps * period_s`` so that adjacent
+            candidates are connected. Chosen: 64 (spacing 0.098 rad, so an
+            edge may hop 0, +-1 or +-2 candidates: yaw rates 0, +-0.98 and
+            +-1.96 rad/s within the 2.0 rad/s limit).
+        yaw_rate_max_radps: yaw rate limit [rad/s] (MP-CDE Table I: 2.0); the
+            lattice's edges and every output sequence honour it.
+        epsilon: eps of the switching threshold tau_thr = eps pi / yaw_rate_max
+            [-] (MP-CDE Eq. 2: 1.2).
+        hysteresis_s: the exploring/observing regime is entered when
+            S(0) > tau_thr + hysteresis_s and left when S(0) < tau_thr [s]
+            (MP-CDE Alg. 1 and Sec. IV-A: 0.1 s; the text once writes 0.15 s
+            for the observing mode, Alg. 1 uses 0.1 s for both).
+        alpha: weight of the exploration metric E in the edge cost, Eq. 5 [-]
+            (MP-CDE: 0.6).
+        beta: weight of the visibility metric V in the edge cost, Eq. 5 [-]
+            (MP-CDE: 0.4).
+        turn_penalty: cost [-] added to an edge in proportion to its yaw change,
+            ``turn_penalty * |dpsi| / (yaw_rate_max * t_y)``. Not in the paper
+            (chosen: 0.01): a tie-breaker so that, when nothing is to be gained
+            anywhere, the planner holds its yaw instead of wandering; it keeps
+            every edge cost non-negative.
+        n_rays: rays per field-of-view sector of the coverage estimator, Eq. 3
+            [-] (MP-CDE: 72).
+        fov_h_deg: horizontal field of view of the camera [deg] (D435i: 85).
+        fov_v_deg: vertical field of view of the camera [deg] (D435i: 58); used
+            by the visibility metric (a neighbour must lie within +-fov_v/2 of
+            the horizontal, the camera is taken as level).
+        sensing_range_m: length of the coverage rays [m] (chosen: 5 m, half the
+            default 10 m map window, so rays from its centre stay inside it).
+        ray_step_m: spacing of the samples along a coverage ray [m] (chosen:
+            0.15 m, the default voxel edge).
+        detection_range_m: a neighbour farther than this counts as not visible
+            in the visibility metric, Eq. 4 [m] (chosen: 8 m, inside the
+            camera's 10 m depth range).
+        v_max_mps: speed limit of the trajectory optimiser [m/s], the v_max of
+            Eq. 1 (chosen: 1.0, the denied agent's default).
+        t_hold_s: a neighbour last seen at most this long ago is "recently
+            observed", the set V of Alg. 1 line 2 [s] (MP-CDE: 0.6).
+        window_s: memory of the coverage window W: sectors of the yaws
+            executed (i.e. current at a call of ``plan``) within this long
+            before now [s] count as already covered (chosen: 1.0 s, ten
+            planner periods: about the time the map needs to integrate what
+            the camera saw).
+        safety_sample_s: spacing of the trajectory samples of the safety
+            metric, Eq. 1 [s] (chosen: 0.05 s, 5 cm at 1 m/s).
+        safety_horizon_s: the safety metric samples ``[t, t + safety_horizon_s]``
+            (beyond the trajectory's end the drone holds its end position), so
+            tau_s is at most this [s]. It must exceed tau_thr + hysteresis_s,
+            else the exploring regime could never be entered; beyond that it
+            does not change the mode (chosen: 4.0 s).
+        distance_eps_m: eps of 1 / (d + eps) in Eq. 4 and Eq. 6 [m] (chosen:
+            0.2 m, about a drone's radius: closer than that, distance no
+            longer adds urgency).
+        visibility_sigma_ref_m: a neighbour's weight in Eq. 4 is
+            ``min(1 + sigma / visibility_sigma_ref_m, visibility_weight_max)``
+            with sigma = sqrt(trace P_pos(t)) its predicted position standard
+            deviation [m], so a stale track (inflated covariance) matters more
+            (chosen: 0.5 m).
+        visibility_weight_max: cap on that weight [-] (chosen: 3).
+        still_speed_mps: in tracking mode, below this horizontal speed the
+            direction of travel is undefined and the yaw is held [m/s]
+            (chosen: 0.1 m/s).
+    """
+
+    period_s: float = 0.1
+    n_steps: int = 12
+    n_candidates: int = 64
+    yaw_rate_max_radps: float = 2.0
+    epsilon: float = 1.2
+    hysteresis_s: float = 0.1
+    alpha: float = 0.6
+    beta: float = 0.4
+    turn_penalty: float = 0.01
+    n_rays: int = 72
+    fov_h_deg: float = 85.0
+    fov_v_deg: float = 58.0
+    sensing_range_m: float = 5.0
+    ray_step_m: float = 0.15
+    detection_range_m: float = 8.0
+    v_max_mps: float = 1.0
+    t_hold_s: float = 0.6
+    window_s: float = 1.0
+    safety_sample_s: float = 0.05
+    safety_horizon_s: float = 4.0
+    distance_eps_m: float = 0.2
+    visibility_sigma_ref_m: float = 0.5
+    visibility_weight_max: float = 3.0
+    still_speed_mps: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in (
+            "period_s",
+            "yaw_rate_max_radps",
+            "epsilon",
+            "sensing_range_m",
+            "ray_step_m",
+            "detection_range_m",
+            "v_max_mps",
+            "safety_sample_s",
+            "safety_horizon_s",
+            "distance_eps_m",
+            "visibility_sigma_ref_m",
+        ):
+            _check_positive(name, getattr(self, name))
+        for name in ("hysteresis_s", "alpha", "beta", "turn_penalty", "t_hold_s", "window_s", "still_speed_mps"):
+            _check_non_negative(name, getattr(self, name))
+        if self.alpha + self.beta <= 0.0:
+            raise ValueError(f"beta={self.beta!r}: allowed alpha + beta > 0 (alpha={self.alpha!r})")
+        _check_int("n_steps", self.n_steps, 1)
+        _check_int("n_rays", self.n_rays, 2)
+        m_min = math.ceil(2.0 * math.pi / (self.yaw_rate_max_radps * self.period_s) - 1e-9)
+        _check_int("n_candidates", self.n_candidates, max(m_min, 3))
+        for name, upper in (("fov_h_deg", 360.0), ("fov_v_deg", 180.0)):
+            value = getattr(self, name)
+            _check_positive(name, value)
+            if not value < upper:
+                raise ValueError(f"{name}={value!r}: allowed 0 < {name} < {upper:g}")
+        if self.ray_step_m > self.sensing_range_m:
+            raise ValueError(f"ray_step_m={self.ray_step_m!r}: allowed <= sensing_range_m={self.sensing_range_m!r}")
+        if not self.fov_h_deg + math.degrees(self.max_step_rad) < 360.0:
+            raise ValueError(
+                f"fov_h_deg={self.fov_h_deg!r}: allowed < 360 - yaw_rate_max * t_y = "
+                f"{360.0 - math.degrees(self.max_step_rad):.1f} deg (a turn must not wrap the sector onto itself)"
+            )
+        _check_positive("visibility_weight_max", self.visibility_weight_max)
+        if self.visibility_weight_max < 1.0:
+            raise ValueError(f"visibility_weight_max={self.visibility_weight_max!r}: allowed >= 1")
+        needed = self.tau_thr_s + self.hysteresis_s
+        if not self.safety_horizon_s > needed:
+            raise ValueError(
+                f"safety_horizon_s={self.safety_horizon_s!r}: allowed > tau_thr + hysteresis_s = {needed:.3f} s"
+            )
+
+    @property
+    def tau_thr_s(self) -> float:
+        """Switching threshold tau_thr = eps pi / yaw_rate_max [s] (MP-CDE Eq. 2; 1.885 s by default)."""
+        return self.epsilon * math.pi / self.yaw_rate_max_radps
+
+    @property
+    def max_step_rad(self) -> float:
+        """Largest yaw change per lattice step, yaw_rate_max * t_y [rad] (0.2 rad by default)."""
+        return self.yaw_rate_max_radps * self.period_s
+
+    @property
+    def candidate_spacing_rad(self) -> float:
+        """Spacing of the candidate yaws, 2 pi / m [rad]."""
+        return 2.0 * math.pi / self.n_candidates
+
+    @property
+    def max_hop(self) -> int:
+        """q: an edge joins candidate k to candidates k - q .. k + q of the next layer (wrapping) [-].
+
+        At most ``(m - 1) // 2``, so that no two hops of one node reach the same candidate.
+        """
+        q = int(math.floor(self.max_step_rad / self.candidate_spacing_rad + 1e-9))
+        return min(q, (self.n_candidates - 1) // 2)
+
+    @property
+    def fov_h_rad(self) -> float:
+        """Horizontal field of view [rad]."""
+        return math.radians(self.fov_h_deg)
+
+    @property
+    def fov_v_rad(self) -> float:
+        """Vertical field of view [rad]."""
+        return math.radians(self.fov_v_deg)

@@ -1,0 +1,165 @@
+"""The active yaw planner of MP-CDE (Sec. IV-A, Alg. 1 lines 1-12): :class:`YawPlanner`.
+
+Every t_y (0.1 s) the agent calls :meth:`YawPlanner.plan` with the time, the
+current yaw, its current trajectory, its map window and the neighbour
+predictions, and gets a :class:`YawPlan` of n + 1 yaws over the next n t_y:
+
+1. A = every prediction handed in; V = those seen within t_hold
+   (``time_s - stamp_s <= t_hold_s``; the tracker sets ``stamp_s`` to the
+   last camera update).
+2. S(0) and tau_s of Eq. 1 (:func:`planners.yaw.safety.safety_margin`).
+3. Regime with hysteresis (:func:`planners.yaw.safety.safe_regime`): the
+   planner holds whether it is in the exploring/observing regime; it enters
+   it at S(0) > tau_thr + 0.1 s and leaves it at S(0) < tau_thr.
+4. In that regime: *observing* when A is non-empty and |V| = |A| (every
+   neighbour recently seen): steer to the weighted mean bearing (Eq. 6);
+   otherwise *exploring* (A empty, or some neighbour not recently seen):
+   Dijkstra on the yaw lattice with E (Eq. 3) and V (Eq. 4) for the
+   neighbours in A minus V (Alg. 1 line 8).
+5. Otherwise *tracking*: yaw along the direction of travel.
+
+Every mode's output starts at the current yaw, is unwrapped and changes by
+at most yaw_rate_max t_y per step. The planner also remembers the sectors of
+the yaws it was called with during the last ``window_s`` (the coverage
+window W of Eq. 3; see :mod:`planners.yaw.coverage`), in every mode, so the
+window is complete when exploring starts.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Sequence
+
+import numpy as np
+
+from perception.types import NeighborPrediction, OccupancySnapshot
+from planners.yaw.config import YawPlannerConfig
+from planners.yaw.coverage import FanGeometry, cast_fans, edge_gains, past_coverage, ray_gains, visible_cells_xy
+from planners.yaw.lattice import LatticePath, edge_costs, shortest_path
+from planners.yaw.safety import safe_regime, safety_margin
+from planners.yaw.steering import observe_targets, rate_limited, track_targets
+from planners.yaw.types import TrajectoryView, YawPlan
+from planners.yaw.visibility import visibility_rewards
+
+__all__ = ["YawPlanner"]
+
+
+class YawPlanner:
+    """MP-CDE's active yaw planner for one drone (stateful: regime and coverage window).
+
+    Args:
+        config: settings; defaults from MP-CDE Table I.
+    """
+
+    def __init__(self, config: YawPlannerConfig | None = None) -> None:
+        self.config = config if config is not None else YawPlannerConfig()
+        self._fan = FanGeometry.from_config(self.config)
+        self._in_safe_regime = False
+        self._window: deque[tuple[float, np.ndarray]] = deque()
+        self.last_path: LatticePath | None = None
+        """The lattice path of the last exploring plan (for inspection), else None."""
+
+    @property
+    def in_safe_regime(self) -> bool:
+        """Whether the last plan was in the exploring/observing regime (the hysteresis state)."""
+        return self._in_safe_regime
+
+    def reset(self) -> None:
+        """Forget the regime (back to tracking) and the coverage window."""
+        self._in_safe_regime = False
+        self._window.clear()
+        self.last_path = None
+
+    def plan(
+        self,
+        time_s: float,
+        yaw: float,
+        trajectory: TrajectoryView,
+        snapshot: OccupancySnapshot,
+        predictions: Sequence[NeighborPrediction] = (),
+    ) -> YawPlan:
+        """Plan the yaw over the next n t_y (MP-CDE Alg. 1 lines 1-12).
+
+        Args:
+            time_s: now, absolute [s].
+            yaw: current yaw [rad] (any branch; the output continues it).
+            trajectory: the drone's current trajectory; its position at
+                ``time_s`` is taken as the drone's position.
+            snapshot: the drone's map window.
+            predictions: the neighbours, the set A of Alg. 1 (all predictions
+                handed in; the caller drops pruned tracks).
+        """
+        if not (math.isfinite(time_s) and math.isfinite(yaw)):
+            raise ValueError(f"time_s={time_s!r}, yaw={yaw!r}: allowed finite numbers")
+        cfg = self.config
+        n = cfg.n_steps
+        times = time_s + np.arange(n + 1) * cfg.period_s
+        positions = trajectory.positions(times)  # (n + 1, 3)
+        safety = safety_margin(snapshot, trajectory, time_s, cfg)
+        s0 = safety.margin_now_s
+        self._in_safe_regime = safe_regime(self._in_safe_regime, s0, cfg.tau_thr_s, cfg.hysteresis_s)
+        active = list(predictions)
+        recent = [q for q in active if time_s - q.stamp_s <= cfg.t_hold_s]
+        self._remember_sector(time_s, yaw, positions[0], snapshot)
+        self.last_path = None
+        if not self._in_safe_regime:
+            mode = "tracking"
+            targets = track_targets(trajectory.velocities(times[1:]), cfg.still_speed_mps, yaw)
+            yaws = rate_limited(yaw, targets, cfg.max_step_rad)
+        elif active and len(recent) == len(active):
+            mode = "observing"
+            targets = observe_targets(positions[1:], times[1:], recent, cfg.distance_eps_m, yaw)
+            yaws = rate_limited(yaw, targets, cfg.max_step_rad)
+        else:
+            mode = "exploring"
+            unseen = [q for q in active if time_s - q.stamp_s > cfg.t_hold_s]  # A \ V, Alg. 1 line 8
+            yaws = self._explore(yaw, times, positions, snapshot, unseen)
+        if active:
+            now = np.stack([q.position(time_s) for q in active])
+            d_min = float(np.min(np.linalg.norm(now - positions[0], axis=1)))
+        else:
+            d_min = math.inf
+        return YawPlan(
+            mode=mode,
+            times_s=times,
+            yaws=yaws,
+            safety_margin_s=s0,
+            safe_time_s=safety.safe_time_s,
+            tau_thr_s=cfg.tau_thr_s,
+            min_neighbour_distance_m=d_min,
+            n_recent=len(recent),
+            n_active=len(active),
+        )
+
+    def _remember_sector(self, time_s: float, yaw: float, pos_world: np.ndarray, snapshot: OccupancySnapshot) -> None:
+        """Add the current yaw's visible sector to the coverage window W and drop entries older than window_s.
+
+        An entry at the same time (a repeated call) or later (time went back) is replaced.
+        """
+        w = self.config.window_s
+        self._window = deque(entry for entry in self._window if 0.0 < time_s - entry[0] <= w)
+        fan = self._fan
+        cast = cast_fans(snapshot, pos_world, fan.azimuths(yaw)[: fan.n_sector], fan.ranges_m)
+        self._window.append((time_s, visible_cells_xy(snapshot, cast)))
+
+    def _explore(
+        self,
+        yaw: float,
+        times: np.ndarray,
+        positions: np.ndarray,
+        snapshot: OccupancySnapshot,
+        unseen: Sequence[NeighborPrediction],
+    ) -> np.ndarray:
+        """Exploring mode: the maximum-reward yaw sequence (n + 1,) on the lattice (Eq. 3-5)."""
+        cfg, fan = self.config, self._fan
+        m, q = cfg.n_candidates, cfg.max_hop
+        covered = past_coverage(snapshot, np.concatenate([pts for _, pts in self._window]))
+        cast = cast_fans(snapshot, positions[1:], fan.azimuths(yaw), fan.ranges_m)
+        gains, e_max = edge_gains(ray_gains(cast, covered, fan.areas_m2), fan, m, q)
+        e = gains / e_max  # Eq. 3, normalised to [0, 1]
+        candidate_yaws = yaw + np.arange(m) * cfg.candidate_spacing_rad
+        v = visibility_rewards(positions[1:], times[1:], candidate_yaws, unseen, cfg)  # Eq. 4, in [0, 1]
+        path = shortest_path(edge_costs(e, v, cfg.alpha, cfg.beta, cfg.turn_penalty))  # Eq. 5
+        self.last_path = path
+        return yaw + cfg.candidate_spacing_rad * np.concatenate([[0.0], np.cumsum(path.hops)])

@@ -1,0 +1,273 @@
+"""The yaw planner's modes (MP-CDE Alg. 1 lines 1-12): switching, exploring, observing, tracking."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.ndimage import distance_transform_edt
+
+from perception.types import NeighborPrediction, OccupancySnapshot
+from planners.yaw import TrajectoryView, YawPlan, YawPlanner, YawPlannerConfig, mean_bearing
+
+VOXEL_M = 0.2
+ORIGIN = np.array([-6.0, -6.0, 0.0])
+SHAPE = (60, 60, 10)
+DRONE = np.array([0.1, 0.1, 1.1])  # a voxel centre in the middle of the window
+CENTRES = ORIGIN + VOXEL_M * (np.indices(SHAPE).transpose(1, 2, 3, 0) + 0.5)  # (nx, ny, nz, 3)
+FREE, UNKNOWN, OCCUPIED = OccupancySnapshot.FREE, OccupancySnapshot.UNKNOWN, OccupancySnapshot.OCCUPIED
+
+
+def make_snapshot(state: np.ndarray) -> OccupancySnapshot:
+    """Snapshot of ``state`` with exact EDT layers (free distance: to the nearest not-free voxel centre)."""
+    occupied = state == OCCUPIED
+    dist = (distance_transform_edt(~occupied) * VOXEL_M).astype(np.float32)
+    free = (distance_transform_edt(state == FREE) * VOXEL_M).astype(np.float32)
+    return OccupancySnapshot(0.0, ORIGIN.copy(), VOXEL_M, state.astype(np.int8), dist, free)
+
+
+def uniform_snapshot(free_distance_m: float) -> OccupancySnapshot:
+    """All voxels verified free, with d_free set to ``free_distance_m`` everywhere (controls S(0) = d_free / v_max)."""
+    state = np.zeros(SHAPE, np.int8)
+    field = np.full(SHAPE, free_distance_m, np.float32)
+    return OccupancySnapshot(0.0, ORIGIN.copy(), VOXEL_M, state, field, field)
+
+
+def disc_free(radius_m: float) -> np.ndarray:
+    """(nx, ny, nz) bool: voxel centres within ``radius_m`` of the drone in xy."""
+    return np.hypot(CENTRES[..., 0] - DRONE[0], CENTRES[..., 1] - DRONE[1]) <= radius_m
+
+
+def line(vel: np.ndarray, start: np.ndarray = DRONE, t0: float = 0.0, end: float = 10.0) -> TrajectoryView:
+    return TrajectoryView(
+        position_at=lambda t: start + (np.asarray(t)[:, None] - t0) * vel,
+        velocity_at=lambda t: np.broadcast_to(vel, (np.size(t), 3)).copy(),
+        end_time_s=end,
+    )
+
+
+def neighbour(pos, stamp_s: float, vel=(0.0, 0.0, 0.0), nid: int = 0, sigma_m: float = 0.1) -> NeighborPrediction:
+    cov = np.diag([sigma_m**2] * 3 + [0.01] * 3)
+    return NeighborPrediction.constant_velocity(nid, "perception", stamp_s, np.asarray(pos, float), vel, cov)
+
+
+def assert_rate_limited(plan: YawPlan, yaw0: float, cfg: YawPlannerConfig) -> None:
+    assert plan.yaws[0] == yaw0
+    assert np.all(np.abs(np.diff(plan.yaws)) <= cfg.max_step_rad + 1e-12)
+    assert len(plan.yaws) == cfg.n_steps + 1
+    np.testing.assert_allclose(np.diff(plan.times_s), cfg.period_s)
+
+
+HOVER = TrajectoryView.hover(DRONE)
+
+
+# --- mode switching --------------------------------------------------------------------------------
+
+
+def test_small_margin_tracks_and_large_margin_explores():
+    cfg = YawPlannerConfig()
+    planner = YawPlanner(cfg)
+    assert planner.plan(0.0, 0.0, HOVER, uniform_snapshot(1.0)).mode == "tracking"
+    plan = planner.plan(0.1, 0.0, HOVER, uniform_snapshot(2.5))
+    assert plan.mode == "exploring"
+    assert plan.safety_margin_s == pytest.approx(2.5)
+    assert plan.tau_thr_s == pytest.approx(cfg.tau_thr_s)
+
+
+def test_hysteresis_keeps_the_mode_inside_the_band():
+    planner = YawPlanner()
+    band = uniform_snapshot(1.95)  # tau_thr = 1.885 s < S(0) = 1.95 s < tau_thr + 0.1 s
+    assert planner.plan(0.0, 0.0, HOVER, band).mode == "tracking"  # starts in tracking, stays
+    assert planner.plan(0.1, 0.0, HOVER, uniform_snapshot(2.5)).mode == "exploring"
+    assert planner.plan(0.2, 0.0, HOVER, band).mode == "exploring"  # stays
+    assert planner.plan(0.3, 0.0, HOVER, uniform_snapshot(1.8)).mode == "tracking"
+    assert planner.plan(0.4, 0.0, HOVER, band).mode == "tracking"  # stays
+    planner.reset()
+    assert not planner.in_safe_regime
+
+
+def test_observing_needs_every_neighbour_recently_seen():
+    planner = YawPlanner()
+    snap = uniform_snapshot(3.0)
+    seen = neighbour((2.0, 1.0, 1.1), stamp_s=0.9, nid=0)
+    unseen = neighbour((-2.0, 1.0, 1.1), stamp_s=0.0, nid=1)  # 1.0 s > t_hold = 0.6 s
+    assert planner.plan(1.0, 0.0, HOVER, snap, [seen]).mode == "observing"
+    plan = planner.plan(1.1, 0.0, HOVER, snap, [seen, unseen])
+    assert plan.mode == "exploring" and (plan.n_recent, plan.n_active) == (1, 2)
+    assert planner.plan(1.2, 0.0, HOVER, snap, []).mode == "exploring"
+
+
+# --- exploring -------------------------------------------------------------------------------------
+
+
+def half_known_state(unknown_side: float) -> np.ndarray:
+    """Free within 2.6 m of the drone; beyond it known free on one side, unknown on the other (sign of y)."""
+    state = np.full(SHAPE, FREE, np.int8)
+    side = np.sign(CENTRES[..., 1] - DRONE[1]) == np.sign(unknown_side)
+    state[side & ~disc_free(2.6)] = UNKNOWN
+    return state
+
+
+@pytest.mark.parametrize("unknown_side", [-1.0, 1.0])
+def test_exploring_turns_the_camera_towards_the_unknown_side(unknown_side):
+    cfg = YawPlannerConfig()
+    plan = YawPlanner(cfg).plan(0.0, 0.0, HOVER, make_snapshot(half_known_state(unknown_side)))
+    assert plan.mode == "exploring"
+    assert np.sign(plan.yaws[-1]) == np.sign(unknown_side)  # right (y < 0) is negative yaw
+    assert abs(plan.yaws[-1]) > 1.0
+    assert_rate_limited(plan, 0.0, cfg)
+
+
+def occlusion_state(wall: bool) -> np.ndarray:
+    """Free band -3.5 <= y < 2.2 (and the disc around the drone); left of it a wall (or unknown), then unknown.
+
+    Without the wall the unknown on the left (from y = 2.2) is larger than on the right (from y = -3.5).
+    """
+    y = CENTRES[..., 1]
+    state = np.full(SHAPE, UNKNOWN, np.int8)
+    state[(y >= -3.5) & (y < 2.2)] = FREE
+    if wall:
+        state[(y >= 2.2) & (y < 2.4)] = OCCUPIED
+    return state
+
+
+def test_an_obstacle_occludes_the_unknown_space_behind_it():
+    cfg = YawPlannerConfig()
+    open_plan = YawPlanner(cfg).plan(0.0, 0.0, HOVER, make_snapshot(occlusion_state(wall=False)))
+    walled = YawPlanner(cfg).plan(0.0, 0.0, HOVER, make_snapshot(occlusion_state(wall=True)))
+    assert open_plan.mode == walled.mode == "exploring"
+    assert open_plan.yaws[-1] > 0.5  # without the wall: towards the larger unknown region (left)
+    assert walled.yaws[-1] < -0.5  # the wall hides everything on the left: turn right
+
+
+@pytest.mark.parametrize("looked_from", [-1.0, 1.0])
+def test_the_coverage_window_turns_the_camera_away_from_what_it_just_saw(looked_from):
+    """Unknown all around: the map alone cannot tell left from right; the window W of recent yaws does."""
+    cfg = YawPlannerConfig()
+    planner = YawPlanner(cfg)
+    snap = make_snapshot(np.where(disc_free(2.6), FREE, UNKNOWN).astype(np.int8))
+    for k in range(5):  # 0.5 s looking 0.7 rad to one side of the current yaw
+        planner.plan(-0.5 + 0.1 * k, looked_from * 0.7, HOVER, snap)
+    plan = planner.plan(0.0, 0.0, HOVER, snap)
+    assert plan.mode == "exploring"
+    assert plan.yaws[-1] * looked_from < -0.5  # it turns to the other side
+
+
+def test_a_neighbour_not_seen_for_t_hold_attracts_the_yaw():
+    cfg = YawPlannerConfig()
+    snap = uniform_snapshot(3.0)  # nothing unknown: only the visibility term
+    for side in (1.0, -1.0):
+        lost = neighbour((0.1, 0.1 + 3.0 * side, 1.1), stamp_s=-1.0)
+        plan = YawPlanner(cfg).plan(0.0, 0.0, HOVER, snap, [lost])
+        assert plan.mode == "exploring"
+        assert plan.yaws[-1] * side > 1.0  # towards +-pi/2
+        assert abs(plan.yaws[-1] - side * math.pi / 2) < 0.6
+        assert_rate_limited(plan, 0.0, cfg)
+
+
+def test_visibility_counts_only_the_neighbours_not_recently_seen():
+    snap = uniform_snapshot(3.0)
+    seen = neighbour((0.1, 3.1, 1.1), stamp_s=-0.1, nid=0)  # left, seen 0.1 s ago
+    lost = neighbour((0.1, -2.9, 1.1), stamp_s=-1.0, nid=1)  # right, lost
+    plan = YawPlanner().plan(0.0, 0.0, HOVER, snap, [seen, lost])
+    assert plan.mode == "exploring"
+    assert plan.yaws[-1] < -1.0
+
+
+def test_with_nothing_to_gain_exploring_holds_the_yaw():
+    plan = YawPlanner().plan(0.0, 0.7, HOVER, uniform_snapshot(3.0))
+    assert plan.mode == "exploring"
+    np.testing.assert_allclose(plan.yaws, 0.7)
+
+
+# --- observing -------------------------------------------------------------------------------------
+
+
+def test_observing_points_closer_to_the_near_neighbour():
+    cfg = YawPlannerConfig()
+    b_near, b_far = math.radians(60), math.radians(-60)
+    near = neighbour(DRONE + 1.5 * np.array([math.cos(b_near), math.sin(b_near), 0.0]), stamp_s=0.0, nid=0)
+    far = neighbour(DRONE + 6.0 * np.array([math.cos(b_far), math.sin(b_far), 0.0]), stamp_s=0.0, nid=1)
+    plan = YawPlanner(cfg).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), [near, far])
+    assert plan.mode == "observing"
+    # Eq. 6 by hand: weights 1 / (d + eps), bearings averaged as unit vectors
+    w1, w2 = 1 / (1.5 + cfg.distance_eps_m), 1 / (6.0 + cfg.distance_eps_m)
+    expected = math.atan2(w1 * math.sin(b_near) + w2 * math.sin(b_far), w1 * math.cos(b_near) + w2 * math.cos(b_far))
+    assert expected > 0.3
+    assert plan.yaws[-1] == pytest.approx(expected, abs=1e-9)
+    assert_rate_limited(plan, 0.0, cfg)
+
+
+def test_circular_mean_of_bearings_near_pi_does_not_flip_to_zero():
+    b = math.radians(170)
+    targets = np.array([DRONE + 3 * np.array([math.cos(b), math.sin(b), 0]),
+                        DRONE + 3 * np.array([math.cos(-b), math.sin(-b), 0])])
+    mean = mean_bearing(DRONE, targets, 0.2)
+    assert abs(abs(mean) - math.pi) < 1e-9  # the arithmetic mean of +170 and -170 deg would be 0
+    preds = [neighbour(targets[0], 0.0, nid=0), neighbour(targets[1], 0.0, nid=1)]
+    plan = YawPlanner().plan(0.0, 3.0, HOVER, uniform_snapshot(3.0), preds)
+    assert plan.mode == "observing"
+    assert plan.yaws[-1] == pytest.approx(math.pi, abs=1e-9)  # continuous from 3.0, not towards 0
+    assert mean_bearing(DRONE, np.array([DRONE + (1, 0, 0), DRONE - (1, 0, 0)]), 0.2) is None
+
+
+# --- tracking --------------------------------------------------------------------------------------
+
+
+def test_tracking_follows_the_direction_of_travel_at_the_rate_limit():
+    cfg = YawPlannerConfig()
+    plan = YawPlanner(cfg).plan(0.0, 0.0, line(np.array([0.0, 1.0, 0.0])), uniform_snapshot(1.0))
+    assert plan.mode == "tracking"
+    steps = np.round(plan.yaws[:8] / cfg.max_step_rad, 9)
+    np.testing.assert_array_equal(steps, np.arange(8))  # full rate until the heading is reached
+    assert plan.yaws[-1] == pytest.approx(math.pi / 2)
+    assert_rate_limited(plan, 0.0, cfg)
+
+
+def test_tracking_turns_the_short_way_across_pi_and_holds_when_still():
+    cfg = YawPlannerConfig()
+    heading = -3.0  # = 3.283 rad: 0.283 rad from yaw 3.0 the short way, across +pi
+    vel = np.array([math.cos(heading), math.sin(heading), 0.0])
+    plan = YawPlanner(cfg).plan(0.0, 3.0, line(vel), uniform_snapshot(1.0))
+    assert plan.yaws[-1] == pytest.approx(2 * math.pi + heading)
+    assert np.all(np.diff(plan.yaws) >= 0.0)
+    still = YawPlanner(cfg).plan(0.0, 3.0, line(np.array([0.05, 0.0, 0.0])), uniform_snapshot(1.0))
+    np.testing.assert_allclose(still.yaws, 3.0)
+
+
+def test_tracking_uses_the_velocity_along_the_future_trajectory():
+    """Flying +x until 0.55 s, then +y: the yaw holds 0 while the heading is 0, then turns at the rate limit."""
+    def vel(t):
+        t = np.asarray(t)[:, None]
+        return np.where(t < 0.55, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+
+    traj = TrajectoryView(lambda t: DRONE + np.zeros((np.size(t), 3)), vel, 10.0)
+    plan = YawPlanner().plan(0.0, 0.0, traj, uniform_snapshot(1.0))
+    np.testing.assert_allclose(plan.yaws[:6], 0.0)  # layers at 0.1 .. 0.5 s head +x
+    np.testing.assert_allclose(plan.yaws[6:], 0.2 * np.arange(1, 8))  # then +y: 0.2 rad per step
+    ended = YawPlanner().plan(0.0, 0.0, line(np.array([0.0, 1.0, 0.0]), end=0.35), uniform_snapshot(1.0))
+    assert ended.yaws[-1] == pytest.approx(math.pi / 2)  # after the end: the last heading of travel is kept
+
+
+# --- the plan's outputs ----------------------------------------------------------------------------
+
+
+def test_yaw_at_is_piecewise_linear_and_holds_after_the_end():
+    plan = YawPlanner().plan(2.0, 0.0, line(np.array([0.0, 1.0, 0.0]), t0=2.0, end=12.0), uniform_snapshot(1.0))
+    yaw, rate = plan.yaw_at(2.05)
+    assert yaw == pytest.approx(0.1) and rate == pytest.approx(2.0)
+    assert plan.yaw_at(2.0 + 0.1 * 12 + 1.0) == (pytest.approx(plan.yaws[-1]), 0.0)
+    assert plan.yaw_at(1.0) == (0.0, 0.0)
+
+
+def test_plan_reports_the_nearest_neighbour_distance_for_the_replan_trigger():
+    preds = [neighbour(DRONE + (0.5, 0, 0), 0.0, nid=0), neighbour(DRONE + (3, 0, 0), 0.0, nid=1)]
+    plan = YawPlanner().plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), preds)
+    assert plan.min_neighbour_distance_m == pytest.approx(0.5)
+    assert YawPlanner().plan(0.0, 0.0, HOVER, uniform_snapshot(3.0)).min_neighbour_distance_m == math.inf
+
+
+def test_non_finite_inputs_are_refused():
+    with pytest.raises(ValueError, match="yaw"):
+        YawPlanner().plan(0.0, float("nan"), HOVER, uniform_snapshot(3.0))

@@ -1,0 +1,108 @@
+"""Safety metric, threshold and replanning trigger of MP-CDE Sec. IV-A (Eq. 1-2, Alg. 1 lines 4 and 13)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.ndimage import distance_transform_edt
+
+from perception.types import OccupancySnapshot
+from planners.yaw import TrajectoryView, YawPlannerConfig, needs_replan, safe_regime, safety_margin
+
+VOXEL_M = 0.2
+ORIGIN = np.array([-3.0, -3.0, 0.0])
+
+
+def corridor_snapshot() -> OccupancySnapshot:
+    """40 x 30 x 10 voxels: verified free for x < 1.0 m (index < 20), unknown beyond."""
+    state = np.zeros((40, 30, 10), np.int8)
+    state[20:] = OccupancySnapshot.UNKNOWN
+    free = (distance_transform_edt(state == 0) * VOXEL_M).astype(np.float32)
+    return OccupancySnapshot(0.0, ORIGIN.copy(), VOXEL_M, state, free.copy(), free)
+
+
+def line(start: np.ndarray, vel: np.ndarray, t0: float, end: float) -> TrajectoryView:
+    """Straight flight from ``start`` at constant ``vel`` from ``t0`` to ``end`` [s]."""
+    return TrajectoryView(
+        position_at=lambda t: start + (np.asarray(t)[:, None] - t0) * vel,
+        velocity_at=lambda t: np.broadcast_to(vel, (np.size(t), 3)).copy(),
+        end_time_s=end,
+    )
+
+
+def test_safe_time_is_when_the_trajectory_reaches_the_first_unknown_voxel():
+    cfg = YawPlannerConfig(safety_horizon_s=8.0)
+    start = np.array([-1.9, 0.1, 1.1])  # a voxel centre, 2.9 m before the unknown boundary at x = 1.0
+    traj = line(start, np.array([0.5, 0.0, 0.0]), t0=2.0, end=20.0)
+    s = safety_margin(corridor_snapshot(), traj, 2.0, cfg)
+    t_reach = 2.9 / 0.5
+    assert t_reach - cfg.safety_sample_s - 1e-9 <= s.safe_time_s <= t_reach
+    assert not s.horizon_reached
+    assert s.safe_point_world[0] < 1.0
+    assert s.safe_point_world[0] > 1.0 - 0.5 * cfg.safety_sample_s - 1e-9
+
+
+def test_safety_margin_matches_a_hand_computation():
+    cfg = YawPlannerConfig(safety_horizon_s=8.0, v_max_mps=2.0)
+    start = np.array([-1.9, 0.1, 1.1])
+    traj = line(start, np.array([0.5, 0.0, 0.0]), t0=0.0, end=20.0)
+    s = safety_margin(corridor_snapshot(), traj, 0.0, cfg)
+    # d_free along the line is the distance to the first unknown voxel centre, x = 1.1 (exact under trilinear
+    # interpolation: the field is linear in x there); S(tau) = min(d_free / v_max, tau_s - tau), Eq. 1
+    x = start[0] + 0.5 * s.taus_s
+    expected = np.minimum((1.1 - x) / 2.0, s.safe_time_s - s.taus_s)
+    np.testing.assert_allclose(s.margins_s, expected, atol=1e-5)
+    assert s.margin_now_s == pytest.approx(min(3.0 / 2.0, s.safe_time_s), abs=1e-5)
+    assert s.taus_s[-1] == pytest.approx(s.safe_time_s)
+
+
+def test_the_second_term_of_eq1_is_active_near_the_safe_point():
+    cfg = YawPlannerConfig(safety_horizon_s=8.0, v_max_mps=0.1)  # d_free / v_max large: tau_s - tau decides
+    traj = line(np.array([-1.9, 0.1, 1.1]), np.array([0.5, 0.0, 0.0]), t0=0.0, end=20.0)
+    s = safety_margin(corridor_snapshot(), traj, 0.0, cfg)
+    assert s.margin_now_s == pytest.approx(s.safe_time_s)
+    assert s.margins_s[-1] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_hover_in_free_space_is_safe_up_to_the_horizon():
+    cfg = YawPlannerConfig()
+    s = safety_margin(corridor_snapshot(), TrajectoryView.hover(np.array([-1.9, 0.1, 1.1])), 5.0, cfg)
+    assert s.horizon_reached
+    assert s.safe_time_s == pytest.approx(cfg.safety_horizon_s)
+    assert s.margin_now_s == pytest.approx(min(3.0 / cfg.v_max_mps, cfg.safety_horizon_s), abs=1e-5)
+
+
+def test_a_drone_in_an_unknown_voxel_has_no_margin():
+    s = safety_margin(corridor_snapshot(), TrajectoryView.hover(np.array([2.0, 0.1, 1.1])), 0.0, YawPlannerConfig())
+    assert s.safe_time_s == 0.0 and s.margin_now_s == 0.0
+
+
+def test_switching_threshold_is_eq2():
+    cfg = YawPlannerConfig()
+    assert cfg.tau_thr_s == pytest.approx(1.2 * math.pi / 2.0)
+
+
+@pytest.mark.parametrize(
+    "previous, margin, expected",
+    [
+        (False, 1.0, False),
+        (True, 1.0, False),  # below tau_thr: tracking whatever came before
+        (False, 2.5, True),
+        (True, 2.5, True),  # above tau_thr + 0.1: exploring/observing
+        (False, 1.95, False),  # inside the band: keep
+        (True, 1.95, True),
+        (True, 1.885, True),  # at tau_thr exactly: not below it
+    ],
+)
+def test_hysteresis_keeps_the_previous_regime_inside_the_band(previous, margin, expected):
+    cfg = YawPlannerConfig()
+    assert safe_regime(previous, margin, round(cfg.tau_thr_s, 3), cfg.hysteresis_s) is expected
+
+
+def test_replan_trigger_is_alg1_line13():
+    assert needs_replan(1.0, 1.885, np.inf, 0.7)  # S(0) < tau_thr
+    assert needs_replan(3.0, 1.885, 0.5, 0.7)  # a neighbour closer than C_s
+    assert not needs_replan(3.0, 1.885, 0.9, 0.7)
+    assert not needs_replan(3.0, 1.885, np.inf, 0.7)
