@@ -34,8 +34,12 @@ separation beats the old plan's); if the current trajectory is itself unsafe
 with respect to obstacles, the agent brakes to a stop along it (a stopping
 MINCO piece from its current state).
 
-Yaw: the "tracking" mode of MP-CDE Sec. IV-A (heading along the direction of
-travel, rate-limited to ``yaw_rate_max``); the active yaw planner is not yet here.
+Yaw (MP-CDE Sec. IV-A, :mod:`mpcde.agent_yaw`): every t_y = 0.1 s of frame
+time the active yaw planner (:mod:`planners.yaw`, Alg. 1) chooses exploring,
+observing or tracking from the safety margin S(0) and the tracks, and the
+reference follows its rate-limited yaw sequence; its line 13 (S(0) < tau_thr or
+a neighbour within C_s now) is replanning trigger (e). With ``active_yaw:
+false`` the heading follows the direction of travel (the ablation).
 """
 
 from __future__ import annotations
@@ -46,6 +50,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mpcde.agent import AgentCounters
+from mpcde.agent_yaw import ActiveYaw, yaw_config_for
 from mpcde.neighbour_perception import NeighbourPerception
 from mpcde.onboard_detection import DetectorRequest
 from perception.backprojection import BackprojectionConfig
@@ -56,6 +61,7 @@ from perception.types import Detection, NeighborPrediction
 from planners.minco import MincoTrajectory, minco_s3
 from planners.neighbour_field import with_neighbour_capsules
 from planners.path_search import PathSearchConfig, search_path
+from planners.yaw import YawPlannerConfig
 from planners.trajectory_optimizer import TrajectoryOptimizationError, TrajectoryOptimizerConfig, build_trajectory_problem, solve
 from sim.rotations import yaw_from_rotation, rotation_from_quat_xyzw
 from sim.types import FlatOutputReference, PoseEstimate, RadioMessage, RgbdFrame
@@ -79,12 +85,16 @@ class DeniedAgentConfig:
         swarm_z_scale: c of the ellipsoidal metric E = diag(1, 1, 1/c) [-] (Eq. 16).
         conflict_horizon_s: look-ahead [s] of replanning trigger (d) along the tracks' predictions.
         perceive_neighbours: run the detector and tracker (False: map only, blind to other drones).
+        active_yaw: plan the heading with MP-CDE's active yaw planner (False: heading along travel).
         detector_weights: detector checkpoint; None: the shipped weights.
         detector_score_threshold: keep detections scoring >= this; None: the checkpoint's own.
         map: occupancy map settings.
         tracker: neighbour tracker settings (MP-CDE Sec. IV-B).
         backprojection: detection back-projection settings (Eq. 7-8); its pose-noise
             terms are replaced by the scenario's ``pose_estimate`` white noise.
+        yaw: active yaw planner settings; its speed limit, yaw-rate limit, t_hold
+            and field of view are taken from ``v_max_mps``, ``yaw_rate_max_radps``,
+            ``tracker.t_hold_s`` and the scenario's camera, so each is set once.
     """
 
     v_max_mps: float = 1.0
@@ -98,11 +108,13 @@ class DeniedAgentConfig:
     swarm_z_scale: float = 2.0
     conflict_horizon_s: float = 1.2
     perceive_neighbours: bool = True
+    active_yaw: bool = True
     detector_weights: str | None = None
     detector_score_threshold: float | None = None
     map: MapConfig = field(default_factory=MapConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     backprojection: BackprojectionConfig = field(default_factory=BackprojectionConfig)
+    yaw: YawPlannerConfig = field(default_factory=YawPlannerConfig)
 
     def __post_init__(self) -> None:
         for name in ("swarm_clearance_m", "conflict_horizon_s"):
@@ -124,6 +136,7 @@ class PlanningStats:
     failures: int = 0
     brakes: int = 0
     swarm_replans: int = 0
+    yaw_replans: int = 0
     solve_ms: list = field(default_factory=list)
     map_ms: list = field(default_factory=list)
 
@@ -131,7 +144,8 @@ class PlanningStats:
 class DeniedAgent:
     """One drone's MP-CDE stack (implements :class:`mpcde.agent.OnboardAgent`)."""
 
-    def __init__(self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig) -> None:
+    def __init__(self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig, fov_deg: tuple[float, float] = (85.0, 58.0)) -> None:
+        """``fov_deg``: the camera's (horizontal, vertical) field of view [deg], for the yaw planner."""
         self.drone_id = drone_id
         self.goal_world = np.asarray(goal_world, float)
         self.config = config
@@ -142,9 +156,9 @@ class DeniedAgent:
         self.last_plan_time_s = -np.inf
         self.latest_estimate: PoseEstimate | None = None
         self.hover_world: np.ndarray | None = None
-        self.yaw: float | None = None
-        self.yaw_time_s = 0.0
+        self.heading: ActiveYaw | None = None  # made from the first pose estimate (its yaw)
         c = config
+        self.yaw_config = yaw_config_for(c.yaw, c.v_max_mps, c.yaw_rate_max_radps, c.tracker.t_hold_s, *fov_deg)
         self.optimizer = TrajectoryOptimizerConfig(
             v_max_mps=c.v_max_mps, a_max_mps2=c.a_max_mps2, obstacle_clearance_m=c.clearance_m,
             swarm_clearance_m=c.swarm_clearance_m, swarm_z_scale=c.swarm_z_scale,
@@ -161,7 +175,9 @@ class DeniedAgent:
         self.latest_estimate = estimate
         if self.hover_world is None:
             self.hover_world = estimate.pos_world.copy()
-            self.yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
+            yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
+            c = self.config
+            self.heading = ActiveYaw(self.yaw_config, c.active_yaw, yaw, c.swarm_clearance_m, c.swarm_z_scale)
 
     def on_radio(self, messages: list[RadioMessage]) -> None:
         """Denied: the radio is not used (messages are counted only)."""
@@ -185,11 +201,16 @@ class DeniedAgent:
         if t < self.config.start_delay_s or self.latest_estimate is None:
             return
         neighbours = self.perception.predictions(t) if self.perception is not None else []
+        yaw_trigger = False
+        if self.heading.due(t):  # Alg. 1 lines 1-12 every t_y; line 13's trigger is (e)
+            yaw_trigger = self.heading.update(t, snap, self.trajectory, self.hover_world, neighbours)
         unsafe = self.trajectory is not None and not self._safe(self.trajectory, snap, t)
         conflict = self.trajectory is not None and self._swarm_conflict(self.trajectory, neighbours, t)
-        if self.trajectory is None or unsafe or conflict or t - self.last_plan_time_s >= self.config.replan_period_s:
+        due = t - self.last_plan_time_s >= self.config.replan_period_s
+        if self.trajectory is None or unsafe or conflict or yaw_trigger or due:
             replanned = self._replan(snap, neighbours, t)
             self.stats.swarm_replans += int(replanned and conflict)
+            self.stats.yaw_replans += int(replanned and yaw_trigger)
             if not replanned and unsafe:
                 self._brake(t)
 
@@ -263,22 +284,15 @@ class DeniedAgent:
 
     # output -----------------------------------------------------------------
     def reference(self, time_s: float) -> FlatOutputReference:
-        """Reference at ``time_s`` [s]: the current MINCO trajectory, heading along travel."""
+        """Reference at ``time_s`` [s]: the current MINCO trajectory and the heading of :mod:`mpcde.agent_yaw`."""
+        if self.heading is None:  # no pose estimate yet
+            return FlatOutputReference.hover(np.zeros(3), 0.0)
         if self.trajectory is None:
-            hover = self.hover_world if self.hover_world is not None else np.zeros(3)
-            return FlatOutputReference.hover(hover, self.yaw or 0.0)
+            yaw, yaw_rate = self.heading.reference(time_s, None)
+            return FlatOutputReference(self.hover_world, np.zeros(3), np.zeros(3), yaw, yaw_rate)
         p, v, a = self._state_at(time_s)
-        if self.yaw is None:
-            self.yaw = 0.0
-        dt = max(time_s - self.yaw_time_s, 0.0)
-        self.yaw_time_s = time_s
-        yaw_rate = 0.0
-        if np.hypot(v[0], v[1]) > 0.2:
-            err = (np.arctan2(v[1], v[0]) - self.yaw + np.pi) % (2 * np.pi) - np.pi
-            step = float(np.clip(err, -self.config.yaw_rate_max_radps * dt, self.config.yaw_rate_max_radps * dt))
-            self.yaw += step
-            yaw_rate = step / dt if dt > 0 else 0.0
-        return FlatOutputReference(pos_world=p, vel_world=v, acc_world=a, yaw=self.yaw, yaw_rate=yaw_rate)
+        yaw, yaw_rate = self.heading.reference(time_s, v)
+        return FlatOutputReference(pos_world=p, vel_world=v, acc_world=a, yaw=yaw, yaw_rate=yaw_rate)
 
     def extra_metrics(self) -> dict:
         """Planner statistics for metrics.json."""
@@ -288,9 +302,12 @@ class DeniedAgent:
             "plan_failures": s.failures,
             "brakes": s.brakes,
             "swarm_replans": s.swarm_replans,
+            "yaw_replans": s.yaw_replans,
             "replan_ms_median": float(np.median(s.solve_ms)) if s.solve_ms else None,
             "map_ms_median": float(np.median(s.map_ms)) if s.map_ms else None,
         }
+        if self.heading is not None:
+            out.update(self.heading.metrics())
         if self.perception is not None:
             c = self.perception.counts
             out.update(

@@ -38,7 +38,8 @@ def make_agent(cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obst
         # back-projection uncertainty includes the drone's own localisation noise (what its VIO reports)
         pe = cfg.pose_estimate
         bp = replace(cfg.denied.backprojection, pose_pos_std_m=pe.pos_noise_m, pose_yaw_std_rad=pe.yaw_noise_rad)
-        return DeniedAgent(drone_id, goal_world, replace(cfg.denied, backprojection=bp))
+        fov = (cfg.camera.hfov_deg, cfg.camera.vfov_deg)
+        return DeniedAgent(drone_id, goal_world, replace(cfg.denied, backprojection=bp), fov)
     if kind == "dmpc":
         from mpcde.agent_dmpc import DmpcAgent
 

@@ -95,6 +95,12 @@ class YawPlannerConfig:
             tau_s is at most this [s]. It must exceed tau_thr + hysteresis_s,
             else the exploring regime could never be entered; beyond that it
             does not change the mode (chosen: 4.0 s).
+        free_distance: how Eq. 1's d_free is measured: ``"horizontal"`` (in the
+            plane of the drone's altitude slab; default) or ``"voxel"`` (the
+            map's 3-D verified-free distance); see :mod:`planners.yaw.safety`.
+        free_slab_half_height_m: half height [m] of the altitude slab of
+            ``"horizontal"`` (chosen: 0.3 m, two voxels either side: the
+            drone's height plus its altitude tracking error).
         distance_eps_m: eps of 1 / (d + eps) in Eq. 4 and Eq. 6 [m] (chosen:
             0.2 m, about a drone's radius: closer than that, distance no
             longer adds urgency).
@@ -129,6 +135,8 @@ class YawPlannerConfig:
     window_s: float = 1.0
     safety_sample_s: float = 0.05
     safety_horizon_s: float = 4.0
+    free_distance: str = "horizontal"
+    free_slab_half_height_m: float = 0.3
     distance_eps_m: float = 0.2
     visibility_sigma_ref_m: float = 0.5
     visibility_weight_max: float = 3.0
@@ -145,6 +153,7 @@ class YawPlannerConfig:
             "v_max_mps",
             "safety_sample_s",
             "safety_horizon_s",
+            "free_slab_half_height_m",
             "distance_eps_m",
             "visibility_sigma_ref_m",
         ):
@@ -153,6 +162,8 @@ class YawPlannerConfig:
             _check_non_negative(name, getattr(self, name))
         if self.alpha + self.beta <= 0.0:
             raise ValueError(f"beta={self.beta!r}: allowed alpha + beta > 0 (alpha={self.alpha!r})")
+        if self.free_distance not in ("horizontal", "voxel"):
+            raise ValueError(f"free_distance={self.free_distance!r}: allowed 'horizontal' or 'voxel'")
         _check_int("n_steps", self.n_steps, 1)
         _check_int("n_rays", self.n_rays, 2)
         m_min = math.ceil(2.0 * math.pi / (self.yaw_rate_max_radps * self.period_s) - 1e-9)

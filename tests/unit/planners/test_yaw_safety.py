@@ -33,7 +33,7 @@ def line(start: np.ndarray, vel: np.ndarray, t0: float, end: float) -> Trajector
 
 
 def test_safe_time_is_when_the_trajectory_reaches_the_first_unknown_voxel():
-    cfg = YawPlannerConfig(safety_horizon_s=8.0)
+    cfg = YawPlannerConfig(free_distance="voxel", safety_horizon_s=8.0)
     start = np.array([-1.9, 0.1, 1.1])  # a voxel centre, 2.9 m before the unknown boundary at x = 1.0
     traj = line(start, np.array([0.5, 0.0, 0.0]), t0=2.0, end=20.0)
     s = safety_margin(corridor_snapshot(), traj, 2.0, cfg)
@@ -45,7 +45,7 @@ def test_safe_time_is_when_the_trajectory_reaches_the_first_unknown_voxel():
 
 
 def test_safety_margin_matches_a_hand_computation():
-    cfg = YawPlannerConfig(safety_horizon_s=8.0, v_max_mps=2.0)
+    cfg = YawPlannerConfig(free_distance="voxel", safety_horizon_s=8.0, v_max_mps=2.0)
     start = np.array([-1.9, 0.1, 1.1])
     traj = line(start, np.array([0.5, 0.0, 0.0]), t0=0.0, end=20.0)
     s = safety_margin(corridor_snapshot(), traj, 0.0, cfg)
@@ -59,7 +59,7 @@ def test_safety_margin_matches_a_hand_computation():
 
 
 def test_the_second_term_of_eq1_is_active_near_the_safe_point():
-    cfg = YawPlannerConfig(safety_horizon_s=8.0, v_max_mps=0.1)  # d_free / v_max large: tau_s - tau decides
+    cfg = YawPlannerConfig(free_distance="voxel", safety_horizon_s=8.0, v_max_mps=0.1)  # d_free / v_max large: tau_s - tau decides
     traj = line(np.array([-1.9, 0.1, 1.1]), np.array([0.5, 0.0, 0.0]), t0=0.0, end=20.0)
     s = safety_margin(corridor_snapshot(), traj, 0.0, cfg)
     assert s.margin_now_s == pytest.approx(s.safe_time_s)
@@ -67,7 +67,7 @@ def test_the_second_term_of_eq1_is_active_near_the_safe_point():
 
 
 def test_a_hover_in_free_space_is_safe_up_to_the_horizon():
-    cfg = YawPlannerConfig()
+    cfg = YawPlannerConfig(free_distance="voxel")
     s = safety_margin(corridor_snapshot(), TrajectoryView.hover(np.array([-1.9, 0.1, 1.1])), 5.0, cfg)
     assert s.horizon_reached
     assert s.safe_time_s == pytest.approx(cfg.safety_horizon_s)
@@ -75,12 +75,12 @@ def test_a_hover_in_free_space_is_safe_up_to_the_horizon():
 
 
 def test_a_drone_in_an_unknown_voxel_has_no_margin():
-    s = safety_margin(corridor_snapshot(), TrajectoryView.hover(np.array([2.0, 0.1, 1.1])), 0.0, YawPlannerConfig())
+    s = safety_margin(corridor_snapshot(), TrajectoryView.hover(np.array([2.0, 0.1, 1.1])), 0.0, YawPlannerConfig(free_distance="voxel"))
     assert s.safe_time_s == 0.0 and s.margin_now_s == 0.0
 
 
 def test_switching_threshold_is_eq2():
-    cfg = YawPlannerConfig()
+    cfg = YawPlannerConfig(free_distance="voxel")
     assert cfg.tau_thr_s == pytest.approx(1.2 * math.pi / 2.0)
 
 
@@ -97,7 +97,7 @@ def test_switching_threshold_is_eq2():
     ],
 )
 def test_hysteresis_keeps_the_previous_regime_inside_the_band(previous, margin, expected):
-    cfg = YawPlannerConfig()
+    cfg = YawPlannerConfig(free_distance="voxel")
     assert safe_regime(previous, margin, round(cfg.tau_thr_s, 3), cfg.hysteresis_s) is expected
 
 
@@ -106,3 +106,44 @@ def test_replan_trigger_is_alg1_line13():
     assert needs_replan(3.0, 1.885, 0.5, 0.7)  # a neighbour closer than C_s
     assert not needs_replan(3.0, 1.885, 0.9, 0.7)
     assert not needs_replan(3.0, 1.885, np.inf, 0.7)
+
+
+def _level_room(ground: bool = True) -> OccupancySnapshot:
+    """40 x 30 x 15 voxels of 0.2 m: verified free in a 4 m (x) by 4 m (y) room, x and y in [-2, 2), between
+    z = 0.2 and 2.0 m, occupied ground below, unknown above and outside the room."""
+    state = np.full((40, 30, 15), OccupancySnapshot.UNKNOWN, np.int8)
+    state[5:25, 5:25, 1:10] = OccupancySnapshot.FREE
+    if ground:
+        state[:, :, 0] = OccupancySnapshot.OCCUPIED
+    free = (distance_transform_edt(state == OccupancySnapshot.FREE) * VOXEL_M).astype(np.float32)
+    return OccupancySnapshot(0.0, np.array([-3.0, -3.0, 0.0]), VOXEL_M, state, free.copy(), free)
+
+
+def test_horizontal_free_distance_ignores_the_ground_and_the_unknown_above_and_is_exact_in_the_plane():
+    from planners.yaw.safety import horizontal_free_distance
+
+    snap = _level_room()
+    p = np.array([[0.1, 0.1, 0.7], [1.5, -0.5, 0.7], [0.1, 0.1, 2.5]])  # centre, near a wall, above the room
+    d = horizontal_free_distance(snap, p, 0.3)
+    # centre: the nearest not-free cells are the room's walls, 1.9 m away (cell centre to face)
+    assert d[0] == pytest.approx(1.9, abs=1e-9)
+    assert d[1] == pytest.approx(2.0 - 1.5, abs=1e-9)
+    assert d[2] == 0.0  # its slab is not verified free
+    # the 3-D field at the same point is capped by the ground 0.7 m below
+    assert snap.free_distance(p[:1])[0] <= 0.7
+
+
+def test_the_default_free_distance_lets_a_level_drone_leave_tracking_where_the_3d_one_cannot():
+    snap = _level_room()
+    hover = TrajectoryView.hover(np.array([0.1, 0.1, 0.7]))
+    cfg_h = YawPlannerConfig(v_max_mps=0.5)
+    cfg_v = YawPlannerConfig(v_max_mps=0.5, free_distance="voxel")
+    s_h = safety_margin(snap, hover, 0.0, cfg_h).margin_now_s
+    s_v = safety_margin(snap, hover, 0.0, cfg_v).margin_now_s
+    assert s_h == pytest.approx(1.9 / 0.5, abs=1e-9) and s_h > cfg_h.tau_thr_s + cfg_h.hysteresis_s
+    assert s_v < cfg_v.tau_thr_s  # measured in 3-D the ground keeps it in tracking
+
+
+def test_free_distance_mode_is_validated():
+    with pytest.raises(ValueError, match="^free_distance="):
+        YawPlannerConfig(free_distance="3d")
