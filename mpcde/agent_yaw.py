@@ -13,6 +13,25 @@ yaw), so the commanded heading is continuous and never exceeds
 ``yaw_rate_max``. With ``active`` False the heading follows the direction of
 travel, rate-limited (the tracking mode alone: the ablation without active
 perception, and the behaviour before the yaw planner existed).
+
+Measured (``forest_swarm``, 6 drones crossing a forest through the centre,
+seed 0, 40 s, full physics and rendering; ``neighbours tracked`` is the share
+of neighbours within 3 m that had a track, :mod:`mpcde.tracking_score`):
+
+=====================================  ==========  ============  =================
+denied stack                           collisions  min dist [m]  neighbours tracked
+=====================================  ==========  ============  =================
+blind (``perceive_neighbours: false``)  1          0.10          -- (2 drones stuck)
+tracks, heading along travel            1          0.10          0.15
+tracks + active yaw (default)           1          0.19          0.26
+=====================================  ==========  ============  =================
+
+Along travel, two drones converging side by side never enter each other's
+85 deg view. With active yaw the remaining contact is MP-CDE's Fig. 3 hazard: a
+drone observing a tracked neighbour sidesteps it into space verified free
+seconds earlier, where a drone neither had tracked now flies. The safety
+margin (Eq. 1) does not age verified-free space, so it cannot see that risk;
+a freshness limit on "temporally validated" space is not modelled.
 """
 
 from __future__ import annotations
