@@ -58,6 +58,7 @@ from perception.map_config import MapConfig
 from perception.occupancy_map import OccupancyMap
 from perception.tracker_config import TrackerConfig
 from perception.types import Detection, NeighborPrediction
+from planners.dmpc.collision import ellipsoidal_distance
 from planners.minco import MincoTrajectory, minco_s3
 from planners.neighbour_field import with_neighbour_capsules
 from planners.path_search import PathSearchConfig, search_path
@@ -237,12 +238,9 @@ class DeniedAgent:
             return False
         times = t + np.linspace(0.0, self.config.conflict_horizon_s, 13)
         own = traj.pos(np.clip(times - traj.t0_s, 0.0, traj.total_duration))
-        scale = np.array([1.0, 1.0, 1.0 / np.sqrt(self.config.swarm_z_scale)])
-        for nb in neighbours:
-            d = np.linalg.norm((own - nb.position(times)) * scale, axis=1)
-            if np.min(d) < self.config.swarm_clearance_m:
-                return True
-        return False
+        theta_z = np.sqrt(self.config.swarm_z_scale)  # ||E^1/2 d|| = ||Theta^-1 d|| with Theta = diag(1, 1, sqrt(c))
+        d = [np.min(ellipsoidal_distance(own - nb.position(times), theta_z)) for nb in neighbours]
+        return min(d) < self.config.swarm_clearance_m
 
     def _replan(self, snap, neighbours: list[NeighborPrediction], t: float) -> bool:
         start = self._state_at(t)

@@ -44,6 +44,7 @@ from typing import Sequence
 import numpy as np
 
 from perception.types import NeighborPrediction, OccupancySnapshot
+from planners.dmpc.collision import ellipsoidal_distance
 from planners.minco import MincoTrajectory
 from planners.yaw import TrajectoryView, YawPlan, YawPlanner, YawPlannerConfig, needs_replan
 
@@ -100,8 +101,8 @@ class ActiveYaw:
         self.modes[self.plan.mode] += 1
         self.next_plan_s = time_s + self.config.period_s
         own = view.positions(np.array([time_s]))[0]
-        scale = np.array([1.0, 1.0, 1.0 / np.sqrt(self.swarm_z_scale)])
-        d = [float(np.linalg.norm((own - nb.position(time_s)) * scale)) for nb in neighbours]
+        theta_z = np.sqrt(self.swarm_z_scale)  # ||E^1/2 d|| = ||Theta^-1 d|| with Theta = diag(1, 1, sqrt(c))
+        d = [float(ellipsoidal_distance(own - nb.position(time_s), theta_z)) for nb in neighbours]
         return needs_replan(self.plan.safety_margin_s, self.plan.tau_thr_s, min(d, default=np.inf), self.swarm_clearance_m)
 
     def _commanded(self, time_s: float) -> float:

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 from perception.backprojection import BackprojectionConfig, backproject
-from perception.tracker import MultiTargetTracker, Track
+from perception.tracker import MultiTargetTracker
 from perception.tracker_config import TrackerConfig
 from perception.types import Detection, NeighborPrediction
 from sim.types import RgbdFrame
@@ -34,14 +34,12 @@ class PerceptionCounts:
     """What the perception of one drone has handled (for metrics).
 
     Attributes:
-        frames: frames with a detection pass.
         detections: detector boxes.
         measurements: boxes back-projected to a 3-D measurement.
         without_depth: boxes dropped for lack of valid depth.
-        update_ms: wall time [ms] of each back-projection + tracker update.
+        update_ms: wall time [ms] of each back-projection + tracker update (one per frame).
     """
 
-    frames: int = 0
     detections: int = 0
     measurements: int = 0
     without_depth: int = 0
@@ -67,7 +65,6 @@ class NeighbourPerception:
         result = backproject(frame, detections, self.backprojection)
         self.tracker.update(frame.time_s, result.measurements)
         c = self.counts
-        c.frames += 1
         c.detections += len(detections)
         c.measurements += len(result.measurements)
         c.without_depth += int(result.skipped.size)
@@ -79,7 +76,3 @@ class NeighbourPerception:
         if last is None:
             return []
         return self.tracker.predictions(max(float(time_s), last))
-
-    def tracks(self) -> list[Track]:
-        """Snapshots of every live track (tentative ones included)."""
-        return self.tracker.tracks()

@@ -6,8 +6,8 @@ one camera tick to :meth:`BatchedDetector.detect` so that the network runs one
 forward pass over the batch (DESIGN.md: "Inference is batched across drones";
 ``benchmarks/bench_detector.py``: 2.85 ms per frame batched over 6 against
 3.92 ms one at a time), then gives each agent its own frame's detections with
-its frame. Only agents that ask for detections (``wants_detections``) are
-served; with none, no detector is loaded.
+its frame. Only agents that ask for detections (a ``detector_request`` that
+is not None) are served; with none, no detector is loaded.
 """
 
 from __future__ import annotations
