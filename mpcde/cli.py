@@ -3,8 +3,9 @@
 Subcommands: ``fly`` (a headless scenario -> run folder), ``train-detector``
 (render a dataset, train the drone detector on CPU -> weights + model card),
 ``eval-detector`` (held-out renders -> results.json), ``eval-tracking``
-(tracker evaluation -> results.json) and ``eval-dmpc`` (on-demand DMPC vs
-BVC -> results.json). Bad input prints one
+(tracker evaluation -> results.json), ``eval-dmpc`` (on-demand DMPC vs
+BVC -> results.json) and ``compare`` (one scenario in each mode, paired by
+seed -> results.json + run folders). Bad input prints one
 line ``mpcde: error: <field>=<value>: <allowed>`` and exits with status 2,
 having written nothing.
 """
@@ -17,11 +18,11 @@ import sys
 from pathlib import Path
 
 from mpcde.errors import ConfigError, MpcdeError
+from mpcde.modes import MODES
 
 __all__ = ["main"]
 
 EXIT_BAD_INPUT = 2
-MODES = {"placeholder": "min_jerk_line", "denied": "mpcde", "comm": "dmpc"}  # --mode -> planner.kind
 
 
 class _Parser(argparse.ArgumentParser):
@@ -89,6 +90,17 @@ def build_parser() -> argparse.ArgumentParser:
     ed.add_argument("--scenarios", nargs="+", default=["formation_square", "antipodal"], help="built-in names or YAML files")
     ed.add_argument("--seeds", type=int, default=1, help="flights per row (seeds 0..N-1)")
     ed.add_argument("--quiet", action="store_true")
+    cmp = sub.add_parser("compare", help="fly one scenario in each mode, paired by seed -> results.json + run folders")
+    cmp.add_argument("scenario", help="scenario YAML, or a built-in name (crossing, antipodal, forest_sparse, ...)")
+    cmp.add_argument("--out", required=True, type=Path, help="output folder (must be empty unless --overwrite)")
+    cmp.add_argument(
+        "--modes", nargs="+", default=None, metavar="MODE",
+        help=f"onboard stacks to fly, of: {', '.join(MODES)} (default: those of comm, denied, auto that exist)",
+    )  # fmt: skip
+    cmp.add_argument("--seeds", type=int, default=1, help="flights per mode (seeds 0..N-1; a seed: one draw for all)")
+    cmp.add_argument("--duration", type=float, default=None, help="time limit [s] (overrides the file's)")
+    cmp.add_argument("--overwrite", action="store_true", help="replace an existing non-empty --out")
+    cmp.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
 
@@ -218,6 +230,23 @@ def _cmd_eval_dmpc(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from mpcde.compare import format_table, run_compare
+
+    _at_least("--seeds", args.seeds, 1)
+    if args.duration is not None and not args.duration > 0:
+        raise ConfigError("--duration", args.duration, "> 0 s")
+    _check_out_dir(args.out)
+    # run_compare validates modes and prepares every flight before it creates or writes anything
+    results = run_compare(
+        args.out, args.scenario, modes=args.modes, seeds=tuple(range(args.seeds)), duration_s=args.duration,
+        progress=not args.quiet, overwrite=args.overwrite,
+    )  # fmt: skip
+    print(format_table(results))
+    print(f"-> {args.out / 'results.json'}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``mpcde`` console script."""
     args = build_parser().parse_args(argv)
@@ -232,6 +261,8 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_eval_tracking(args)
         if args.command == "eval-dmpc":
             return _cmd_eval_dmpc(args)
+        if args.command == "compare":
+            return _cmd_compare(args)
     except (MpcdeError, ValueError) as e:
         msg = str(e).splitlines()[0] if str(e) else type(e).__name__
         sys.stderr.write(f"mpcde: error: {msg}\n")

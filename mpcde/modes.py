@@ -1,0 +1,18 @@
+"""The onboard stacks a user picks by name (``mpcde fly --mode``, ``mpcde compare --modes``).
+
+:data:`MODES` maps each command-line mode name to the ``planner.kind`` of the
+scenario config (:class:`mpcde.scenario.PlannerConfig`) that selects its stack:
+
+* ``placeholder`` -> ``min_jerk_line``: a blind minimum-jerk straight line to the goal;
+* ``denied`` -> ``mpcde``: MP-CDE without radio (own detector, tracks, active yaw, MINCO);
+* ``comm`` -> ``dmpc``: distributed MPC on plans exchanged over the radio.
+
+Code that takes a mode validates it against the keys of :data:`MODES` (never
+a list of its own), so a stack added here is accepted everywhere at once.
+"""
+
+from __future__ import annotations
+
+__all__ = ["MODES"]
+
+MODES: dict[str, str] = {"placeholder": "min_jerk_line", "denied": "mpcde", "comm": "dmpc"}  # --mode -> planner.kind
