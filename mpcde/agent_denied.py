@@ -51,13 +51,10 @@ import numpy as np
 
 from mpcde.agent import AgentCounters
 from mpcde.agent_yaw import ActiveYaw, yaw_config_for
-from mpcde.neighbour_perception import NeighbourPerception
-from mpcde.onboard_detection import DetectorRequest
-from perception.backprojection import BackprojectionConfig
+from mpcde.neighbour_perception import NeighbourPerception, PerceptionConfig
 from perception.map_config import MapConfig
 from perception.occupancy_map import OccupancyMap
-from perception.tracker_config import TrackerConfig
-from perception.types import Detection, NeighborPrediction
+from perception.types import Detection, NeighborPrediction, OccupancySnapshot
 from planners.dmpc.collision import ellipsoidal_distance
 from planners.minco import MincoTrajectory, minco_s3
 from planners.neighbour_field import with_neighbour_capsules
@@ -85,17 +82,13 @@ class DeniedAgentConfig:
         swarm_clearance_m: C_s [m] kept from tracked neighbours (MP-CDE Table I: 0.7).
         swarm_z_scale: c of the ellipsoidal metric E = diag(1, 1, 1/c) [-] (Eq. 16).
         conflict_horizon_s: look-ahead [s] of replanning trigger (d) along the tracks' predictions.
-        perceive_neighbours: run the detector and tracker (False: map only, blind to other drones).
+        perceive_neighbours: run the detector and tracker (False: map only, blind to other drones);
+            their settings are the scenario's ``perception:`` section.
         active_yaw: plan the heading with MP-CDE's active yaw planner (False: heading along travel).
-        detector_weights: detector checkpoint; None: the shipped weights.
-        detector_score_threshold: keep detections scoring >= this; None: the checkpoint's own.
         map: occupancy map settings.
-        tracker: neighbour tracker settings (MP-CDE Sec. IV-B).
-        backprojection: detection back-projection settings (Eq. 7-8); its pose-noise
-            terms are replaced by the scenario's ``pose_estimate`` white noise.
         yaw: active yaw planner settings; its speed limit, yaw-rate limit, t_hold
             and field of view are taken from ``v_max_mps``, ``yaw_rate_max_radps``,
-            ``tracker.t_hold_s`` and the scenario's camera, so each is set once.
+            ``perception.tracker.t_hold_s`` and the scenario's camera, so each is set once.
     """
 
     v_max_mps: float = 1.0
@@ -110,11 +103,7 @@ class DeniedAgentConfig:
     conflict_horizon_s: float = 1.2
     perceive_neighbours: bool = True
     active_yaw: bool = True
-    detector_weights: str | None = None
-    detector_score_threshold: float | None = None
     map: MapConfig = field(default_factory=MapConfig)
-    tracker: TrackerConfig = field(default_factory=TrackerConfig)
-    backprojection: BackprojectionConfig = field(default_factory=BackprojectionConfig)
     yaw: YawPlannerConfig = field(default_factory=YawPlannerConfig)
 
     def __post_init__(self) -> None:
@@ -124,9 +113,6 @@ class DeniedAgentConfig:
                 raise ValueError(f"{name}={v!r}: a finite number > 0")
         if not (isinstance(self.swarm_z_scale, (int, float)) and np.isfinite(self.swarm_z_scale) and self.swarm_z_scale >= 1):
             raise ValueError(f"swarm_z_scale={self.swarm_z_scale!r}: a finite number >= 1")
-        thr = self.detector_score_threshold
-        if thr is not None and not (isinstance(thr, (int, float)) and 0.0 <= thr <= 1.0):
-            raise ValueError(f"detector_score_threshold={thr!r}: a number in [0, 1] or null")
 
 
 @dataclass
@@ -143,10 +129,23 @@ class PlanningStats:
 
 
 class DeniedAgent:
-    """One drone's MP-CDE stack (implements :class:`mpcde.agent.OnboardAgent`)."""
+    """One drone's MP-CDE stack (implements :class:`mpcde.agent.OnboardAgent`).
 
-    def __init__(self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig, fov_deg: tuple[float, float] = (85.0, 58.0)) -> None:
-        """``fov_deg``: the camera's (horizontal, vertical) field of view [deg], for the yaw planner."""
+    Args:
+        drone_id: index of the drone.
+        goal_world: (3,) goal [m].
+        config: the scenario's ``denied:`` settings.
+        fov_deg: the camera's (horizontal, vertical) field of view [deg], for the yaw planner.
+        perception_config: the scenario's ``perception:`` settings (detector, tracker, back-projection).
+        perception: a perception to share (the ``auto`` agent's DMPC half reads the same tracks);
+            None: the agent makes its own when ``config.perceive_neighbours``.
+    """
+
+    def __init__(
+        self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig, fov_deg: tuple[float, float] = (85.0, 58.0),
+        perception_config: PerceptionConfig | None = None, perception: NeighbourPerception | None = None,
+    ) -> None:
+        pc = perception_config if perception_config is not None else PerceptionConfig()
         self.drone_id = drone_id
         self.goal_world = np.asarray(goal_world, float)
         self.config = config
@@ -159,15 +158,17 @@ class DeniedAgent:
         self.hover_world: np.ndarray | None = None
         self.heading: ActiveYaw | None = None  # made from the first pose estimate (its yaw)
         c = config
-        self.yaw_config = yaw_config_for(c.yaw, c.v_max_mps, c.yaw_rate_max_radps, c.tracker.t_hold_s, *fov_deg)
+        self.t_hold_s = pc.tracker.t_hold_s
+        self.yaw_config = yaw_config_for(c.yaw, c.v_max_mps, c.yaw_rate_max_radps, self.t_hold_s, *fov_deg)
         self.optimizer = TrajectoryOptimizerConfig(
             v_max_mps=c.v_max_mps, a_max_mps2=c.a_max_mps2, obstacle_clearance_m=c.clearance_m,
             swarm_clearance_m=c.swarm_clearance_m, swarm_z_scale=c.swarm_z_scale,
         )
-        self.perception = NeighbourPerception(c.tracker, c.backprojection) if c.perceive_neighbours else None
+        if perception is None and c.perceive_neighbours:
+            perception = NeighbourPerception.from_config(pc)
+        self.perception = perception if c.perceive_neighbours else None
         # what the loop's batched detector reads (None: no detections)
-        request = DetectorRequest(c.detector_weights, c.detector_score_threshold, "denied.detector_weights")
-        self.detector_request = request if c.perceive_neighbours else None
+        self.detector_request = pc.detector_request() if c.perceive_neighbours else None
         self.search = PathSearchConfig()
 
     # inputs ---------------------------------------------------------------
@@ -191,6 +192,15 @@ class DeniedAgent:
             frame: this drone's frame.
             detections: the boxes this drone's detector found in ``frame`` (None: no detector ran).
         """
+        snap = self.observe(frame, detections)
+        self.plan_step(frame.time_s, snap)
+
+    def observe(self, frame: RgbdFrame, detections: list[Detection] | None = None) -> OccupancySnapshot:
+        """Track the detected neighbours and map the frame (no planning); returns the map's snapshot.
+
+        The ``auto`` agent calls this alone while it flies DMPC, so the map and
+        the tracks are warm when it falls back to this stack.
+        """
         self.counters.frames += 1
         if self.perception is not None and detections is not None:
             self.perception.update(frame, detections)
@@ -198,7 +208,10 @@ class DeniedAgent:
         self.map.update(frame, detections or ())
         snap = self.map.snapshot()
         self.stats.map_ms.append(1e3 * (time.perf_counter() - t0))
-        t = frame.time_s
+        return snap
+
+    def plan_step(self, t: float, snap: OccupancySnapshot) -> None:
+        """Heading and replanning at frame time ``t`` [s] on the map ``snap`` (module docstring)."""
         if t < self.config.start_delay_s or self.latest_estimate is None:
             return
         neighbours = self.perception.predictions(t) if self.perception is not None else []
@@ -218,6 +231,24 @@ class DeniedAgent:
     def outgoing(self, time_s: float) -> None:
         """Denied: nothing is broadcast."""
         return None
+
+    def take_over(self, time_s: float, pos_vel_acc: np.ndarray, yaw: float) -> None:
+        """Start flying this stack from another stack's reference (the ``auto`` agent's fallback).
+
+        The current trajectory becomes a stopping piece from ``pos_vel_acc``
+        ((3, 3) position, velocity, acceleration [m, m/s, m/s^2] of the
+        reference being left at ``time_s``), so the reference is continuous;
+        the next frame replans (it is due) from that state. The heading
+        continues from ``yaw`` [rad] and the yaw planner plans at the next frame.
+        """
+        self.trajectory = self._stopping_piece(time_s, np.asarray(pos_vel_acc, float))
+        self.last_plan_time_s = -np.inf
+        if self.heading is not None:
+            self.heading.restart(yaw, time_s)
+
+    def state_at(self, time_s: float) -> np.ndarray:
+        """(3, 3) position, velocity, acceleration of the reference at ``time_s`` [s]."""
+        return self._state_at(time_s)
 
     # planning ---------------------------------------------------------------
     def _state_at(self, t: float) -> np.ndarray:
@@ -248,7 +279,7 @@ class DeniedAgent:
         c = self.config
         # the front end sees each track as a capsule (planners.neighbour_field); MINCO sees the predictions
         front = with_neighbour_capsules(
-            snap, neighbours, t, c.conflict_horizon_s, c.swarm_clearance_m, c.tracker.t_hold_s, reach_m=c.front_end_clearance_m + 0.3
+            snap, neighbours, t, c.conflict_horizon_s, c.swarm_clearance_m, self.t_hold_s, reach_m=c.front_end_clearance_m + 0.3
         )
         path = search_path(front, start[0], self.goal_world, c.front_end_clearance_m, self.search)
         if not path.found:
@@ -272,13 +303,16 @@ class DeniedAgent:
 
     def _brake(self, t: float) -> None:
         """Stop from the current state with a single minimum-jerk piece (no obstacle knowledge)."""
-        p, v, a = self._state_at(t)
-        speed = float(np.linalg.norm(v))
-        T = max(2.0 * speed / self.config.a_max_mps2, 0.3)
-        stop = p + 0.5 * v * T  # a comfortable stopping distance along the current velocity
-        self.trajectory = minco_s3(np.stack([p, v, a]), np.stack([stop, np.zeros(3), np.zeros(3)]), np.zeros((0, 3)), np.array([T]), t0_s=t)
+        self.trajectory = self._stopping_piece(t, self._state_at(t))
         self.last_plan_time_s = t
         self.stats.brakes += 1
+
+    def _stopping_piece(self, t: float, pva: np.ndarray) -> MincoTrajectory:
+        """One minimum-jerk piece from ``pva`` (3, 3) at ``t`` [s] to rest, over 2 |v| / a_max (>= 0.3 s)."""
+        p, v, a = pva
+        T = max(2.0 * float(np.linalg.norm(v)) / self.config.a_max_mps2, 0.3)
+        stop = p + 0.5 * v * T  # a comfortable stopping distance along the current velocity
+        return minco_s3(np.stack([p, v, a]), np.stack([stop, np.zeros(3), np.zeros(3)]), np.zeros((0, 3)), np.array([T]), t0_s=t)
 
     # output -----------------------------------------------------------------
     def reference(self, time_s: float) -> FlatOutputReference:
@@ -307,9 +341,5 @@ class DeniedAgent:
         if self.heading is not None:
             out.update(self.heading.metrics())
         if self.perception is not None:
-            c = self.perception.counts
-            out.update(
-                detections=c.detections, measurements=c.measurements, detections_without_depth=c.without_depth,
-                tracking_ms_median=float(np.median(c.update_ms)) if c.update_ms else None,
-            )
+            out.update(self.perception.counts.metrics())
         return out

@@ -58,6 +58,8 @@ import numpy as np
 
 from mpcde.agent import AgentCounters
 from mpcde.errors import ConfigError
+from mpcde.neighbour_fusion import FusionConfig, fuse_neighbours
+from mpcde.neighbour_perception import NeighbourPerception, PerceptionConfig
 from perception.types import NeighborPrediction
 from planners.dmpc import DmpcConfig, DmpcPlan, DmpcProblem, DmpcSolveError
 from sim.obstacles import ObstacleSpec
@@ -99,6 +101,12 @@ class DmpcAgentConfig:
             0.1 m, a few times the controller's tracking error; 0 = always
             the estimate). See the module docstring.
         state_tolerance_mps: the same bound on the velocity [m/s] (chosen: 0.3).
+        perceive_neighbours: run the drone's detector and tracker on its frames
+            (DESIGN.md: perception runs in every mode, so the tracks are warm
+            when an outage starts; settings in the scenario's ``perception:``).
+            In ``comm`` mode the tracks are scored (``tracking_*`` metrics) and
+            not planned against; the ``auto`` mode plans against them when a
+            neighbour's plan is stale (:mod:`mpcde.neighbour_fusion`).
     """
 
     qp: DmpcConfig = field(default_factory=lambda: DmpcConfig(max_obstacle_planes=4))
@@ -109,6 +117,7 @@ class DmpcAgentConfig:
     goal_lookahead_m: float = 4.0
     state_tolerance_m: float = 0.1
     state_tolerance_mps: float = 0.3
+    perceive_neighbours: bool = True
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.plan_timeout_s) and self.plan_timeout_s > 0):
@@ -140,6 +149,8 @@ class DmpcRoundStats:
         fresh_plans: neighbour plans used that arrived this round.
         dropped_plans: neighbour plans dropped for age (``plan_timeout_s``).
         neighbour_age_s: per used neighbour plan, its age [s] at the round.
+        substituted_plans: stale plans replaced by the matched camera track (fusion only).
+        unknown_tracks: tracks no plan explains, planned against as extra neighbours (fusion only).
     """
 
     qp_solve_s: list[float] = field(default_factory=list)
@@ -154,6 +165,8 @@ class DmpcRoundStats:
     fresh_plans: int = 0
     dropped_plans: int = 0
     neighbour_age_s: list[float] = field(default_factory=list)
+    substituted_plans: int = 0
+    unknown_tracks: int = 0
 
 
 def obstacle_half_spaces(
@@ -271,6 +284,11 @@ class DmpcAgent:
         formation_offsets: desired p_j - p_i (3,) [m] by neighbour id, or None.
         obstacles: the known static obstacles (prior map).
         robot_radius_m: the drone's radius [m] (obstacle inflation).
+        perception_config: the scenario's ``perception:`` settings (used when
+            ``config.perceive_neighbours``).
+        perception: a perception to share (the ``auto`` agent's); None: its own.
+        fusion: plan against camera tracks where a neighbour's plan is stale
+            (:func:`mpcde.neighbour_fusion.fuse_neighbours`); None: radio plans only.
     """
 
     def __init__(
@@ -282,8 +300,17 @@ class DmpcAgent:
         formation_offsets: dict[int, np.ndarray] | None = None,
         obstacles: Sequence[ObstacleSpec] = (),
         robot_radius_m: float = 0.1,
+        perception_config: PerceptionConfig | None = None,
+        perception: NeighbourPerception | None = None,
+        fusion: FusionConfig | None = None,
     ) -> None:
         self.drone_id = int(drone_id)
+        pc = perception_config if perception_config is not None else PerceptionConfig()
+        if perception is None and config.perceive_neighbours:
+            perception = NeighbourPerception.from_config(pc)
+        self.perception = perception if config.perceive_neighbours else None
+        self.detector_request = pc.detector_request() if config.perceive_neighbours else None
+        self.fusion = fusion if self.perception is not None else None
         self.goal_world = np.asarray(goal_world, float).reshape(3)
         self.config = config
         self.obstacles = tuple(obstacles)
@@ -313,8 +340,10 @@ class DmpcAgent:
         self.latest_estimate = estimate
 
     def on_frame(self, frame: RgbdFrame, detections: list | None = None) -> None:
-        """Take one camera frame (counted; DMPC plans from the radio only, so it asks for no detections)."""
+        """Take one camera frame: track the neighbours its detector found (when it perceives)."""
         self.counters.frames += 1
+        if self.perception is not None and detections is not None:
+            self.perception.update(frame, detections)
 
     def on_radio(self, messages: list[RadioMessage]) -> None:
         """Take this round's inbox: keep each neighbour's newest plan."""
@@ -371,7 +400,25 @@ class DmpcAgent:
                 )
             )  # fmt: skip
         self._renewed = set()
-        return out
+        if self.fusion is None:
+            return out
+        f = self.fusion
+        fused = fuse_neighbours(out, self.perception.predictions(time_s), time_s, f.stale_after_s, f.gate_m, self.qp_config.v_max)
+        self.stats.substituted_plans += fused.substituted
+        self.stats.unknown_tracks += fused.unknown_tracks
+        return fused.predictions
+
+    def take_over(self, plan: DmpcPlan, yaw: float) -> None:
+        """Start flying DMPC from another stack's reference (the ``auto`` agent's return to the radio).
+
+        ``plan`` is the reference being left, sampled at this QP's step from
+        the hand-over time; it becomes the previous plan (x0 and warm start of
+        the next round, :meth:`_state`) and the reference until that round. The
+        heading is held at ``yaw`` [rad] from now on.
+        """
+        self.plan = plan
+        self._sampler = PlanSampler(plan)
+        self.yaw = float(yaw)
 
     def outgoing(self, time_s: float) -> PlanMessage | None:
         """Run this round's DMPC solve at ``time_s`` [s] and return the plan to broadcast."""
@@ -422,12 +469,16 @@ class DmpcAgent:
             pos_world=p.pos_world.copy(), vel_world=p.vel_world.copy(),
         )  # fmt: skip
 
-    def reference(self, time_s: float) -> FlatOutputReference:
-        """Controller reference at ``time_s`` [s]: the current plan (hover at the start before it)."""
+    def reference_state(self, time_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position [m], velocity [m/s], acceleration [m/s^2] (3,) each of the reference at ``time_s`` [s]."""
         if self._sampler is None:
             pos = self.start_world if self.start_world is not None else np.zeros(3)
-            return FlatOutputReference.hover(pos, self.yaw)
-        pos, vel, acc = self._sampler.sample(time_s)
+            return np.array(pos, float), np.zeros(3), np.zeros(3)
+        return self._sampler.sample(time_s)
+
+    def reference(self, time_s: float) -> FlatOutputReference:
+        """Controller reference at ``time_s`` [s]: the current plan (hover at the start before it)."""
+        pos, vel, acc = self.reference_state(time_s)
         return FlatOutputReference(pos_world=pos, vel_world=vel, acc_world=acc, yaw=self.yaw, yaw_rate=0.0)
 
     # ------------------------------------------------------------------ metrics
@@ -457,6 +508,8 @@ class DmpcAgent:
             "stale_plans": s.stale_plans,
             "dropped_plans": s.dropped_plans,
             "mean_neighbour_age_s": float(np.mean(s.neighbour_age_s)) if s.neighbour_age_s else None,
+            "substituted_plans": s.substituted_plans,
+            "unknown_tracks": s.unknown_tracks,
             "qp_ms_median": stat(solve_ms, 50),
             "qp_ms_p95": stat(solve_ms, 95),
             "qp_build_ms_median": stat(np.asarray(s.qp_build_s) * 1e3, 50),
@@ -465,4 +518,5 @@ class DmpcAgent:
             "mean_obstacle_rows": float(np.mean(s.obstacle_rows)) if s.obstacle_rows else None,
             "obstacle_row_rounds": int(np.count_nonzero(s.obstacle_rows)),
             "qp_solve_ms": [round(float(v), 5) for v in solve_ms],
+            **(self.perception.counts.metrics() if self.perception is not None else {}),
         }

@@ -84,6 +84,12 @@ class ActiveYaw:
         self.modes: Counter = Counter()
         self.plan_ms: list[float] = []
 
+    def restart(self, yaw: float, time_s: float) -> None:
+        """Continue from heading ``yaw`` [rad] at ``time_s`` [s], dropping the yaw plan (a stack hand-over)."""
+        self.yaw, self.yaw_time_s = float(yaw), float(time_s)
+        self.plan = None
+        self.next_plan_s = -np.inf
+
     def due(self, time_s: float) -> bool:
         """Whether a yaw plan is due at ``time_s`` [s] (every ``period_s``)."""
         return self.active and time_s >= self.next_plan_s - 1e-9

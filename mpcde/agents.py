@@ -6,9 +6,16 @@ implements :class:`mpcde.agent.OnboardAgent`.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from mpcde.agent import Agent, OnboardAgent
+from mpcde.agent_auto import AutoAgent
+from mpcde.agent_denied import DeniedAgent
+from mpcde.agent_dmpc import DmpcAgent, DmpcAgentConfig
+from mpcde.neighbour_fusion import FusionConfig
+from mpcde.neighbour_perception import NeighbourPerception, PerceptionConfig
 from mpcde.scenario import ScenarioConfig
 from sim.obstacles import ObstacleSpec
 
@@ -26,24 +33,38 @@ def make_agent(cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obst
             other stacks map with their cameras.
     """
     goal_world = np.asarray(goals_world[drone_id], float)
-    n_drones = len(goals_world)
     kind = cfg.planner.kind
     if kind == "min_jerk_line":
         return Agent(drone_id, np.asarray(goal_world, float), cfg.planner.cruise_speed_mps, cfg.planner.start_delay_s)
+    # back-projection uncertainty includes the drone's own localisation noise (what its VIO reports)
+    pe, pc = cfg.pose_estimate, cfg.perception
+    bp = replace(pc.backprojection, pose_pos_std_m=pe.pos_noise_m, pose_yaw_std_rad=pe.yaw_noise_rad)
+    perception = replace(pc, backprojection=bp)
+    fov = (cfg.camera.hfov_deg, cfg.camera.vfov_deg)
     if kind == "mpcde":
-        from dataclasses import replace
-
-        from mpcde.agent_denied import DeniedAgent
-
-        # back-projection uncertainty includes the drone's own localisation noise (what its VIO reports)
-        pe = cfg.pose_estimate
-        bp = replace(cfg.denied.backprojection, pose_pos_std_m=pe.pos_noise_m, pose_yaw_std_rad=pe.yaw_noise_rad)
-        fov = (cfg.camera.hfov_deg, cfg.camera.vfov_deg)
-        return DeniedAgent(drone_id, goal_world, replace(cfg.denied, backprojection=bp), fov)
+        return DeniedAgent(drone_id, goal_world, cfg.denied, fov, perception)
     if kind == "dmpc":
-        from mpcde.agent_dmpc import DmpcAgent
-
-        goals = np.asarray(goals_world, float)
-        offsets = {j: goals[j] - goals[drone_id] for j in range(n_drones) if j != drone_id} if cfg.dmpc.formation_from_goals else None
-        return DmpcAgent(drone_id, goal_world, cfg.dmpc, cfg.planner.start_delay_s, offsets, obstacles, cfg.physics.quadrotor.robot_radius_m)
+        return _dmpc_agent(cfg, drone_id, goals_world, obstacles, perception, cfg.dmpc)
+    if kind == "auto":
+        denied = DeniedAgent(drone_id, goal_world, cfg.denied, fov, perception)
+        # one perception for both halves; denied.perceive_neighbours: false turns it off for both
+        dmpc = replace(cfg.dmpc, perceive_neighbours=denied.perception is not None)
+        comm = _dmpc_agent(cfg, drone_id, goals_world, obstacles, perception, dmpc, denied.perception, cfg.auto.fusion)
+        return AutoAgent(cfg.auto, comm, denied)
     raise AssertionError(f"planner.kind={kind!r} has no agent")  # unreachable: PlannerConfig validates kind
+
+
+def _dmpc_agent(
+    cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obstacles: tuple[ObstacleSpec, ...],
+    perception_config: PerceptionConfig, dmpc: DmpcAgentConfig, perception: NeighbourPerception | None = None,
+    fusion: FusionConfig | None = None,
+) -> DmpcAgent:
+    """The DMPC agent of ``drone_id`` (formation offsets from the goals when configured)."""
+    goals = np.asarray(goals_world, float)
+    offsets = None
+    if dmpc.formation_from_goals:
+        offsets = {j: goals[j] - goals[drone_id] for j in range(len(goals)) if j != drone_id}
+    return DmpcAgent(
+        drone_id, goals[drone_id], dmpc, cfg.planner.start_delay_s, offsets, obstacles, cfg.physics.quadrotor.robot_radius_m,
+        perception_config, perception, fusion,
+    )  # fmt: skip

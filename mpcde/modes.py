@@ -15,4 +15,4 @@ from __future__ import annotations
 
 __all__ = ["MODES"]
 
-MODES: dict[str, str] = {"placeholder": "min_jerk_line", "denied": "mpcde", "comm": "dmpc"}  # --mode -> planner.kind
+MODES: dict[str, str] = {"placeholder": "min_jerk_line", "denied": "mpcde", "comm": "dmpc", "auto": "auto"}  # --mode -> planner.kind

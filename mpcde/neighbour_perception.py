@@ -12,6 +12,10 @@ tracks; ``stamp_s`` is the time each was last seen).
 The back-projection's pose-noise terms are the drone's own localisation
 white noise (the uncertainty its VIO reports), as in ``mpcde eval-tracking``'s
 pipeline source. Nothing here sees another drone's ground truth.
+
+Every planner stack that perceives (DESIGN.md: "Perception runs in every
+mode, so tracks are warm when an outage starts") takes its settings from the
+scenario's ``perception:`` section, :class:`PerceptionConfig`.
 """
 
 from __future__ import annotations
@@ -20,13 +24,43 @@ import time
 from dataclasses import dataclass, field
 from typing import Sequence
 
+import numpy as np
+
+from mpcde.onboard_detection import DetectorRequest
 from perception.backprojection import BackprojectionConfig, backproject
 from perception.tracker import MultiTargetTracker
 from perception.tracker_config import TrackerConfig
 from perception.types import Detection, NeighborPrediction
 from sim.types import RgbdFrame
 
-__all__ = ["NeighbourPerception", "PerceptionCounts"]
+__all__ = ["NeighbourPerception", "PerceptionConfig", "PerceptionCounts"]
+
+
+@dataclass(frozen=True)
+class PerceptionConfig:
+    """Neighbour perception of every drone (the ``perception:`` mapping of a scenario file).
+
+    Attributes:
+        detector_weights: detector checkpoint; None: the shipped weights.
+        detector_score_threshold: keep detections scoring >= this; None: the checkpoint's own.
+        tracker: neighbour tracker settings (MP-CDE Sec. IV-B, Table I).
+        backprojection: detection back-projection settings (Eq. 7-8); its pose-noise
+            terms are replaced by the scenario's ``pose_estimate`` white noise.
+    """
+
+    detector_weights: str | None = None
+    detector_score_threshold: float | None = None
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    backprojection: BackprojectionConfig = field(default_factory=BackprojectionConfig)
+
+    def __post_init__(self) -> None:
+        thr = self.detector_score_threshold
+        if thr is not None and not (isinstance(thr, (int, float)) and 0.0 <= thr <= 1.0):
+            raise ValueError(f"detector_score_threshold={thr!r}: a number in [0, 1] or null")
+
+    def detector_request(self) -> DetectorRequest:
+        """What the loop's batched detector loads for an agent with this perception."""
+        return DetectorRequest(self.detector_weights, self.detector_score_threshold, "perception.detector_weights")
 
 
 @dataclass
@@ -45,6 +79,14 @@ class PerceptionCounts:
     without_depth: int = 0
     update_ms: list = field(default_factory=list)
 
+    def metrics(self) -> dict:
+        """The counts for metrics.json (``tracking_ms_median``: median update time [ms], null before a frame)."""
+        return {
+            "detections": self.detections, "measurements": self.measurements,
+            "detections_without_depth": self.without_depth,
+            "tracking_ms_median": float(np.median(self.update_ms)) if self.update_ms else None,
+        }  # fmt: skip
+
 
 class NeighbourPerception:
     """Back-projection + tracker of one drone (MP-CDE Sec. IV-B).
@@ -54,7 +96,13 @@ class NeighbourPerception:
         backprojection: depth window and covariance model of Eq. 7-8.
     """
 
+    @classmethod
+    def from_config(cls, config: PerceptionConfig) -> "NeighbourPerception":
+        """The perception ``config`` describes."""
+        return cls(config.tracker, config.backprojection)
+
     def __init__(self, tracker: TrackerConfig, backprojection: BackprojectionConfig) -> None:
+        self.config = tracker
         self.tracker = MultiTargetTracker(tracker)
         self.backprojection = backprojection
         self.counts = PerceptionCounts()

@@ -14,10 +14,12 @@ from typing import Literal
 
 import numpy as np
 
+from mpcde.agent_auto import AutoAgentConfig
 from mpcde.agent_denied import DeniedAgentConfig
 from mpcde.agent_dmpc import DmpcAgentConfig
 from mpcde.config_io import from_dict, load_yaml
 from mpcde.errors import ConfigError
+from mpcde.neighbour_perception import PerceptionConfig
 from sim.camera import CameraConfig
 from sim.obstacles import ObstacleSpec, distance_to_obstacles, generate_obstacles
 from sim.pose_estimate import PoseEstimateConfig
@@ -142,12 +144,15 @@ class PlannerConfig:
             ``"mpcde"``, the communication-denied stack (own map from the
             camera, A* front end, MINCO; settings in ``denied``), or
             ``"dmpc"``, the communicating stack (DMPC on exchanged radio
-            plans; settings in ``dmpc``).
+            plans; settings in ``dmpc``), or ``"auto"``, both: DMPC while
+            the radio delivers, falling back neighbour by neighbour to camera
+            tracks and, when the radio is out, to the denied stack (settings
+            in ``auto``, ``dmpc`` and ``denied``; :mod:`mpcde.agent_auto`).
         cruise_speed_mps: peak speed along the line [m/s] (MP-CDE flights: 1 m/s).
         start_delay_s: hover time before departure [s].
     """
 
-    kind: Literal["min_jerk_line", "mpcde", "dmpc"] = "min_jerk_line"
+    kind: Literal["min_jerk_line", "mpcde", "dmpc", "auto"] = "min_jerk_line"
     cruise_speed_mps: float = 1.0
     start_delay_s: float = 0.5
 
@@ -201,8 +206,10 @@ class ScenarioConfig:
         pose_estimate: self-localisation error.
         physics: physics rate, airframe and controller.
         planner: onboard planning.
+        perception: every perceiving agent's detector, tracker and back-projection.
         denied: the MP-CDE (communication-denied) agent's settings.
         dmpc: the DMPC (communicating) agent's settings.
+        auto: the ``auto`` agent's mode switch and plan/track fusion.
         run: simulation options.
     """
 
@@ -216,8 +223,10 @@ class ScenarioConfig:
     pose_estimate: PoseEstimateConfig = field(default_factory=PoseEstimateConfig)
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
+    perception: PerceptionConfig = field(default_factory=PerceptionConfig)
     denied: DeniedAgentConfig = field(default_factory=DeniedAgentConfig)
     dmpc: DmpcAgentConfig = field(default_factory=DmpcAgentConfig)
+    auto: AutoAgentConfig = field(default_factory=AutoAgentConfig)
     run: RunOptions = field(default_factory=RunOptions)
 
     def __post_init__(self) -> None:
@@ -225,7 +234,7 @@ class ScenarioConfig:
             raise ConfigError("duration_s", self.duration_s, "in (0, 3600] s")
         if not 0 <= self.seed < 2**32:
             raise ConfigError("seed", self.seed, "an integer in [0, 2^32)")
-        if self.planner.kind == "dmpc" and abs(self.dmpc.qp.step_s * self.radio.rate_hz - 1.0) > 1e-6:
+        if self.planner.kind in ("dmpc", "auto") and abs(self.dmpc.qp.step_s * self.radio.rate_hz - 1.0) > 1e-6:
             raise ConfigError("dmpc.qp.step_s", self.dmpc.qp.step_s, f"must equal 1 / radio.rate_hz = {1.0 / self.radio.rate_hz:g} s (one DMPC round per step)")
 
 

@@ -5,6 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from mpcde.neighbour_perception import PerceptionConfig
 from mpcde.agent_denied import DeniedAgent, DeniedAgentConfig
 from perception.types import Detection
 from sim.camera import CameraConfig, intrinsics
@@ -73,9 +74,12 @@ def test_the_conflict_trigger_fires_for_a_neighbour_on_a_collision_course_only()
     assert not agent._swarm_conflict(agent.trajectory, [aside], t)
 
 
-@pytest.mark.parametrize(
-    "field, value", [("swarm_clearance_m", -0.1), ("conflict_horizon_s", 0.0), ("swarm_z_scale", 0.5), ("detector_score_threshold", 1.5)]
-)
+@pytest.mark.parametrize("field, value", [("swarm_clearance_m", -0.1), ("conflict_horizon_s", 0.0), ("swarm_z_scale", 0.5)])
 def test_invalid_settings_are_refused_with_the_field_name(field, value):
     with pytest.raises(ValueError, match=f"^{field}="):
         DeniedAgentConfig(**{field: value})
+
+
+def test_invalid_detector_threshold_is_refused_with_the_field_name():
+    with pytest.raises(ValueError, match="^detector_score_threshold="):
+        PerceptionConfig(detector_score_threshold=1.5)

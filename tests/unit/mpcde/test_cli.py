@@ -24,10 +24,10 @@ def test_fly_denied_with_missing_detector_weights_is_one_line_exit_2_and_writes_
     scenario = tmp_path / "s.yaml"
     scenario.write_text(
         "name: s\nduration_s: 1.0\ndrones:\n  layout: explicit\n  starts: [[-4.0, 0.0, 1.5]]\n  goals: [[4.0, 0.0, 1.5]]\n"
-        f"planner:\n  kind: mpcde\ndenied:\n  detector_weights: {tmp_path / 'none.pt'}\n"
+        f"planner:\n  kind: mpcde\nperception:\n  detector_weights: {tmp_path / 'none.pt'}\n"
     )
     out = tmp_path / "run"
     assert main(["fly", str(scenario), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("mpcde: error: denied.detector_weights=") and err[0].endswith("missing")
+    assert len(err) == 1 and err[0].startswith("mpcde: error: perception.detector_weights=") and err[0].endswith("missing")
     assert not out.exists() and [p.name for p in tmp_path.iterdir()] == ["s.yaml"]

@@ -1,0 +1,105 @@
+"""The auto agent's mode switch, hand-overs and per-neighbour fallback (synthetic frames and radio, no flight)."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from mpcde.agent_auto import AutoAgent
+from mpcde.agents import make_agent
+from mpcde.errors import ConfigError
+from mpcde.scenario import load_scenario
+from sim.types import PlanMessage, PoseEstimate, RadioMessage
+
+from test_agent_denied_tracks import GOAL, NEIGHBOUR, START, _frame
+
+ROUND = 0.2  # radio period [s] (5 Hz)
+
+
+def _agent() -> AutoAgent:
+    cfg = load_scenario("crossing")
+    cfg = replace(cfg, planner=replace(cfg.planner, kind="auto"))
+    cfg.__post_init__()
+    agent = make_agent(cfg, 0, np.stack([GOAL, NEIGHBOUR]), ())
+    assert isinstance(agent, AutoAgent)
+    return agent
+
+
+def _plan_message(t: float) -> RadioMessage:
+    """Drone 1 hovering at NEIGHBOUR says so."""
+    times = t + ROUND * np.arange(16)
+    plan = PlanMessage(1, t, times, np.tile(NEIGHBOUR, (16, 1)), np.zeros((16, 3)))
+    return RadioMessage(sender_id=1, send_time_s=t, receive_time_s=t, payload=plan)
+
+
+def _run(agent: AutoAgent, t_from: float, t_to: float, radio_on) -> list[tuple[float, str]]:
+    """Frames at 25 Hz and radio rounds at 5 Hz over [t_from, t_to); ``radio_on(t)`` says if drone 1 is heard.
+
+    The drone tracks its reference perfectly: each pose estimate is the reference at that time.
+    Returns the mode after each round.
+    """
+    modes = []
+    for k in range(round(t_from / 0.04), round(t_to / 0.04)):
+        t = 0.04 * k
+        ref = agent.reference(t)
+        pos, vel = (START, np.zeros(3)) if agent.comm.latest_estimate is None else (ref.pos_world, ref.vel_world)
+        agent.on_pose_estimate(PoseEstimate(t, pos, vel, np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3)))
+        agent.on_frame(*_frame(t))
+        if k % 5 == 0:
+            # the inbox holds what was sent in the previous round
+            agent.on_radio([_plan_message(t - ROUND)] if t > 0 and radio_on(t - ROUND) else [])
+            agent.outgoing(t)
+            modes.append((round(t, 2), agent.mode))
+    return modes
+
+
+def test_with_the_radio_it_flies_dmpc_and_still_tracks_and_maps_without_planning_the_denied_half():
+    agent = _agent()
+    modes = _run(agent, 0.0, 2.0, lambda t: True)
+    assert {m for _, m in modes} == {"comm"}
+    assert agent.denied.stats.replans == 0 and agent.denied.trajectory is None  # the denied half only observes
+    assert len(agent.denied.stats.map_ms) == 50  # every frame mapped: warm when an outage starts
+    assert len(agent.perception.predictions(2.0)) == 1  # the neighbour is tracked
+    s = agent.comm.stats
+    assert len(s.qp_solve_s) >= 5
+    assert s.substituted_plans == 0 and s.unknown_tracks == 0  # the track is that fresh plan's drone
+
+
+def test_a_neighbour_whose_plan_goes_stale_is_planned_against_by_its_track():
+    agent = _agent()
+    # drone 1 heard until 1.0 s, then silent for 0.8 s: stale after 0.5 s, radio not yet out (1.0 s)
+    modes = _run(agent, 0.0, 1.8, lambda t: t < 1.0)
+    assert {m for _, m in modes} == {"comm"}
+    assert agent.comm.stats.substituted_plans >= 1
+
+
+def test_silence_switches_to_the_denied_stack_and_a_message_switches_back_with_a_continuous_reference():
+    agent = _agent()
+    silence = agent.config.radio_silence_s
+    t_switch = 0.4 + silence + ROUND  # last message sent at 0.4 s; the first round whose silence exceeds the limit
+    modes = _run(agent, 0.0, t_switch, lambda t: t < 0.6)
+    assert modes[-1][1] == "comm"
+    before = agent.comm.reference_state(t_switch)  # what the DMPC plan commands at the switch
+    modes += _run(agent, t_switch, t_switch + 0.04, lambda t: False)
+    assert modes[-1] == (round(t_switch, 2), "denied")
+    after = agent.reference(t_switch)
+    np.testing.assert_allclose(after.pos_world, before[0], atol=1e-9)
+    np.testing.assert_allclose(after.vel_world, before[1], atol=1e-9)
+    assert agent.switches == [(pytest.approx(t_switch), "denied")]
+
+    modes += _run(agent, t_switch + 0.04, 3.0, lambda t: False)
+    assert agent.denied.stats.replans >= 1  # the denied half plans now
+    t_back = 3.0
+    before = agent.denied.reference(t_back)
+    modes += _run(agent, 3.0, 3.04, lambda t: True)  # a message arrives at the round at 3.0 s
+    assert modes[-1] == (3.0, "comm") and agent.switches[-1] == (pytest.approx(t_back), "comm")
+    # the DMPC half starts from the denied reference: its first plan begins where that reference was
+    np.testing.assert_allclose(agent.comm.plan.position(t_back), before.pos_world, atol=1e-6)
+    np.testing.assert_allclose(agent.comm.yaw, before.yaw)
+
+
+def test_invalid_auto_settings_name_the_field():
+    with pytest.raises(ConfigError, match=r"^auto\.radio_silence_s="):
+        load_scenario("crossing", {"auto": {"radio_silence_s": 0}})
+    with pytest.raises(ConfigError, match=r"^auto\.fusion\.gate_m="):
+        load_scenario("crossing", {"auto": {"fusion": {"gate_m": -1}}})
