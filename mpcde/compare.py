@@ -2,8 +2,8 @@
 
 What is compared: the stacks of :data:`mpcde.modes.MODES` (``comm``, DMPC on
 plans exchanged over the radio; ``denied``, MP-CDE on the drone's own
-perception; ``placeholder``, a blind straight line; and any mode added there
-later), each flying the same scenario with only ``planner.kind`` changed. The
+perception; ``auto``, DMPC falling back to the drone's tracks and to MP-CDE
+when the radio fails; ``placeholder``, a blind straight line), each flying the same scenario with only ``planner.kind`` changed. The
 comparison is paired: for a given seed every mode gets the same obstacles,
 starts and goals, the same sensor and pose noise and the same radio faults
 (the scenario's ``radio`` settings, seeded by the run's seed), so a difference
