@@ -6,9 +6,12 @@ An agent receives only what the drone itself would have: its camera frames
 (:class:`sim.types.RadioMessage`). It never receives another drone's ground
 truth (tests/integration/test_onboard_interfaces.py holds this).
 
-Today it flies the PLACEHOLDER planner (:mod:`planners.min_jerk_line`) and
-keeps the latest frame and the neighbours' latest broadcast plans; perception
-(detector, tracks), MINCO and DMPC plug in here as they land.
+:class:`OnboardAgent` is the interface every stack implements; :class:`Agent`
+is the PLACEHOLDER stack (:mod:`planners.min_jerk_line`), which keeps the
+latest frame and the neighbours' latest broadcast plans and plans nothing
+around them. The other stacks: :mod:`mpcde.agent_denied` (MP-CDE),
+:mod:`mpcde.agent_dmpc` (DMPC) and :mod:`mpcde.agent_auto` (both, with the
+fallback between them); :mod:`mpcde.agents` picks one per ``planner.kind``.
 """
 
 from __future__ import annotations

@@ -28,6 +28,8 @@ now, at the round time t:
    formation offset applies).
 
 Gating and assignment cost are Euclidean in 3-D [m]. Nothing here sees ground truth.
+A track enters the DMPC QP like a plan: a constant-velocity prediction
+(MP-CDE Eq. 12) under the same r_min; the QP does not use its covariance.
 """
 
 from __future__ import annotations
