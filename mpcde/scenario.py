@@ -234,6 +234,9 @@ class ScenarioConfig:
             raise ConfigError("duration_s", self.duration_s, "in (0, 3600] s")
         if not 0 <= self.seed < 2**32:
             raise ConfigError("seed", self.seed, "an integer in [0, 2^32)")
+        if self.planner.kind in ("mpcde", "auto") and not self.run.cameras:
+            allowed = f"must be true for planner.kind {self.planner.kind!r}: it sees only through its camera (drop --no-cameras)"
+            raise ConfigError("run.cameras", self.run.cameras, allowed)
         if self.planner.kind in ("dmpc", "auto") and abs(self.dmpc.qp.step_s * self.radio.rate_hz - 1.0) > 1e-6:
             raise ConfigError("dmpc.qp.step_s", self.dmpc.qp.step_s, f"must equal 1 / radio.rate_hz = {1.0 / self.radio.rate_hz:g} s (one DMPC round per step)")
 

@@ -42,6 +42,7 @@ BAD = {
     ),
     "goals_too_close": ("drones:\n  starts: [[-4.0, 0.0, 1.5], [0.0, -4.0, 1.5]]\n  goals: [[1.0, 0.0, 1.5], [1.1, 0.0, 1.5]]\n", "drones.goals[1]"),
     "not_yaml": ("name: [unclosed\n", "scenario"),
+    "denied_without_cameras": ("planner:\n  kind: mpcde\n", "run.cameras"),  # the test flies with --no-cameras
     "goals_count": ("drones:\n  starts: [[0.0, 0.0, 1.5]]\n  goals: []\n", "drones.goals"),
 }
 
