@@ -4,7 +4,7 @@ from dataclasses import replace
 
 import pytest
 
-from mpcde import agent_denied
+from mpcde import agent_denied, agents
 from mpcde.loop import prepare_run, run_scenario
 from mpcde.scenario import load_scenario
 from perception.types import Detection
@@ -32,7 +32,7 @@ class SpyDenied(agent_denied.DeniedAgent):
 
 
 def test_each_denied_agent_gets_only_its_own_frame_and_its_own_detections(monkeypatch):
-    monkeypatch.setattr(agent_denied, "DeniedAgent", SpyDenied)  # make_agent imports it at call time
+    monkeypatch.setattr(agents, "DeniedAgent", SpyDenied)  # the name make_agent builds the denied stack with
     SpyDenied.seen = []
     run_scenario(prepare_run(denied("crossing", 0.6)))
     assert len(SpyDenied.seen) >= 2 * 10
