@@ -51,7 +51,7 @@ import numpy as np
 
 from mpcde.agent import AgentCounters
 from mpcde.agent_yaw import ActiveYaw, yaw_config_for
-from mpcde.neighbour_perception import NeighbourPerception, PerceptionConfig
+from mpcde.neighbour_perception import NeighbourPerception, PerceptionConfig, onboard_perception
 from perception.map_config import MapConfig
 from perception.occupancy_map import OccupancyMap
 from perception.types import Detection, NeighborPrediction, OccupancySnapshot
@@ -145,7 +145,6 @@ class DeniedAgent:
         self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig, fov_deg: tuple[float, float] = (85.0, 58.0),
         perception_config: PerceptionConfig | None = None, perception: NeighbourPerception | None = None,
     ) -> None:
-        pc = perception_config if perception_config is not None else PerceptionConfig()
         self.drone_id = drone_id
         self.goal_world = np.asarray(goal_world, float)
         self.config = config
@@ -158,17 +157,14 @@ class DeniedAgent:
         self.hover_world: np.ndarray | None = None
         self.heading: ActiveYaw | None = None  # made from the first pose estimate (its yaw)
         c = config
-        self.t_hold_s = pc.tracker.t_hold_s
+        self.t_hold_s = (perception_config or PerceptionConfig()).tracker.t_hold_s
         self.yaw_config = yaw_config_for(c.yaw, c.v_max_mps, c.yaw_rate_max_radps, self.t_hold_s, *fov_deg)
         self.optimizer = TrajectoryOptimizerConfig(
             v_max_mps=c.v_max_mps, a_max_mps2=c.a_max_mps2, obstacle_clearance_m=c.clearance_m,
             swarm_clearance_m=c.swarm_clearance_m, swarm_z_scale=c.swarm_z_scale,
         )
-        if perception is None and c.perceive_neighbours:
-            perception = NeighbourPerception.from_config(pc)
-        self.perception = perception if c.perceive_neighbours else None
-        # what the loop's batched detector reads (None: no detections)
-        self.detector_request = pc.detector_request() if c.perceive_neighbours else None
+        # detector_request: what the loop's batched detector reads (None: no detections)
+        self.perception, self.detector_request = onboard_perception(c.perceive_neighbours, perception_config, perception)
         self.search = PathSearchConfig()
 
     # inputs ---------------------------------------------------------------
@@ -246,12 +242,9 @@ class DeniedAgent:
         if self.heading is not None:
             self.heading.restart(yaw, time_s)
 
-    def state_at(self, time_s: float) -> np.ndarray:
-        """(3, 3) position, velocity, acceleration of the reference at ``time_s`` [s]."""
-        return self._state_at(time_s)
 
     # planning ---------------------------------------------------------------
-    def _state_at(self, t: float) -> np.ndarray:
+    def state_at(self, t: float) -> np.ndarray:
         """(3, 3) position, velocity, acceleration of the current reference at ``t``."""
         if self.trajectory is None:
             return np.stack([self.hover_world, np.zeros(3), np.zeros(3)])
@@ -274,7 +267,7 @@ class DeniedAgent:
         return min(d) < self.config.swarm_clearance_m
 
     def _replan(self, snap, neighbours: list[NeighborPrediction], t: float) -> bool:
-        start = self._state_at(t)
+        start = self.state_at(t)
         t0 = time.perf_counter()
         c = self.config
         # the front end sees each track as a capsule (planners.neighbour_field); MINCO sees the predictions
@@ -303,7 +296,7 @@ class DeniedAgent:
 
     def _brake(self, t: float) -> None:
         """Stop from the current state with a single minimum-jerk piece (no obstacle knowledge)."""
-        self.trajectory = self._stopping_piece(t, self._state_at(t))
+        self.trajectory = self._stopping_piece(t, self.state_at(t))
         self.last_plan_time_s = t
         self.stats.brakes += 1
 
@@ -322,7 +315,7 @@ class DeniedAgent:
         if self.trajectory is None:
             yaw, yaw_rate = self.heading.reference(time_s, None)
             return FlatOutputReference(self.hover_world, np.zeros(3), np.zeros(3), yaw, yaw_rate)
-        p, v, a = self._state_at(time_s)
+        p, v, a = self.state_at(time_s)
         yaw, yaw_rate = self.heading.reference(time_s, v)
         return FlatOutputReference(pos_world=p, vel_world=v, acc_world=a, yaw=yaw, yaw_rate=yaw_rate)
 

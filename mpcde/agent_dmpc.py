@@ -59,7 +59,7 @@ import numpy as np
 from mpcde.agent import AgentCounters
 from mpcde.errors import ConfigError
 from mpcde.neighbour_fusion import FusionConfig, fuse_neighbours
-from mpcde.neighbour_perception import NeighbourPerception, PerceptionConfig
+from mpcde.neighbour_perception import NeighbourPerception, PerceptionConfig, onboard_perception
 from perception.types import NeighborPrediction
 from planners.dmpc import DmpcConfig, DmpcPlan, DmpcProblem, DmpcSolveError
 from sim.obstacles import ObstacleSpec
@@ -305,11 +305,7 @@ class DmpcAgent:
         fusion: FusionConfig | None = None,
     ) -> None:
         self.drone_id = int(drone_id)
-        pc = perception_config if perception_config is not None else PerceptionConfig()
-        if perception is None and config.perceive_neighbours:
-            perception = NeighbourPerception.from_config(pc)
-        self.perception = perception if config.perceive_neighbours else None
-        self.detector_request = pc.detector_request() if config.perceive_neighbours else None
+        self.perception, self.detector_request = onboard_perception(config.perceive_neighbours, perception_config, perception)
         self.fusion = fusion if self.perception is not None else None
         self.goal_world = np.asarray(goal_world, float).reshape(3)
         self.config = config

@@ -55,8 +55,6 @@ half-written ``out_dir``):
 from __future__ import annotations
 
 import json
-import os
-import shutil
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
@@ -70,7 +68,7 @@ from mpcde.scenario import load_scenario
 
 __all__ = [
     "DEFAULT_MODES", "ROW_KEYS", "SUMMARY_KEYS", "check_modes", "default_modes", "format_table",
-    "min_inter_drone_distance", "row_from_metrics", "run_compare", "summarize",
+    "row_from_metrics", "run_compare", "summarize",
 ]  # fmt: skip
 
 DEFAULT_MODES = ("comm", "denied", "auto")  # those present in MODES when called
@@ -212,22 +210,12 @@ def format_table(results: dict) -> str:
     return "\n".join(lines)
 
 
-def min_inter_drone_distance(pos_world: np.ndarray) -> np.ndarray:
-    """(T,) minimum centre distance [m] over drone pairs at each sample of ``pos_world`` (T, N, 3), N >= 2."""
-    pos = np.asarray(pos_world, float)
-    d = np.linalg.norm(pos[:, :, None, :] - pos[:, None, :, :], axis=-1)  # (T, N, N)
-    n = pos.shape[1]
-    d[:, np.arange(n), np.arange(n)] = np.inf
-    return d.min(axis=(1, 2))
-
-
 def _plot(path: Path, flights: dict[str, RunResult], seed: int) -> None:
     """results.png: min inter-drone distance over time per mode, beside a top view per mode (one seed)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-    from matplotlib.patches import Circle, Polygon
 
-    from mpcde.plots import box_corners_xy
+    from mpcde.plots import draw_obstacles, min_inter_drone_distance
 
     ncol = 1 + len(flights)
     fig = Figure(figsize=(4.6 * ncol, 4.6))
@@ -246,11 +234,7 @@ def _plot(path: Path, flights: dict[str, RunResult], seed: int) -> None:
     ax_d.legend(fontsize=7)
     for c, (mode, r) in enumerate(flights.items()):
         ax = fig.add_subplot(1, ncol, 2 + c)
-        for ob in r.obstacles:
-            if ob.kind == "tree":
-                ax.add_patch(Circle(ob.center_xy, ob.radius_m, color="saddlebrown", alpha=0.7))
-            else:
-                ax.add_patch(Polygon(box_corners_xy(ob), closed=True, color="slategray", alpha=0.7))
+        draw_obstacles(ax, r.obstacles)
         pos = r.log.arrays["pos_world"]
         for i in range(r.starts.shape[0]):
             colour = f"C{i % 10}"
@@ -274,8 +258,7 @@ def _prepare_all(scenario: str, modes: tuple[str, ...], seeds: tuple[int, ...], 
             overrides["duration_s"] = float(duration_s)
         for mode in modes:
             cfg = load_scenario(scenario, overrides)
-            cfg = replace(cfg, planner=replace(cfg.planner, kind=MODES[mode]))
-            cfg.__post_init__()  # re-check cross-field rules for the new kind
+            cfg = replace(cfg, planner=replace(cfg.planner, kind=MODES[mode]))  # re-runs the cross-field checks
             prepared[(mode, seed)] = prepare_run(cfg)
     return prepared
 
@@ -313,11 +296,6 @@ def run_compare(
     seeds = _check_seeds(seeds)
     if duration_s is not None and not duration_s > 0:
         raise ConfigError("duration_s", duration_s, "> 0 s")
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise ConfigError("--out", str(out_dir), "exists and is not a folder")
-    if out.exists() and any(out.iterdir()) and not overwrite:
-        raise ConfigError("--out", str(out_dir), "exists and is not empty; pass --overwrite or choose another folder")
     prepared = _prepare_all(scenario, modes, seeds, duration_s)
     name = prepared[(modes[0], seeds[0])].config.name
 
@@ -325,11 +303,8 @@ def run_compare(
 
     from mpcde.run_folder import RunFolder
 
-    out = out.resolve()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    staging = out.parent / f".{out.name}.partial-{os.getpid()}"
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir()
+    target = RunFolder(Path(out_dir), overwrite)  # checks --out, stages in a hidden sibling folder
+    staging = target.staging
     bar = tqdm(total=len(prepared), disable=not progress, desc="compare", unit="flight")
     try:
         rows, first = [], {}
@@ -362,11 +337,9 @@ def run_compare(
         text = format_table(results) + "\n\nrun folders:\n" + "\n".join(folders) + "\n"
         (staging / "results.txt").write_text(text)
         _plot(staging / "results.png", first, seeds[0])
-        if out.exists():
-            shutil.rmtree(out)
-        os.replace(staging, out)
+        target.publish()
     except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
+        target.discard()
         raise
     finally:
         bar.close()

@@ -33,7 +33,7 @@ from perception.tracker_config import TrackerConfig
 from perception.types import Detection, NeighborPrediction
 from sim.types import RgbdFrame
 
-__all__ = ["NeighbourPerception", "PerceptionConfig", "PerceptionCounts"]
+__all__ = ["NeighbourPerception", "PerceptionConfig", "PerceptionCounts", "onboard_perception"]
 
 
 @dataclass(frozen=True)
@@ -124,3 +124,19 @@ class NeighbourPerception:
         if last is None:
             return []
         return self.tracker.predictions(max(float(time_s), last))
+
+
+def onboard_perception(
+    perceive: bool, config: PerceptionConfig | None, shared: NeighbourPerception | None = None
+) -> tuple[NeighbourPerception | None, DetectorRequest | None]:
+    """An agent's perception and the detector request the loop serves it (both None when ``perceive`` is off).
+
+    Args:
+        perceive: the agent's ``perceive_neighbours`` setting.
+        config: the scenario's ``perception:`` settings; None: the defaults.
+        shared: a perception to use instead of a new one (the ``auto`` agent's halves share one).
+    """
+    if not perceive:
+        return None, None
+    config = config if config is not None else PerceptionConfig()
+    return (shared if shared is not None else NeighbourPerception.from_config(config)), config.detector_request()

@@ -14,7 +14,7 @@ from matplotlib.patches import Circle, Polygon  # noqa: E402
 
 from sim.obstacles import ObstacleSpec  # noqa: E402
 
-__all__ = ["box_corners_xy", "plot_min_distance", "plot_top_down", "plot_yaw"]
+__all__ = ["box_corners_xy", "draw_obstacles", "min_inter_drone_distance", "plot_min_distance", "plot_top_down", "plot_yaw"]
 
 
 def box_corners_xy(ob: ObstacleSpec) -> np.ndarray:
@@ -25,14 +25,28 @@ def box_corners_xy(ob: ObstacleSpec) -> np.ndarray:
     return local @ np.array([[c, s], [-s, c]]) + np.asarray(ob.center_xy)
 
 
-def plot_top_down(path: Path, obstacles: Sequence[ObstacleSpec], pos_world: np.ndarray, starts: np.ndarray, goals: np.ndarray, arena_size_m: tuple[float, float], title: str) -> None:
-    """Top view: obstacles, each drone's true path (T, N, 3), starts (o) and goals (x)."""
-    fig, ax = plt.subplots(figsize=(7, 7))
+def draw_obstacles(ax, obstacles: Sequence[ObstacleSpec]) -> None:
+    """Obstacle footprints on the top-view axes ``ax``: trees as discs, boxes as rotated rectangles."""
     for ob in obstacles:
         if ob.kind == "tree":
             ax.add_patch(Circle(ob.center_xy, ob.radius_m, color="saddlebrown", alpha=0.7))
         else:
             ax.add_patch(Polygon(box_corners_xy(ob), closed=True, color="slategray", alpha=0.7))
+
+
+def min_inter_drone_distance(pos_world: np.ndarray) -> np.ndarray:
+    """(T,) minimum centre distance [m] over drone pairs at each sample of ``pos_world`` (T, N, 3), N >= 2."""
+    pos = np.asarray(pos_world, float)
+    d = np.linalg.norm(pos[:, :, None, :] - pos[:, None, :, :], axis=-1)  # (T, N, N)
+    n = pos.shape[1]
+    d[:, np.arange(n), np.arange(n)] = np.inf
+    return d.min(axis=(1, 2))
+
+
+def plot_top_down(path: Path, obstacles: Sequence[ObstacleSpec], pos_world: np.ndarray, starts: np.ndarray, goals: np.ndarray, arena_size_m: tuple[float, float], title: str) -> None:
+    """Top view: obstacles, each drone's true path (T, N, 3), starts (o) and goals (x)."""
+    fig, ax = plt.subplots(figsize=(7, 7))
+    draw_obstacles(ax, obstacles)
     colours = plt.cm.tab10(np.arange(pos_world.shape[1]) % 10)
     for i in range(pos_world.shape[1]):
         ax.plot(pos_world[:, i, 0], pos_world[:, i, 1], color=colours[i], lw=1.5, label=f"drone {i}")
@@ -54,10 +68,7 @@ def plot_min_distance(path: Path, time_s: np.ndarray, pos_world: np.ndarray, col
     """Minimum inter-drone centre distance over time, with the collision threshold."""
     fig, ax = plt.subplots(figsize=(7, 3.2))
     if pos_world.shape[1] > 1:
-        d = np.linalg.norm(pos_world[:, :, None, :] - pos_world[:, None, :, :], axis=-1)
-        n = pos_world.shape[1]
-        d[:, np.arange(n), np.arange(n)] = np.inf
-        ax.plot(time_s, d.min(axis=(1, 2)), label="min inter-drone distance")
+        ax.plot(time_s, min_inter_drone_distance(pos_world), label="min inter-drone distance")
     ax.axhline(collision_distance_m, color="r", ls="--", label=f"collision ({collision_distance_m:.2f} m)")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("distance [m]")

@@ -5,9 +5,9 @@ import pytest
 
 from mpcde import compare
 from mpcde.compare import (
-    ROW_KEYS, SUMMARY_KEYS, check_modes, default_modes, format_table, min_inter_drone_distance, row_from_metrics,
-    run_compare, summarize,
+    ROW_KEYS, SUMMARY_KEYS, check_modes, default_modes, format_table, row_from_metrics, run_compare, summarize,
 )  # fmt: skip
+from mpcde.plots import min_inter_drone_distance
 from mpcde.errors import ConfigError
 from mpcde.modes import MODES
 
