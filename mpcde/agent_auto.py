@@ -49,7 +49,6 @@ that brakes to the denied stack's limit, are the next things to try.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -58,7 +57,7 @@ import numpy as np
 from mpcde.agent import AgentCounters
 from mpcde.agent_denied import DeniedAgent
 from mpcde.agent_dmpc import DmpcAgent
-from mpcde.errors import ConfigError
+from mpcde.errors import require_finite_positive
 from mpcde.neighbour_fusion import FusionConfig
 from perception.types import Detection
 from planners.dmpc import DmpcPlan
@@ -86,8 +85,7 @@ class AutoAgentConfig:
     fusion: FusionConfig = field(default_factory=FusionConfig)
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.radio_silence_s, (int, float)) and math.isfinite(self.radio_silence_s) and self.radio_silence_s > 0):
-            raise ConfigError("radio_silence_s", self.radio_silence_s, "a number > 0 [s]")
+        require_finite_positive(self, "radio_silence_s")
 
 
 class AutoAgent:

@@ -51,6 +51,7 @@ import numpy as np
 
 from mpcde.agent import AgentCounters
 from mpcde.agent_yaw import ActiveYaw, yaw_config_for
+from mpcde.errors import require_finite_positive
 from mpcde.neighbour_perception import NeighbourPerception, PerceptionConfig, onboard_perception
 from perception.map_config import MapConfig
 from perception.occupancy_map import OccupancyMap
@@ -107,10 +108,7 @@ class DeniedAgentConfig:
     yaw: YawPlannerConfig = field(default_factory=YawPlannerConfig)
 
     def __post_init__(self) -> None:
-        for name in ("swarm_clearance_m", "conflict_horizon_s"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
-                raise ValueError(f"{name}={v!r}: a finite number > 0")
+        require_finite_positive(self, "swarm_clearance_m", "conflict_horizon_s")
         if not (isinstance(self.swarm_z_scale, (int, float)) and np.isfinite(self.swarm_z_scale) and self.swarm_z_scale >= 1):
             raise ValueError(f"swarm_z_scale={self.swarm_z_scale!r}: a finite number >= 1")
 

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
-__all__ = ["ConfigError", "MpcdeError"]
+__all__ = ["ConfigError", "MpcdeError", "require_finite_positive"]
 
 
 class MpcdeError(Exception):
@@ -22,3 +23,11 @@ class ConfigError(MpcdeError, ValueError):
         self.value = value
         self.allowed = allowed
         super().__init__(f"{field}={value!r}: {allowed}")
+
+
+def require_finite_positive(config: object, *names: str) -> None:
+    """Raise ConfigError ``<name>=<value>: a finite number > 0`` for the first attribute of ``config`` that is not one."""
+    for name in names:
+        v = getattr(config, name)
+        if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ConfigError(name, v, "a finite number > 0")

@@ -40,6 +40,7 @@ from typing import Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from mpcde.errors import require_finite_positive
 from perception.types import NeighborPrediction
 
 __all__ = ["FusedNeighbours", "FusionConfig", "fuse_neighbours", "unknown_neighbour_id"]
@@ -63,10 +64,7 @@ class FusionConfig:
     gate_m: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("stale_after_s", "gate_m"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
-                raise ValueError(f"{name}={v!r}: a finite number > 0")
+        require_finite_positive(self, "stale_after_s", "gate_m")
 
 
 @dataclass(frozen=True)
