@@ -29,6 +29,11 @@ acceleration) and heading (:meth:`DeniedAgent.take_over`,
 :meth:`DmpcAgent.take_over`). In ``denied`` mode the drone still broadcasts
 its MINCO trajectory as a plan, so neighbours that hear it can use it.
 
+The radio is remembered for ``plan_memory_s`` after the switch: the denied
+half plans (and aims its camera) against the neighbours' last plans fused with
+its tracks (:meth:`AutoAgent._denied_neighbours`), so a neighbour flying beside
+it, which its camera has not seen, is not forgotten the moment the radio goes.
+
 What each half knows of static obstacles is what it knows alone: the comm
 half the scenario's obstacle list (the on-demand DMPC paper's known
 obstacles), the denied half its own camera map. ``denied.perceive_neighbours:
@@ -49,6 +54,7 @@ that brakes to the denied stack's limit, are the next things to try.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -57,9 +63,9 @@ import numpy as np
 from mpcde.agent import AgentCounters
 from mpcde.agent_denied import DeniedAgent
 from mpcde.agent_dmpc import DmpcAgent
-from mpcde.errors import require_finite_positive
-from mpcde.neighbour_fusion import FusionConfig
-from perception.types import Detection
+from mpcde.errors import ConfigError, require_finite_positive
+from mpcde.neighbour_fusion import FusionConfig, fuse_neighbours
+from perception.types import Detection, NeighborPrediction
 from planners.dmpc import DmpcPlan
 from sim.types import FlatOutputReference, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
 
@@ -77,15 +83,31 @@ class AutoAgentConfig:
             within this [s] of a round (chosen: 1.0 s, five rounds at 5 Hz:
             with 20 % Bernoulli loss and one neighbour, the chance of five
             losses in a row is 0.03 %, so lossy links do not flip the mode).
+        plan_memory_s: in ``denied`` mode the neighbours' last radio plans sent
+            within this [s] are still planned against, and pointed at by the
+            active yaw planner, fused with the tracks as in comm mode (a plan
+            whose drone is tracked gives way to the track); 0 turns the memory
+            off (the denied half then sees exactly what pure MP-CDE sees).
+            Chosen: 2.0 s. The outage starts with the drones where DMPC left
+            them, side by side in the converging swarm, out of each other's
+            camera view (radio_outage: collisions 1-2 s after the switch came
+            from sideways dodges into a neighbour the camera never saw); the
+            memory covers the first second of denied flight after the 1 s of
+            silence, while the active yaw turns the camera to the remembered
+            drones and the tracker takes them over.
         fusion: when a neighbour's plan is stale and how near its track must be
             (:class:`mpcde.neighbour_fusion.FusionConfig`).
     """
 
     radio_silence_s: float = 1.0
+    plan_memory_s: float = 2.0
     fusion: FusionConfig = field(default_factory=FusionConfig)
 
     def __post_init__(self) -> None:
         require_finite_positive(self, "radio_silence_s")
+        m = self.plan_memory_s
+        if isinstance(m, bool) or not (isinstance(m, (int, float)) and math.isfinite(m) and m >= 0):
+            raise ConfigError("plan_memory_s", m, "a finite number >= 0 [s] (0: no radio memory in denied mode)")
 
 
 class AutoAgent:
@@ -111,6 +133,8 @@ class AutoAgent:
         self.switches: list[tuple[float, str]] = []
         self.mode_time_s = {COMM: 0.0, DENIED: 0.0}
         self._last_round_s: float | None = None
+        self.remembered_plans = 0  # denied-mode neighbour sets that used a remembered radio plan (summed over plans)
+        denied.neighbour_source = self._denied_neighbours
 
     # inputs ------------------------------------------------------------------
     def on_pose_estimate(self, estimate: PoseEstimate) -> None:
@@ -168,6 +192,25 @@ class AutoAgent:
                 self.comm.take_over(plan, self.denied.reference(t).yaw)
             self._switch(t, COMM)
 
+    def _denied_neighbours(self, t: float) -> list[NeighborPrediction]:
+        """What the denied half plans and points its camera against at ``t`` [s]: tracks plus radio memory.
+
+        The neighbours' last plans sent within ``plan_memory_s`` are fused with
+        the tracks exactly as in comm mode (:func:`mpcde.neighbour_fusion.fuse_neighbours`):
+        a plan whose drone is tracked gives way to the track, an untracked one
+        is kept (extrapolated at constant velocity past its horizon).
+        """
+        tracks = self.perception.predictions(t)
+        if self.mode == COMM or self.config.plan_memory_s <= 0:
+            return tracks
+        plans = self.comm.radio_predictions(t, self.config.plan_memory_s)
+        if not plans:
+            return tracks
+        f = self.config.fusion
+        fused = fuse_neighbours(plans, tracks, t, f.stale_after_s, f.gate_m, self.comm.qp_config.v_max)
+        self.remembered_plans += fused.fresh_plans + fused.stale_plans
+        return fused.predictions
+
     def _switch(self, t: float, mode: str) -> None:
         self.mode = mode
         self.switches.append((t, mode))
@@ -193,6 +236,7 @@ class AutoAgent:
             "planner": "auto",
             "mode_time_s": {k: round(v, 3) for k, v in self.mode_time_s.items()},
             "mode_switches": len(self.switches),
+            "remembered_plans": self.remembered_plans,
             "switches": [{"time_s": round(t, 3), "to": m} for t, m in self.switches],
             "dmpc": self.comm.extra_metrics(),
             "denied": self.denied.extra_metrics(),

@@ -45,6 +45,7 @@ false`` the heading follows the direction of travel (the ablation).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -164,6 +165,8 @@ class DeniedAgent:
         # detector_request: what the loop's batched detector reads (None: no detections)
         self.perception, self.detector_request = onboard_perception(c.perceive_neighbours, perception_config, perception)
         self.search = PathSearchConfig()
+        # where plan_step reads the neighbours from (None: this drone's tracks); the auto agent adds its radio memory
+        self.neighbour_source: Callable[[float], list[NeighborPrediction]] | None = None
 
     # inputs ---------------------------------------------------------------
     def on_pose_estimate(self, estimate: PoseEstimate) -> None:
@@ -208,7 +211,7 @@ class DeniedAgent:
         """Heading and replanning at frame time ``t`` [s] on the map ``snap`` (module docstring)."""
         if t < self.config.start_delay_s or self.latest_estimate is None:
             return
-        neighbours = self.perception.predictions(t) if self.perception is not None else []
+        neighbours = self.neighbours(t)
         yaw_trigger = False
         if self.heading.due(t):  # Alg. 1 lines 1-12 every t_y; line 13's trigger is (e)
             yaw_trigger = self.heading.update(t, snap, self.trajectory, self.hover_world, neighbours)
@@ -221,6 +224,12 @@ class DeniedAgent:
             self.stats.yaw_replans += int(replanned and yaw_trigger)
             if not replanned and unsafe:
                 self._brake(t)
+
+    def neighbours(self, t: float) -> list[NeighborPrediction]:
+        """The neighbour predictions planned against at ``t`` [s]: ``neighbour_source``'s, else the tracks."""
+        if self.neighbour_source is not None:
+            return self.neighbour_source(t)
+        return self.perception.predictions(t) if self.perception is not None else []
 
     def outgoing(self, time_s: float) -> None:
         """Denied: nothing is broadcast."""

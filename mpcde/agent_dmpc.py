@@ -388,13 +388,7 @@ class DmpcAgent:
             else:
                 self.stats.stale_plans += 1
             self.stats.neighbour_age_s.append(age)
-            out.append(
-                NeighborPrediction(
-                    neighbor_id=j, source="radio", stamp_s=msg.time_s, times_s=np.asarray(msg.times_s, float),
-                    pos_world=np.asarray(msg.pos_world, float), vel_world=np.asarray(msg.vel_world, float),
-                    cov_world=np.zeros((6, 6)),
-                )
-            )  # fmt: skip
+            out.append(_plan_prediction(j, msg))
         self._renewed = set()
         if self.fusion is None:
             return out
@@ -403,6 +397,14 @@ class DmpcAgent:
         self.stats.substituted_plans += fused.substituted
         self.stats.unknown_tracks += fused.unknown_tracks
         return fused.predictions
+
+    def radio_predictions(self, time_s: float, max_age_s: float) -> list[NeighborPrediction]:
+        """The neighbours' last plans sent within ``max_age_s`` [s] of ``time_s`` [s], as predictions (no counting).
+
+        The ``auto`` agent's memory of the radio while it flies the denied stack.
+        """
+        plans = sorted(self.neighbour_plans.items())
+        return [_plan_prediction(j, msg) for j, msg in plans if time_s - msg.time_s <= max_age_s]
 
     def take_over(self, plan: DmpcPlan, yaw: float) -> None:
         """Start flying DMPC from another stack's reference (the ``auto`` agent's return to the radio).
@@ -516,3 +518,11 @@ class DmpcAgent:
             "qp_solve_ms": [round(float(v), 5) for v in solve_ms],
             **(self.perception.counts.metrics() if self.perception is not None else {}),
         }
+
+
+def _plan_prediction(neighbor_id: int, msg: PlanMessage) -> NeighborPrediction:
+    """A received plan as an exact (zero-covariance) radio prediction."""
+    return NeighborPrediction(
+        neighbor_id=neighbor_id, source="radio", stamp_s=msg.time_s, times_s=np.asarray(msg.times_s, float),
+        pos_world=np.asarray(msg.pos_world, float), vel_world=np.asarray(msg.vel_world, float), cov_world=np.zeros((6, 6)),
+    )  # fmt: skip

@@ -25,15 +25,19 @@ def _agent() -> AutoAgent:
     return agent
 
 
-def _plan_message(t: float) -> RadioMessage:
-    """Drone 1 hovering at NEIGHBOUR says so."""
+BEHIND = START + np.array([-1.5, 0.0, 0.0])  # a hovering drone the camera (looking along +x) cannot see
+
+
+def _plan_message(t: float, sender: int = 1, pos_world: np.ndarray = NEIGHBOUR) -> RadioMessage:
+    """Drone ``sender`` hovering at ``pos_world`` says so."""
     times = t + ROUND * np.arange(16)
-    plan = PlanMessage(1, t, times, np.tile(NEIGHBOUR, (16, 1)), np.zeros((16, 3)))
-    return RadioMessage(sender_id=1, send_time_s=t, receive_time_s=t, payload=plan)
+    plan = PlanMessage(sender, t, times, np.tile(pos_world, (16, 1)), np.zeros((16, 3)))
+    return RadioMessage(sender_id=sender, send_time_s=t, receive_time_s=t, payload=plan)
 
 
-def _run(agent: AutoAgent, t_from: float, t_to: float, radio_on) -> list[tuple[float, str]]:
-    """Frames at 25 Hz and radio rounds at 5 Hz over [t_from, t_to); ``radio_on(t)`` says if drone 1 is heard.
+def _run(agent: AutoAgent, t_from: float, t_to: float, radio_on, behind=False) -> list[tuple[float, str]]:
+    """Frames at 25 Hz and radio rounds at 5 Hz over [t_from, t_to); ``radio_on(t)`` says if drone 1 is heard
+    (and drone 2 hovering at BEHIND when ``behind``).
 
     The drone tracks its reference perfectly: each pose estimate is the reference at that time.
     Returns the mode after each round.
@@ -47,7 +51,9 @@ def _run(agent: AutoAgent, t_from: float, t_to: float, radio_on) -> list[tuple[f
         agent.on_frame(*_frame(t))
         if k % 5 == 0:
             # the inbox holds what was sent in the previous round
-            agent.on_radio([_plan_message(t - ROUND)] if t > 0 and radio_on(t - ROUND) else [])
+            heard = t > 0 and radio_on(t - ROUND)
+            inbox = [_plan_message(t - ROUND)] + ([_plan_message(t - ROUND, 2, BEHIND)] if behind else [])
+            agent.on_radio(inbox if heard else [])
             agent.outgoing(t)
             modes.append((round(t, 2), agent.mode))
     return modes
@@ -98,8 +104,30 @@ def test_silence_switches_to_the_denied_stack_and_a_message_switches_back_with_a
     np.testing.assert_allclose(agent.comm.yaw, before.yaw)
 
 
+def test_in_denied_mode_an_untracked_neighbour_is_remembered_from_the_radio_for_plan_memory_s():
+    agent = _agent()
+    memory = agent.config.plan_memory_s
+    _run(agent, 0.0, 2.0, lambda t: t < 0.6, behind=True)  # last messages sent at 0.4 s; denied from 1.6 s
+    assert agent.mode == "denied"
+    t = 2.0
+    by_id = {p.neighbor_id: p for p in agent.denied.neighbours(t)}
+    # drone 1 is in view: its remembered plan gives way to its track, keeping the drone's id
+    assert by_id[1].source == "perception"
+    # drone 2 was never seen: the planner and the yaw planner know it only from its last plan
+    assert by_id[2].source == "radio"
+    np.testing.assert_allclose(by_id[2].position(t), BEHIND)
+    assert agent.remembered_plans >= 2
+    later = agent.denied.neighbours(0.4 + memory + 0.01)  # the plans are forgotten: the tracks alone
+    assert [p.source for p in later] == ["perception"]
+    # no memory: only what the camera tracks (the pure MP-CDE neighbour set)
+    agent.config = replace(agent.config, plan_memory_s=0.0)
+    assert [p.source for p in agent.denied.neighbours(t)] == ["perception"]
+
+
 def test_invalid_auto_settings_name_the_field():
     with pytest.raises(ConfigError, match=r"^auto\.radio_silence_s="):
         load_scenario("crossing", {"auto": {"radio_silence_s": 0}})
     with pytest.raises(ConfigError, match=r"^auto\.fusion\.gate_m="):
         load_scenario("crossing", {"auto": {"fusion": {"gate_m": -1}}})
+    with pytest.raises(ConfigError, match=r"^auto\.plan_memory_s=-1(\.0)?: a finite number >= 0"):
+        load_scenario("crossing", {"auto": {"plan_memory_s": -1}})
