@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -134,6 +134,9 @@ class DronesConfig:
             raise ConfigError("altitude_m", self.altitude_m, "in [0.3, 20] m")
 
 
+PlannerKind = Literal["min_jerk_line", "mpcde", "dmpc", "auto"]
+
+
 @dataclass(frozen=True)
 class PlannerConfig:
     """Onboard planning.
@@ -152,11 +155,13 @@ class PlannerConfig:
         start_delay_s: hover time before departure [s].
     """
 
-    kind: Literal["min_jerk_line", "mpcde", "dmpc", "auto"] = "min_jerk_line"
+    kind: PlannerKind = "min_jerk_line"
     cruise_speed_mps: float = 1.0
     start_delay_s: float = 0.5
 
     def __post_init__(self) -> None:
+        if self.kind not in get_args(PlannerKind):  # from_dict checks the Literal; this catches dataclasses.replace
+            raise ConfigError("kind", self.kind, f"allowed: {', '.join(repr(a) for a in get_args(PlannerKind))}")
         if not 0 < self.cruise_speed_mps <= 10:
             raise ConfigError("cruise_speed_mps", self.cruise_speed_mps, "in (0, 10] m/s")
         if self.start_delay_s < 0:

@@ -74,6 +74,17 @@ def test_config_error_names_field_value_and_allowed():
     assert str(e.value) == "duration_s=-1.0: in (0, 3600] s"
 
 
+def test_a_planner_kind_set_in_code_is_checked_too():
+    """The YAML path checks the Literal; dataclasses.replace (how compare switches stacks) must not slip past it."""
+    from dataclasses import replace
+
+    cfg = load_scenario("crossing")
+    with pytest.raises(ConfigError, match=r"^kind='denied': allowed: 'min_jerk_line', 'mpcde', 'dmpc', 'auto'$"):
+        replace(cfg.planner, kind="denied")
+    with pytest.raises(ConfigError, match=r"^planner\.kind='denied': allowed:"):
+        load_scenario("crossing", {"planner": {"kind": "denied"}})
+
+
 def test_a_non_empty_out_folder_is_refused_without_overwrite(tmp_path, capsys):
     out = tmp_path / "run"
     out.mkdir()
