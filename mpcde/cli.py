@@ -101,6 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
     cmp.add_argument("--seeds", type=int, default=1, help="flights per mode (seeds 0..N-1; a seed: one draw for all)")
     cmp.add_argument("--duration", type=float, default=None, help="time limit [s] (overrides the file's)")
     cmp.add_argument("--overwrite", action="store_true", help="replace an existing non-empty --out")
+    cmp.add_argument("--jobs", type=int, default=1, help="flights at once, one process each (metrics do not depend on it)")
     cmp.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -235,13 +236,14 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from mpcde.compare import format_table, run_compare
 
     _at_least("--seeds", args.seeds, 1)
+    _at_least("--jobs", args.jobs, 1)
     if args.duration is not None and not args.duration > 0:
         raise ConfigError("--duration", args.duration, "> 0 s")
     _check_out_dir(args.out)
     # run_compare validates modes and prepares every flight before it creates or writes anything
     results = run_compare(
         args.out, args.scenario, modes=args.modes, seeds=tuple(range(args.seeds)), duration_s=args.duration,
-        progress=not args.quiet, overwrite=args.overwrite,
+        progress=not args.quiet, overwrite=args.overwrite, jobs=args.jobs,
     )  # fmt: skip
     print(format_table(results))
     print(f"-> {args.out / 'results.json'}")

@@ -55,6 +55,9 @@ half-written ``out_dir``):
 from __future__ import annotations
 
 import json
+import multiprocessing as mp
+import os
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
@@ -271,6 +274,7 @@ def run_compare(
     duration_s: float | None = None,
     progress: bool = True,
     overwrite: bool = False,
+    jobs: int = 1,
 ) -> dict:
     """Fly ``scenario`` in every mode for every seed and write the paired comparison.
 
@@ -283,6 +287,13 @@ def run_compare(
         duration_s: override the scenario's time limit [s].
         progress: a progress bar and one line per flight.
         overwrite: replace a non-empty ``out_dir`` when done.
+        jobs: flights run at once, each in its own process (1: one after the
+            other in this process). A flight's metrics do not depend on it
+            (everything is seeded and stepped in simulated time) except the
+            wall-clock ones (``real_time_factor``, compute times). With more
+            than one job, a flight whose ``run.render_workers`` is automatic
+            (-1) renders with ``max(1, cpu_count // jobs)`` workers (at most 16), so the
+            jobs share the cores instead of each taking all of them.
 
     Returns:
         The results dict written to ``results.json`` (module docstring).
@@ -296,7 +307,11 @@ def run_compare(
     seeds = _check_seeds(seeds)
     if duration_s is not None and not duration_s > 0:
         raise ConfigError("duration_s", duration_s, "> 0 s")
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ConfigError("jobs", jobs, "an integer >= 1")
     prepared = _prepare_all(scenario, modes, seeds, duration_s)
+    if jobs > 1:
+        prepared = {key: _share_cores(run, jobs) for key, run in prepared.items()}
     name = prepared[(modes[0], seeds[0])].config.name
 
     from tqdm import tqdm
@@ -306,25 +321,32 @@ def run_compare(
     target = RunFolder(Path(out_dir), overwrite)  # checks --out, stages in a hidden sibling folder
     staging = target.staging
     bar = tqdm(total=len(prepared), disable=not progress, desc="compare", unit="flight")
+    order = [(mode, seed) for seed in seeds for mode in modes]  # interleaved: a seed's modes fly under the same load
+    pool = None
     try:
+        if jobs > 1:
+            pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
+            futures = {key: pool.submit(_fly, prepared[key]) for key in order}
         rows, first = [], {}
-        for seed in seeds:
-            for mode in modes:  # interleaved: the modes of one seed fly under the same machine load
+        for mode, seed in order:  # rows in this order whatever order the jobs finish in
+            if pool is None:
                 result = run_scenario(prepared[(mode, seed)], progress=progress)
-                folder = RunFolder(staging / "runs" / f"{mode}-seed{seed}", overwrite=True)
-                folder.write_result(result)
-                folder.publish()
-                row = row_from_metrics(mode, seed, result.metrics)
-                rows.append(row)
-                if seed == seeds[0]:
-                    first[mode] = result
-                bar.update(1)
-                if progress:
-                    bar.write(
-                        f"{mode} seed {seed}: success={row['success']} arrived {row['arrived']}/{row['n_drones']} "
-                        f"collisions={row['collisions']} min_distance={_fmt(row['min_distance_m'], '.3f')} m "
-                        f"mission_time={_fmt(row['mission_time_s'], '.2f')} s"
-                    )
+            else:
+                result = futures[(mode, seed)].result()
+            folder = RunFolder(staging / "runs" / f"{mode}-seed{seed}", overwrite=True)
+            folder.write_result(result)
+            folder.publish()
+            row = row_from_metrics(mode, seed, result.metrics)
+            rows.append(row)
+            if seed == seeds[0]:
+                first[mode] = result
+            bar.update(1)
+            if progress:
+                bar.write(
+                    f"{mode} seed {seed}: success={row['success']} arrived {row['arrived']}/{row['n_drones']} "
+                    f"collisions={row['collisions']} min_distance={_fmt(row['min_distance_m'], '.3f')} m "
+                    f"mission_time={_fmt(row['mission_time_s'], '.2f')} s"
+                )
         results = {
             "scenario": name,
             "modes": list(modes),
@@ -339,8 +361,27 @@ def run_compare(
         _plot(staging / "results.png", first, seeds[0])
         target.publish()
     except BaseException:
+        if pool is not None:  # do not wait for flights still running (Ctrl-C reaches the workers too)
+            pool.shutdown(wait=False, cancel_futures=True)
+            pool = None
         target.discard()
         raise
     finally:
+        if pool is not None:
+            pool.shutdown()  # every flight is done: returns at once
         bar.close()
     return results
+
+
+def _fly(prepared: PreparedRun) -> RunResult:
+    """One flight in a worker process of ``run_compare(jobs > 1)`` (top level, so it pickles)."""
+    return run_scenario(prepared, progress=False)
+
+
+def _share_cores(prepared: PreparedRun, jobs: int) -> PreparedRun:
+    """``prepared`` with an automatic ``run.render_workers`` (-1) set to this job's share of the cores."""
+    run = prepared.config.run
+    if run.render_workers >= 0:
+        return prepared
+    workers = min(16, max(1, (os.cpu_count() or 1) // jobs))  # 16: run.render_workers' limit
+    return replace(prepared, config=replace(prepared.config, run=replace(run, render_workers=workers)))

@@ -3,6 +3,7 @@
 import json
 import time
 
+import numpy as np
 import pytest
 
 from mpcde.compare import ROW_KEYS, run_compare
@@ -31,3 +32,17 @@ def test_blind_lines_collide_on_the_crossing_and_dmpc_over_an_ideal_radio_does_n
     print(f"compare crossing placeholder+comm: {wall_s:.1f} s wall; "
           + "; ".join(f"{m}: {r['collisions']} collisions, min {r['min_distance_m']:.3f} m" for m, r in rows.items()))
     assert not list(tmp_path.glob(".*partial*"))  # the staging folder was renamed into place
+
+
+@pytest.mark.slow
+def test_two_jobs_fly_the_same_flights_as_one(tmp_path):
+    """--jobs only changes where flights run: every row but the wall-clock one is identical."""
+    kwargs = {"modes": ("placeholder", "comm"), "seeds": (1,), "duration_s": 3.0, "progress": False}
+    one = run_compare(tmp_path / "one", "crossing", **kwargs)
+    two = run_compare(tmp_path / "two", "crossing", jobs=2, **kwargs)
+    strip = [[{k: v for k, v in r.items() if k != "real_time_factor"} for r in res["rows"]] for res in (one, two)]
+    assert strip[0] == strip[1]
+    assert [(r["mode"], r["seed"]) for r in two["rows"]] == [("placeholder", 1), ("comm", 1)]
+    for mode, seed in [("placeholder", 1), ("comm", 1)]:
+        a, b = (np.load(tmp_path / d / "runs" / f"{mode}-seed{seed}" / "states.npz") for d in ("one", "two"))
+        np.testing.assert_array_equal(a["pos_world"], b["pos_world"])  # the same physics, step for step

@@ -14,6 +14,7 @@ from mpcde.cli import main
         (["crossing", "--duration", "0"], "--duration"),
         (["crossing", "--duration", "-3"], "--duration"),
         (["no_such_scenario"], "scenario"),
+        (["crossing", "--jobs", "0"], "--jobs"),
     ],
 )
 def test_bad_compare_input_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, argv, field):

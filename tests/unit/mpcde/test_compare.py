@@ -106,6 +106,8 @@ def test_unknown_repeated_or_no_modes_are_one_line_config_errors_naming_the_allo
         ({"seeds": (-1,)}, "seeds"),
         ({"duration_s": 0.0}, "duration_s"),
         ({"scenario": "no_such_scenario"}, "scenario"),
+        ({"jobs": 0}, "jobs"),
+        ({"jobs": 1.5}, "jobs"),
     ],
 )
 def test_bad_input_raises_before_anything_is_written(tmp_path, kwargs, field):
@@ -122,3 +124,20 @@ def test_a_non_empty_out_dir_is_refused_without_overwrite(tmp_path):
     with pytest.raises(ConfigError, match="not empty"):
         run_compare(tmp_path, "crossing", modes=("placeholder",), progress=False)
     assert [p.name for p in tmp_path.iterdir()] == ["keep.txt"]
+
+
+def test_parallel_jobs_share_the_cores_only_where_render_workers_is_automatic(monkeypatch):
+    from mpcde.compare import _share_cores
+    from mpcde.loop import prepare_run
+    from mpcde.scenario import load_scenario
+
+    monkeypatch.setattr("os.cpu_count", lambda: 8)
+    auto = prepare_run(load_scenario("crossing"))
+    assert auto.config.run.render_workers == -1
+    assert _share_cores(auto, 2).config.run.render_workers == 4
+    assert _share_cores(auto, 3).config.run.render_workers == 2
+    assert _share_cores(auto, 16).config.run.render_workers == 1  # never 0 (0 renders in the flight's process)
+    monkeypatch.setattr("os.cpu_count", lambda: 64)
+    assert _share_cores(auto, 2).config.run.render_workers == 16  # the field's limit
+    fixed = prepare_run(load_scenario("crossing", {"run": {"render_workers": 0}}))
+    assert _share_cores(fixed, 4) is fixed  # an explicit setting is the user's
