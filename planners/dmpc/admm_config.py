@@ -1,0 +1,189 @@
+"""Configuration of the cooperative formation DMPC solved by decentralized ADMM (:class:`AdmmFormationConfig`).
+
+The paper is Stomberg, Ebel, Faulwasser, Eberhard, "Cooperative Distributed MPC
+via Decentralized Real-Time Optimization: Implementation Results for Robot
+Formations" (``papers/admm-dsqp-formation-dmpc.txt``). Its Sec. 5.1 gives
+rho = 1, l_max = 5, h = 0.2 s and P = Q (terminal weight equal to the stage
+weight); its robots are single integrators with velocity inputs. Ours are the
+double integrators of :mod:`planners.dmpc.model` (acceleration input), with K
+and h from our DMPC (:class:`planners.dmpc.config.DmpcConfig`). Values without a
+source are marked "chosen" and say why.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["AdmmFormationConfig"]
+
+
+def _positive(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float, np.integer, np.floating)) and np.isfinite(value) and value > 0):
+        raise ValueError(f"{name}={value!r}: a finite number > 0")
+
+
+def _non_negative(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float, np.integer, np.floating)) and np.isfinite(value) and value >= 0):
+        raise ValueError(f"{name}={value!r}: a finite number >= 0")
+
+
+def _integer_at_least(name: str, value: int, low: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise ValueError(f"{name}={value!r}: an integer >= {low}")
+
+
+def _boolean(name: str, value: bool) -> None:
+    if not isinstance(value, bool):
+        raise ValueError(f"{name}={value!r}: True or False")
+
+
+@dataclass(frozen=True)
+class AdmmFormationConfig:
+    """Settings of the formation OCP (paper Eq. 1) and of its ADMM solution (Eq. 4a-4c, Algorithm 2).
+
+    All positions are in the world frame (ENU, z up) in [m]. The OCP of drone
+    i over k = 1..K (the k = 0 terms are constants: p[0] is measured) is::
+
+        sum_k w_g[k] ||p_i[k] - r_i[k]||^2 + sum_{k=0}^{K-1} r ||u_i[k]||^2 + c s_i^2
+        + sum_{edges (i,j)} sum_k w_f[k] ||(p_i[k] - p_j[k]) - d_ij||^2
+
+    with w_g[k] = ``weight_tracking`` (k < K), ``weight_terminal_tracking``
+    (k = K), and w_f likewise; see :mod:`planners.dmpc.admm_ocp`.
+
+    Attributes:
+        horizon_steps: K, number of prediction steps (our DMPC: 15; the paper
+            uses N = 7 for velocity-controlled robots).
+        step_s: h, prediction step and MPC sampling interval in [s] (paper
+            Sec. 5.1: 0.2 s).
+        model: prediction model of :mod:`planners.dmpc.model`; only
+            ``"double"`` (state [p, v], input acceleration u [m/s^2]) is
+            supported (chosen: the paper's coupling is on positions only, and
+            the double integrator is what the rest of our DMPC flies).
+        weight_formation: q_f on ||(p_i[k] - p_j[k]) - d_ij||^2 per edge and
+            step k < K, in [1/m^2] (paper: Q_ij = -10 against the tracking
+            weight 10, i.e. as strong as tracking; chosen: 10, ten times the
+            tracking weight, so that the drones close the formation before
+            they converge on their references).
+        weight_tracking: q_g on ||p_i[k] - r_i[k]||^2, each drone's own
+            reference, k < K, in [1/m^2] (chosen: 1).
+        weight_input: r on ||u_i[k]||^2 in [s^4/m^2] (paper: R_ii = 1 on
+            velocities; chosen: 0.1: with q_g = 1 a formation scattered over
+            4 m is closed to 1 mm within 4 s in ``bench_admm.py``; the input
+            box, not r, limits the first steps).
+        weight_terminal_formation: q_f at k = K in [1/m^2] (paper: P = Q, so
+            the same as ``weight_formation``).
+        weight_terminal_tracking: q_g at k = K in [1/m^2] (paper: P = Q).
+        weight_slack: c on c s_i^2, one slack per drone shared by all soft
+            state constraints (paper Remark 2: c >> 0). The slack is in [m]
+            on position rows and [m/s] on velocity rows, so c is in [1/m^2]
+            or [s^2/m^2] respectively (chosen: 1e4; a violation of 1 cm costs
+            as much as 1 m of tracking error).
+        pos_min_world: (3,) lower corner of the soft position box [m]
+            (chosen: our DMPC's 40 m x 40 m arena, 0.2 m above the ground).
+        pos_max_world: (3,) upper corner of the soft position box [m].
+        v_max: per-axis soft speed limit |v| <= v_max + s in [m/s] (our DMPC: 2).
+        a_max: per-axis hard input limit |u| <= a_max in [m/s^2] (our DMPC and
+            on-demand DMPC Sec. 4: 4).
+        rho: ADMM penalty parameter rho (Eq. 4a, 4c), in the cost's units per
+            squared decision variable (paper Sec. 5.1: 1, tuned in
+            {0.1, 1, 10, 100}; kept after the same sweep on our OCP, see
+            :mod:`planners.dmpc.admm_formation`).
+        l_max: ADMM iterations per MPC step (paper Sec. 5.1: 5).
+        delay_compensation: paper Remark 1: u_i[0] is fixed to the input that
+            is already being applied on [t, t + h) (decided in the previous
+            step) and the step decides u_i[1], applied from t + h, so the
+            whole ADMM round may take up to h. False optimises u_i[0] too
+            (for a loop that waits for the round before applying it).
+        warm_start: start each MPC step's ADMM from the previous step's zbar
+            and gamma shifted by one step (paper Sec. 5.1); False starts every
+            step cold (gamma = 0, zbar = free response), for comparison.
+        osqp_eps_abs: OSQP absolute tolerance of each local QP (Step 3)
+            (chosen: 1e-4, as our DMPC's QP; ``bench_admm.py --sweep``: the
+            same distance to the centralized optimum as 1e-5 and 1e-6 in the
+            closed loop, in fewer OSQP iterations, because each ADMM
+            iteration warm-starts OSQP from the previous local solution and
+            the inexactness does not accumulate; see
+            :mod:`planners.dmpc.admm_formation`).
+        osqp_eps_rel: OSQP relative tolerance of each local QP (chosen: 1e-4).
+        osqp_max_iter: OSQP iteration limit of one local QP (chosen: 4000);
+            a local QP that reaches it is used as it is and counted in
+            ``AdmmStepResult.osqp_max_iter_hits``.
+        osqp_adaptive_rho: OSQP's own adaptive step size inside a local QP
+            (not the ADMM rho above). Each adaptation refactorises OSQP's KKT
+            matrix; ``AdmmStepResult.osqp_rho_updates`` counts them (chosen:
+            False: with ``osqp_rho`` = 1 the local QPs converge about as fast
+            without it, and then no solve ever refactorises; see
+            :mod:`planners.dmpc.admm_formation`).
+        osqp_rho: OSQP's own step size inside a local QP, fixed when
+            ``osqp_adaptive_rho`` is False (chosen: 1; with OSQP's default
+            0.1 single local QPs of the closed loop needed thousands of
+            iterations; see :mod:`planners.dmpc.admm_formation`).
+    """
+
+    horizon_steps: int = 15
+    step_s: float = 0.2
+    model: str = "double"
+    weight_formation: float = 10.0
+    weight_tracking: float = 1.0
+    weight_input: float = 0.1
+    weight_terminal_formation: float = 10.0
+    weight_terminal_tracking: float = 1.0
+    weight_slack: float = 1.0e4
+    pos_min_world: tuple[float, float, float] = (-20.0, -20.0, 0.2)
+    pos_max_world: tuple[float, float, float] = (20.0, 20.0, 10.0)
+    v_max: float = 2.0
+    a_max: float = 4.0
+    rho: float = 1.0
+    l_max: int = 5
+    delay_compensation: bool = True
+    warm_start: bool = True
+    osqp_eps_abs: float = 1e-4
+    osqp_eps_rel: float = 1e-4
+    osqp_max_iter: int = 4000
+    osqp_adaptive_rho: bool = False
+    osqp_rho: float = 1.0
+
+    def __post_init__(self) -> None:
+        _integer_at_least("horizon_steps", self.horizon_steps, 2)
+        _positive("step_s", self.step_s)
+        if self.model != "double":
+            raise ValueError(f"model={self.model!r}: only 'double' (the formation ADMM couples positions only)")
+        for name in ("weight_formation", "weight_terminal_formation", "weight_tracking", "weight_terminal_tracking"):
+            _non_negative(name, getattr(self, name))
+        _positive("weight_input", self.weight_input)
+        _positive("weight_slack", self.weight_slack)
+        lo, hi = np.asarray(self.pos_min_world, float), np.asarray(self.pos_max_world, float)
+        if lo.shape != (3,) or not np.all(np.isfinite(lo)):
+            raise ValueError(f"pos_min_world={self.pos_min_world!r}: three finite numbers [m]")
+        if hi.shape != (3,) or not np.all(np.isfinite(hi)) or not np.all(lo < hi):
+            raise ValueError(f"pos_max_world={self.pos_max_world!r}: three finite numbers > pos_min_world")
+        _positive("v_max", self.v_max)
+        _positive("a_max", self.a_max)
+        _positive("rho", self.rho)
+        _integer_at_least("l_max", self.l_max, 1)
+        _boolean("delay_compensation", self.delay_compensation)
+        _boolean("warm_start", self.warm_start)
+        _positive("osqp_eps_abs", self.osqp_eps_abs)
+        _positive("osqp_eps_rel", self.osqp_eps_rel)
+        _integer_at_least("osqp_max_iter", self.osqp_max_iter, 1)
+        _boolean("osqp_adaptive_rho", self.osqp_adaptive_rho)
+        _positive("osqp_rho", self.osqp_rho)
+
+    @property
+    def horizon_s(self) -> float:
+        """Prediction horizon K h in [s]."""
+        return self.horizon_steps * self.step_s
+
+    def tracking_weights(self) -> np.ndarray:
+        """(K,) w_g[k] for p[k], k = 1..K: stage weight, terminal weight at k = K (paper: P = Q)."""
+        w = np.full(self.horizon_steps, float(self.weight_tracking))
+        w[-1] = self.weight_terminal_tracking
+        return w
+
+    def formation_weights(self) -> np.ndarray:
+        """(K,) w_f[k] for the edge terms at k = 1..K (terminal weight at k = K)."""
+        w = np.full(self.horizon_steps, float(self.weight_formation))
+        w[-1] = self.weight_terminal_formation
+        return w

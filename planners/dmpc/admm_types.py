@@ -1,0 +1,140 @@
+"""What the formation ADMM sends and returns: :class:`CopyMessage`, :class:`MeanMessage`, :class:`AdmmStepResult`.
+
+Messages of Algorithm 2 (Stomberg et al.) between neighbours i and j, one pair
+per ADMM iteration l (paper Assumption 1: delivered, in order):
+
+* Step 4, :class:`CopyMessage` i -> j: drone i's copy w_ji^{l+1} of j's
+  positions (its local QP's solution for them), so that j can average.
+* Step 6, :class:`MeanMessage` j -> i: j's average xbar_j^{l+1} of its own
+  positions and every neighbour's copy of them (Step 5).
+
+Both carry a (K, 3) trajectory p[1..K] in the world frame (ENU) [m], sampled at
+t + k h, k = 1..K, of the MPC step that started at t.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planners.dmpc.types import DmpcPlan
+
+__all__ = ["AdmmStepResult", "CopyMessage", "MeanMessage"]
+
+
+def _frozen_trajectory(obj: object, name: str) -> None:
+    traj = np.array(getattr(obj, name), dtype=float)
+    if traj.ndim != 2 or traj.shape[1] != 3 or traj.shape[0] < 1:
+        raise ValueError(f"{type(obj).__name__}.{name} shape {traj.shape}: expected (K, 3)")
+    traj.setflags(write=False)
+    object.__setattr__(obj, name, traj)
+
+
+@dataclass(frozen=True)
+class CopyMessage:
+    """Algorithm 2 Step 4: the sender's copy of the receiver's position trajectory.
+
+    Attributes:
+        sender: id of the drone that holds the copy (i).
+        receiver: id of the drone whose trajectory it copies (j, the owner).
+        iteration: ADMM iteration l + 1 that produced it (1-based within the MPC step).
+        pos_world: (K, 3) w_ji^{l+1}[1..K] [m], world frame.
+    """
+
+    sender: int
+    receiver: int
+    iteration: int
+    pos_world: np.ndarray
+
+    def __post_init__(self) -> None:
+        _frozen_trajectory(self, "pos_world")
+
+
+@dataclass(frozen=True)
+class MeanMessage:
+    """Algorithm 2 Step 6: the sender's averaged own position trajectory.
+
+    Attributes:
+        sender: id of the owner (j) that averaged its trajectory.
+        receiver: id of a neighbour (i) that holds a copy of it.
+        iteration: ADMM iteration l + 1 (1-based within the MPC step).
+        pos_world: (K, 3) xbar_j^{l+1}[1..K] [m], world frame.
+    """
+
+    sender: int
+    receiver: int
+    iteration: int
+    pos_world: np.ndarray
+
+    def __post_init__(self) -> None:
+        _frozen_trajectory(self, "pos_world")
+
+
+@dataclass(frozen=True)
+class AdmmStepResult:
+    """One drone's outcome of one MPC step of ADMM (Algorithm 2 after ``iterations`` iterations).
+
+    The plan is the drone's own part of its last local QP solution z_i^{l}
+    (Algorithm 2 returns z_i^l): it satisfies the drone's dynamics and hard
+    input limits exactly (up to OSQP's tolerance) even before consensus.
+
+    Attributes:
+        drone_id: the drone.
+        t0_s: absolute time [s] of the MPC step (the measured state's time).
+        h_s: step h [s].
+        pos_world: (K+1, 3) p[0..K] [m] (p[0] the measured position).
+        vel_world: (K+1, 3) v[0..K] [m/s].
+        acc_world: (K, 3) u[0..K-1] [m/s^2], u[k] held on [t0 + k h, t0 + (k+1) h).
+        slack: s_i, the soft-constraint slack of paper Remark 2 ([m] / [m/s]).
+        iterations: ADMM iterations run.
+        primal_residual: (iterations,) ||z_i^{l+1} - zbar_i^{l+1}||_2 per iteration.
+        dual_residual: (iterations,) rho ||zbar_i^{l+1} - zbar_i^l||_2 per iteration.
+        qp_solve_s: (iterations,) wall time [s] of Step 3 (q update and OSQP solve).
+        bookkeeping_s: (iterations,) wall time [s] of this drone's Steps 4-8
+            without the network: building messages, averaging, forming zbar,
+            the multiplier update.
+        osqp_iterations: (iterations,) OSQP iterations of each local QP.
+        osqp_rho_updates: total OSQP step-size adaptations (each one a KKT
+            refactorisation; 0 with ``osqp_adaptive_rho`` False).
+        osqp_max_iter_hits: local QPs that stopped at ``osqp_max_iter`` and
+            were used as they were (inexact).
+        local_cost: f_i(z_i) of the last local solution (its share of the cost (1a)).
+    """
+
+    drone_id: int
+    t0_s: float
+    h_s: float
+    pos_world: np.ndarray
+    vel_world: np.ndarray
+    acc_world: np.ndarray
+    slack: float
+    iterations: int
+    primal_residual: np.ndarray
+    dual_residual: np.ndarray
+    qp_solve_s: np.ndarray
+    bookkeeping_s: np.ndarray
+    osqp_iterations: np.ndarray
+    osqp_rho_updates: int
+    osqp_max_iter_hits: int
+    local_cost: float
+
+    @property
+    def input_now(self) -> np.ndarray:
+        """(3,) u[0] [m/s^2]: the input to apply on [t0, t0 + h) (with Remark 1 the one fixed at t0)."""
+        return self.acc_world[0]
+
+    @property
+    def input_next(self) -> np.ndarray:
+        """(3,) u[1] [m/s^2]: with Remark 1 the input this step decides for [t0 + h, t0 + 2h)."""
+        return self.acc_world[1]
+
+    @property
+    def admm_time_s(self) -> float:
+        """This drone's compute time for the step [s]: sum of Step 3 and its bookkeeping."""
+        return float(np.sum(self.qp_solve_s) + np.sum(self.bookkeeping_s))
+
+    def as_dmpc_plan(self) -> DmpcPlan:
+        """The plan as a :class:`DmpcPlan` (acceleration padded with 0 at k = K, its tail convention)."""
+        acc = np.vstack([self.acc_world, np.zeros((1, 3))])
+        return DmpcPlan(self.t0_s, self.h_s, self.pos_world.copy(), self.vel_world.copy(), acc)
