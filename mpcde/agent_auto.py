@@ -39,17 +39,26 @@ half the scenario's obstacle list (the on-demand DMPC paper's known
 obstacles), the denied half its own camera map. ``denied.perceive_neighbours:
 false`` turns the perception off for both halves (the blind-fallback ablation).
 
-Measured (``mpcde compare radio_outage --seeds 3``, forest_swarm with every
-receiver deaf from 3 s to 15 s; full physics and rendering): drone-drone and
-obstacle collision events, summed over seeds 0-2, comm 22, denied 2, auto 5
-(0, 3, 2 per seed; success on seed 0); mean mission time, comm 11.7 s,
-denied 24.6 s, auto 20.5 s. Auto is not collision-free, and it does not beat
-pure MP-CDE on collisions. Not measured yet, but probable: the hand-over
-comes 1 s after the jam starts (``radio_silence_s``). The drones are then in
-the converging swarm at DMPC's speed (v_max 2 m/s against the denied
-stack's 1 m/s), and their heading is DMPC's fixed one, not one the yaw
-planner chose to watch the neighbours. A shorter silence, or a speed hand-over
-that brakes to the denied stack's limit, are the next things to try.
+Measured on radio_outage (forest_swarm, every receiver deaf from 3 s to
+15 s; full physics and rendering), seeds 0-5: seeds 0-2 with ``mpcde compare
+radio_outage --seeds 3``, seeds 3-5 flown one by one with the same code
+(runs are deterministic: seeds 0-2 of comm and denied repeat an earlier run's
+metrics exactly). Drone-drone and obstacle collision events per seed:
+
+=======  ==================  =====  ========  ===============  =============
+mode     per seed 0-5        total  success   worst min dist   mean mission
+=======  ==================  =====  ========  ===============  =============
+comm     10, 8, 4, 8, 9, 5   44     0 of 6    0.091 m          11.7 s
+denied   1, 0, 1, 1, 1, 1    5      0 of 6    0.139 m          24.6 s (5)
+auto     0, 0, 0, 0, 0, 1    1      5 of 6    0.185 m          19.4 s
+=======  ==================  =====  ========  ===============  =============
+
+(denied seed 1: one drone never arrived.) Without the radio memory
+(``plan_memory_s: 0``, the behaviour before it) auto had 0, 3, 2 collisions on seeds 0-2:
+its collisions came 1-2 s after the switch, sideways dodges into a neighbour
+flying beside the drone that its camera had never seen. 2.0 s is the only
+memory tried; a shorter ``radio_silence_s`` (0.4 s) without memory gave 5
+and 1 on seeds 1-2, no better than 1.0 s.
 """
 
 from __future__ import annotations
