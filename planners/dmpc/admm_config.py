@@ -16,27 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planners.checks import require_boolean, require_integer_at_least, require_non_negative, require_positive
+
 __all__ = ["AdmmFormationConfig"]
-
-
-def _positive(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float, np.integer, np.floating)) and np.isfinite(value) and value > 0):
-        raise ValueError(f"{name}={value!r}: a finite number > 0")
-
-
-def _non_negative(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float, np.integer, np.floating)) and np.isfinite(value) and value >= 0):
-        raise ValueError(f"{name}={value!r}: a finite number >= 0")
-
-
-def _integer_at_least(name: str, value: int, low: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise ValueError(f"{name}={value!r}: an integer >= {low}")
-
-
-def _boolean(name: str, value: bool) -> None:
-    if not isinstance(value, bool):
-        raise ValueError(f"{name}={value!r}: True or False")
 
 
 @dataclass(frozen=True)
@@ -146,30 +128,30 @@ class AdmmFormationConfig:
     osqp_rho: float = 1.0
 
     def __post_init__(self) -> None:
-        _integer_at_least("horizon_steps", self.horizon_steps, 2)
-        _positive("step_s", self.step_s)
+        require_integer_at_least("horizon_steps", self.horizon_steps, 2)
+        require_positive("step_s", self.step_s)
         if self.model != "double":
             raise ValueError(f"model={self.model!r}: only 'double' (the formation ADMM couples positions only)")
         for name in ("weight_formation", "weight_terminal_formation", "weight_tracking", "weight_terminal_tracking"):
-            _non_negative(name, getattr(self, name))
-        _positive("weight_input", self.weight_input)
-        _positive("weight_slack", self.weight_slack)
+            require_non_negative(name, getattr(self, name))
+        require_positive("weight_input", self.weight_input)
+        require_positive("weight_slack", self.weight_slack)
         lo, hi = np.asarray(self.pos_min_world, float), np.asarray(self.pos_max_world, float)
         if lo.shape != (3,) or not np.all(np.isfinite(lo)):
             raise ValueError(f"pos_min_world={self.pos_min_world!r}: three finite numbers [m]")
         if hi.shape != (3,) or not np.all(np.isfinite(hi)) or not np.all(lo < hi):
             raise ValueError(f"pos_max_world={self.pos_max_world!r}: three finite numbers > pos_min_world")
-        _positive("v_max", self.v_max)
-        _positive("a_max", self.a_max)
-        _positive("rho", self.rho)
-        _integer_at_least("l_max", self.l_max, 1)
-        _boolean("delay_compensation", self.delay_compensation)
-        _boolean("warm_start", self.warm_start)
-        _positive("osqp_eps_abs", self.osqp_eps_abs)
-        _positive("osqp_eps_rel", self.osqp_eps_rel)
-        _integer_at_least("osqp_max_iter", self.osqp_max_iter, 1)
-        _boolean("osqp_adaptive_rho", self.osqp_adaptive_rho)
-        _positive("osqp_rho", self.osqp_rho)
+        require_positive("v_max", self.v_max)
+        require_positive("a_max", self.a_max)
+        require_positive("rho", self.rho)
+        require_integer_at_least("l_max", self.l_max, 1)
+        require_boolean("delay_compensation", self.delay_compensation)
+        require_boolean("warm_start", self.warm_start)
+        require_positive("osqp_eps_abs", self.osqp_eps_abs)
+        require_positive("osqp_eps_rel", self.osqp_eps_rel)
+        require_integer_at_least("osqp_max_iter", self.osqp_max_iter, 1)
+        require_boolean("osqp_adaptive_rho", self.osqp_adaptive_rho)
+        require_positive("osqp_rho", self.osqp_rho)
 
     @property
     def horizon_s(self) -> float:

@@ -16,21 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planners.checks import require_boolean, require_integer_at_least, require_non_negative, require_positive
+
 __all__ = ["DmpcConfig"]
 
 _MODELS = ("double", "triple")
 _COLLISION_MODES = ("on_demand", "bvc")
 _OBSTACLE_MODES = ("auto", "on_demand", "every_step")
-
-
-def _positive(name: str, value: float) -> None:
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{name}={value!r}: must be a finite number > 0")
-
-
-def _non_negative(name: str, value: float) -> None:
-    if not (np.isfinite(value) and value >= 0):
-        raise ValueError(f"{name}={value!r}: must be a finite number >= 0")
 
 
 @dataclass(frozen=True)
@@ -176,18 +168,17 @@ class DmpcConfig:
     osqp_scaling: int = 4
 
     def __post_init__(self) -> None:
-        if not isinstance(self.horizon_steps, (int, np.integer)) or self.horizon_steps < 2:
-            raise ValueError(f"horizon_steps={self.horizon_steps!r}: an integer >= 2")
-        _positive("step_s", self.step_s)
+        require_integer_at_least("horizon_steps", self.horizon_steps, 2)
+        require_positive("step_s", self.step_s)
         if self.model not in _MODELS:
             raise ValueError(f"model={self.model!r}: one of {', '.join(_MODELS)}")
         if not isinstance(self.goal_steps, (int, np.integer)) or not 1 <= self.goal_steps <= self.horizon_steps:
             raise ValueError(f"goal_steps={self.goal_steps!r}: an integer in [1, horizon_steps={self.horizon_steps}]")
-        _positive("weight_goal", self.weight_goal)
+        require_positive("weight_goal", self.weight_goal)
         for name in ("weight_formation", "weight_smoothness", "weight_slack_linear"):
-            _non_negative(name, getattr(self, name))
-        _positive("weight_slack_quadratic", self.weight_slack_quadratic)
-        _positive("slack_max_m", self.slack_max_m)
+            require_non_negative(name, getattr(self, name))
+        require_positive("weight_slack_quadratic", self.weight_slack_quadratic)
+        require_positive("slack_max_m", self.slack_max_m)
         lo, hi = np.asarray(self.pos_min_world, float), np.asarray(self.pos_max_world, float)
         if lo.shape != (3,) or hi.shape != (3,) or not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
             raise ValueError(
@@ -198,40 +189,29 @@ class DmpcConfig:
                 f"pos_max_world={self.pos_max_world!r}: every component > pos_min_world={self.pos_min_world!r}"
             )
         for name in ("v_max", "a_max", "j_max", "r_min", "neighbourhood_factor"):
-            _positive(name, getattr(self, name))
+            require_positive(name, getattr(self, name))
         if not (np.isfinite(self.downwash) and self.downwash >= 1.0):
             raise ValueError(f"downwash={self.downwash!r}: a finite number >= 1")
         if self.collision_mode not in _COLLISION_MODES:
             raise ValueError(f"collision_mode={self.collision_mode!r}: one of {', '.join(_COLLISION_MODES)}")
         if self.neighbourhood_factor < 1.0:
             raise ValueError(f"neighbourhood_factor={self.neighbourhood_factor!r}: a number >= 1")
-        _non_negative("conflict_margin_m", self.conflict_margin_m)
+        require_non_negative("conflict_margin_m", self.conflict_margin_m)
         if self.on_demand_time not in ("first_conflict", "closest_approach"):
             raise ValueError(f"on_demand_time={self.on_demand_time!r}: one of first_conflict, closest_approach")
-        if not isinstance(self.conflict_substeps, (int, np.integer)) or self.conflict_substeps < 1:
-            raise ValueError(f"conflict_substeps={self.conflict_substeps!r}: an integer >= 1")
-        if not isinstance(self.max_neighbours, (int, np.integer)) or self.max_neighbours < 1:
-            raise ValueError(f"max_neighbours={self.max_neighbours!r}: an integer >= 1")
-        if not isinstance(self.max_obstacle_planes, (int, np.integer)) or self.max_obstacle_planes < 0:
-            raise ValueError(f"max_obstacle_planes={self.max_obstacle_planes!r}: an integer >= 0")
+        require_integer_at_least("conflict_substeps", self.conflict_substeps, 1)
+        require_integer_at_least("max_neighbours", self.max_neighbours, 1)
+        require_integer_at_least("max_obstacle_planes", self.max_obstacle_planes, 0)
         if self.obstacle_avoidance not in _OBSTACLE_MODES:
             raise ValueError(f"obstacle_avoidance={self.obstacle_avoidance!r}: one of {', '.join(_OBSTACLE_MODES)}")
-        if not isinstance(self.vertical_obstacle_planes, bool):
-            raise ValueError(f"vertical_obstacle_planes={self.vertical_obstacle_planes!r}: True or False")
-        if not isinstance(self.obstacle_culling, bool):
-            raise ValueError(f"obstacle_culling={self.obstacle_culling!r}: True or False")
-        if not isinstance(self.terminal_halt, bool):
-            raise ValueError(f"terminal_halt={self.terminal_halt!r}: True or False")
-        _positive("osqp_eps_abs", self.osqp_eps_abs)
-        _positive("osqp_eps_rel", self.osqp_eps_rel)
-        if not isinstance(self.osqp_max_iter, (int, np.integer)) or self.osqp_max_iter < 1:
-            raise ValueError(f"osqp_max_iter={self.osqp_max_iter!r}: an integer >= 1")
-        if not isinstance(self.osqp_check_termination, (int, np.integer)) or self.osqp_check_termination < 1:
-            raise ValueError(f"osqp_check_termination={self.osqp_check_termination!r}: an integer >= 1")
-        if not isinstance(self.osqp_scaling, (int, np.integer)) or self.osqp_scaling < 0:
-            raise ValueError(f"osqp_scaling={self.osqp_scaling!r}: an integer >= 0")
-        if not isinstance(self.osqp_polish, bool):
-            raise ValueError(f"osqp_polish={self.osqp_polish!r}: True or False")
+        for name in ("vertical_obstacle_planes", "obstacle_culling", "terminal_halt"):
+            require_boolean(name, getattr(self, name))
+        require_positive("osqp_eps_abs", self.osqp_eps_abs)
+        require_positive("osqp_eps_rel", self.osqp_eps_rel)
+        require_integer_at_least("osqp_max_iter", self.osqp_max_iter, 1)
+        require_integer_at_least("osqp_check_termination", self.osqp_check_termination, 1)
+        require_integer_at_least("osqp_scaling", self.osqp_scaling, 0)
+        require_boolean("osqp_polish", self.osqp_polish)
 
     @property
     def state_dim(self) -> int:
