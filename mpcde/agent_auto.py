@@ -210,7 +210,7 @@ class AutoAgent:
         is kept (extrapolated at constant velocity past its horizon).
         """
         tracks = self.perception.predictions(t)
-        if self.mode == COMM or self.config.plan_memory_s <= 0:
+        if self.config.plan_memory_s <= 0:  # called by the denied half's plan_step, i.e. in denied mode only
             return tracks
         plans = self.comm.radio_predictions(t, self.config.plan_memory_s)
         if not plans:
