@@ -18,7 +18,7 @@ test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
 bench: setup
-	$(PY) benchmarks/bench_sim.py
+	$(PY) -m mpcde bench --out runs/bench --overwrite
 
 clean:
 	rm -rf runs .pytest_cache

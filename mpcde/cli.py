@@ -4,8 +4,9 @@ Subcommands: ``fly`` (a headless scenario -> run folder), ``train-detector``
 (render a dataset, train the drone detector on CPU -> weights + model card),
 ``eval-detector`` (held-out renders -> results.json), ``eval-tracking``
 (tracker evaluation -> results.json), ``eval-dmpc`` (on-demand DMPC vs
-BVC -> results.json) and ``compare`` (one scenario in each mode, paired by
-seed -> results.json + run folders). Bad input prints one
+BVC -> results.json), ``compare`` (one scenario in each mode, paired by
+seed -> results.json + run folders) and ``bench`` (the hot-path benchmarks ->
+their printed figures + results.json). Bad input prints one
 line ``mpcde: error: <field>=<value>: <allowed>`` and exits with status 2,
 having written nothing.
 """
@@ -103,6 +104,12 @@ def build_parser() -> argparse.ArgumentParser:
     cmp.add_argument("--overwrite", action="store_true", help="replace an existing non-empty --out")
     cmp.add_argument("--jobs", type=int, default=1, help="flights at once, one process each (metrics do not depend on it)")
     cmp.add_argument("--quiet", action="store_true", help="no progress bar")
+    bn = sub.add_parser("bench", help="run the hot-path benchmarks (benchmarks/) -> their figures + results.json")
+    bn.add_argument("names", nargs="*", metavar="NAME", help="benchmarks to run (default all): sim, detector, map, ...")
+    bn.add_argument("--out", required=True, type=Path, help="output folder (must be empty unless --overwrite)")
+    bn.add_argument("--quick", action="store_true", help="fewer repeats and flights (a smoke run; noisier ratios)")
+    bn.add_argument("--overwrite", action="store_true", help="replace an existing non-empty --out")
+    bn.add_argument("--quiet", action="store_true", help="no progress lines")
     return p
 
 
@@ -250,6 +257,16 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from mpcde.bench import format_table, run_bench
+
+    _check_out_dir(args.out)
+    results = run_bench(args.out, args.names, quick=args.quick, overwrite=args.overwrite, progress=not args.quiet)
+    print(format_table(results))
+    print(f"-> {args.out / 'results.json'} (figures: {args.out}/bench_<name>.txt)")
+    return 0 if all(r["exit_code"] == 0 for r in results["rows"]) else 1
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``mpcde`` console script."""
     args = build_parser().parse_args(argv)
@@ -266,6 +283,8 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_eval_dmpc(args)
         if args.command == "compare":
             return _cmd_compare(args)
+        if args.command == "bench":
+            return _cmd_bench(args)
     except (MpcdeError, ValueError) as e:
         msg = str(e).splitlines()[0] if str(e) else type(e).__name__
         sys.stderr.write(f"mpcde: error: {msg}\n")
