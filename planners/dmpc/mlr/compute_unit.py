@@ -1,0 +1,195 @@
+"""A compute unit (CU) running MLR-DMPC (DMPC-Swarm Alg. 1, Sec. 4.2), or the baseline that ignores loss.
+
+One :meth:`ComputeUnit.step` per round k (computation phase), reading the
+messages of round k - 1 and returning what the CU sends in round k's
+communication phase:
+
+1. Update the information trackers (Alg. 1 Line 8, Alg. 2:
+   :mod:`planners.dmpc.mlr.tracker`). A CU slot of round k - 1 counts as
+   accounted for if its CU message arrived, if a recovery reply arrived in it,
+   if the CU knows the slot was donated (it heard that CU's request in round
+   k - 2), or if it is the CU's own slot.
+2. Unify the priorities received in round k - 1 (and the CU's own, if it
+   sent some) by the zero-rule maximum (Eq. 11) and form A_ET(k).
+3. If the CU requested a trajectory in round k - 1, it donates its slot now:
+   it sends nothing (Line 30).
+4. Else, if no tracker is deprecated (Lines 14-20): CU w computes the UAV at
+   rank (k + w) mod M of A_ET(k), solving QP (13) against every candidate of
+   every other UAV; it skips (sends only its priorities) if that UAV's
+   unified priority is 0 or its tracker holds two candidates (it was
+   recomputed in round k - 1 and its initial state is not known yet), or if
+   OSQP fails (then the UAV keeps its trajectory, which is safe).
+5. Else MLR (Lines 22-32): it requests the trajectory of one deprecated UAV,
+   the one at rank (k + w) mod (number deprecated), so that several CUs in
+   MLR tend to ask for different UAVs.
+6. Priorities for round k + 1 (Line 34, Appendix A), 0 for the UAV it just computed.
+
+``ignore_message_loss=True`` is the baseline of Sec. 5.4 (Gräfe et al. 2022):
+every received or own new trajectory replaces the one in the store, nothing is
+ever deprecated or requested, and the CU always computes its selected UAV
+(unless its unified priority is 0).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planners.dmpc.mlr.config import MlrConfig
+from planners.dmpc.mlr.qp import MlrProblem, MlrQpResult
+from planners.dmpc.mlr.tracker import InformationTrackers, TrackerUpdate
+from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
+from planners.dmpc.mlr.trigger import consensus, event_set, quantize, raw_priorities, selected_uav
+from planners.dmpc.mlr.types import CuTrajectoryMessage, RecoveryReply, RecoveryRequest, UavStateMessage
+from planners.dmpc.qp_result import DmpcSolveError
+
+__all__ = ["ComputeUnit", "CuStepReport"]
+
+
+@dataclass(frozen=True)
+class CuStepReport:
+    """What a CU did in one round (for metrics).
+
+    Attributes:
+        round_index: k.
+        mode: ``"compute"``, ``"idle"`` (selected UAV not computable),
+            ``"request"`` (MLR), ``"donate"`` (silent, slot given to a UAV)
+            or ``"failed"`` (QP not solved).
+        uav_id: the UAV computed or requested (None otherwise).
+        a_et: A_ET(k).
+        deprecated: UAVs whose tracker is deprecated after the update.
+        tracker_update: what Alg. 2 did.
+        qp: the QP result when one was solved.
+    """
+
+    round_index: int
+    mode: str
+    uav_id: int | None
+    a_et: tuple[int, ...]
+    deprecated: tuple[int, ...]
+    tracker_update: TrackerUpdate
+    qp: MlrQpResult | None = None
+
+
+class ComputeUnit:
+    """CU w of Alg. 1.
+
+    Args:
+        config: the shared :class:`MlrConfig`.
+        cu_index: w in 0..M-1.
+        initial: N initial trajectories (Remark 2), known to all CUs.
+        initial_targets_world: (N, 3) targets known at start [m] (then from UAV messages).
+        ignore_message_loss: run the Sec. 5.4 baseline instead of MLR-DMPC.
+    """
+
+    def __init__(
+        self,
+        config: MlrConfig,
+        cu_index: int,
+        initial: Sequence[ReferenceTrajectory],
+        initial_targets_world: np.ndarray,
+        ignore_message_loss: bool = False,
+    ) -> None:
+        if not 0 <= cu_index < config.n_cus:
+            raise ValueError(f"cu_index={cu_index!r}: an integer in [0, {config.n_cus - 1}]")
+        if len(initial) != config.n_uavs:
+            raise ValueError(f"initial: {len(initial)} trajectories, expected n_uavs={config.n_uavs}")
+        self.config = config
+        self.cu_index = int(cu_index)
+        self.ignore_message_loss = bool(ignore_message_loss)
+        self.trackers = InformationTrackers(initial, config.max_kept_deprecated)
+        self.targets_world = np.array(initial_targets_world, float).reshape(config.n_uavs, 3)
+        self.problem = MlrProblem(config)
+        self._own_last: CuTrajectoryMessage | RecoveryRequest | None = None  # what this CU sent last round
+        self._donate_now = False
+        self._heard_requests: set[int] = set()  # CUs whose request this CU received last round
+
+    def step(self, round_index: int, inbox: Sequence[object]) -> tuple[object | None, CuStepReport]:
+        """Alg. 1 for round k = ``round_index`` with the payloads received in round k - 1.
+
+        Returns:
+            (the payload to broadcast in round k, or None when donating; a :class:`CuStepReport`).
+        """
+        k, cfg, w = int(round_index), self.config, self.cu_index
+        states = {m.uav_id: m for m in inbox if isinstance(m, UavStateMessage)}
+        cu_msgs = {m.cu_id: m for m in inbox if isinstance(m, (CuTrajectoryMessage, RecoveryRequest))}
+        replies = {m.slot_cu_id: m for m in inbox if isinstance(m, RecoveryReply)}
+        for i, m in states.items():
+            self.targets_world[i] = m.target_world
+        new = {m.uav_id: m.trajectory for m in cu_msgs.values() if isinstance(m, CuTrajectoryMessage) and m.uav_id is not None}
+        own = self._own_last
+        if isinstance(own, CuTrajectoryMessage) and own.uav_id is not None:
+            new[own.uav_id] = own.trajectory
+        if self.ignore_message_loss:
+            update = self.trackers.update_ignoring_loss(new)
+        else:
+            accounted = k == 0 or all(  # round 0 has no previous round to miss
+                v == w or v in cu_msgs or v in replies or v in self._heard_requests for v in range(cfg.n_cus)
+            )
+            update = self.trackers.update(
+                {i: m.following for i, m in states.items()}, new,
+                {r.uav_id: r.trajectory for r in replies.values()}, accounted,
+            )  # fmt: skip
+        self._heard_requests = {v for v, m in cu_msgs.items() if isinstance(m, RecoveryRequest)}
+        vectors = [m.priorities for m in cu_msgs.values()] + ([own.priorities] if own is not None else [])
+        unified = consensus(vectors, cfg.n_uavs)  # Eq. 11 with the zero rule
+        a_et = event_set(unified, cfg.n_cus)
+
+        deprecated = self.trackers.deprecated_ids
+        if self._donate_now:  # Alg. 1 Line 30: the slot belongs to the requested UAV this round
+            self._donate_now = False
+            self._own_last = None
+            return None, CuStepReport(k, "donate", None, a_et, deprecated, update)
+        if deprecated and not self.ignore_message_loss:  # MLR, Lines 22-32
+            uav = deprecated[(k + w) % len(deprecated)]
+            msg = RecoveryRequest(w, k, self._priorities(k, None), uav)
+            self._donate_now = True
+            self._own_last = msg
+            return msg, CuStepReport(k, "request", uav, a_et, deprecated, update)
+        uav = selected_uav(a_et, k, w, cfg.n_cus)  # Lines 14-15
+        result, mode = None, "idle"
+        if unified[uav] > 0 and len(self.trackers[uav].candidates) == 1:
+            try:
+                result = self._solve(k, uav, set(a_et))
+                mode = "compute"
+            except DmpcSolveError:
+                mode = "failed"
+        if result is None:
+            msg = CuTrajectoryMessage(w, k, self._priorities(k, None))
+        else:
+            msg = CuTrajectoryMessage(w, k, self._priorities(k, uav), uav, result.trajectory)
+        self._own_last = msg
+        return msg, CuStepReport(k, mode, uav if mode != "idle" else None, a_et, deprecated, update, result)
+
+    def _solve(self, k: int, uav: int, a_et: set[int]) -> MlrQpResult:
+        """QP (13) for ``uav`` against every candidate of every other UAV (Alg. 1 Lines 17-18)."""
+        cfg = self.config
+        t_start = (k + 1) * cfg.round_s  # one round of latency (Eq. 13b)
+        times = self.problem.check_times(t_start)
+        pos, midway = [], []
+        for j, entry in enumerate(self.trackers.entries):
+            if j == uav:
+                continue
+            for cand in entry.candidates:
+                pos.append(cand.positions_at(times))
+                midway.append(j in a_et)  # Eq. 15: midway for j in A_ET(k), relaxed otherwise
+        others = np.array(pos).reshape(-1, cfg.n_checks, 3)
+        own = self.trackers[uav].candidates[0]
+        return self.problem.solve(own, t_start, self.targets_world[uav], others, np.array(midway, bool),
+                                  TrajectoryId(k, self.cu_index))
+
+    def _priorities(self, k: int, just_computed: int | None) -> np.ndarray:
+        """J_{i,w}(k) (Appendix A) from the first candidate of each tracker, quantised; 0 for ``just_computed``."""
+        cfg = self.config
+        firsts = [e.candidates[0] for e in self.trackers.entries]
+        calc = np.array([t.meta.calc_round for t in firsts], float)
+        t_now = k * cfg.round_s
+        pos = np.array([t.positions_at(np.array([max(t_now, t.t_start_s)]))[0] for t in firsts])
+        dist = np.linalg.norm(self.targets_world - pos, axis=1)
+        scale = {"rr": cfg.priority_scale_rr, "db": cfg.priority_scale_db_m, "ht": cfg.priority_scale_ht}[cfg.trigger]
+        q = quantize(raw_priorities(cfg.trigger, k, calc, dist), scale)
+        if just_computed is not None:
+            q[just_computed] = 0  # Appendix A: just recomputed
+        return q

@@ -1,0 +1,174 @@
+"""Configuration of message-loss-recovery DMPC (MLR-DMPC, DMPC-Swarm Sec. 4): :class:`MlrConfig`.
+
+The paper is Gräfe et al., "DMPC-Swarm: distributed model predictive control
+on nano UAV swarms" (``papers/dmpc-swarm-mlr-dmpc.txt``). Its Sec. 5.1 gives
+the round T = 0.2 s (5 Hz) and a third-order integrator with jerk input
+(Sec. 4.1); the rest of the numbers are not in the paper and are marked
+"chosen" with the reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planners.checks import require_integer_at_least, require_non_negative, require_positive
+
+__all__ = ["MlrConfig", "TRIGGERS"]
+
+TRIGGERS = ("rr", "db", "ht")
+
+
+@dataclass(frozen=True)
+class MlrConfig:
+    """Settings shared by the compute units (CUs), the UAVs and the QP (Eq. 13a-13f).
+
+    All positions are in the world frame (z up) in [m]. The nominal model is
+    the 3-D triple integrator of :mod:`planners.dmpc.model` (state
+    ``[p, v, a]`` (9,), input jerk (3,)), the paper's f̂_i (Sec. 4.1).
+
+    Attributes:
+        n_uavs: N, number of UAVs (the QP is sized for N - 1 others).
+        n_cus: M, number of compute units, 1 <= M < N (Sec. 1.1: M < N).
+        round_s: T, the round of computation + communication in [s]
+            (Sec. 5.1: 0.2 s, 5 Hz).
+        horizon_rounds: H, prediction horizon in rounds; a trajectory lasts
+            H T [s] (chosen: 15, 3 s, as our DMPC's K h).
+        input_steps_per_round: T / T_s, the piecewise-constant jerk inputs per
+            round (Eq. 12; the paper requires T / T_s = h_s / H). Chosen: 1
+            (T_s = 0.2 s, h_s = 15 inputs, 45 variables).
+        collision_checks_per_round: T / T_c, BVC check times per round
+            (Eq. 13f; h_c = H T / T_c). Must be a multiple of
+            ``input_steps_per_round``. Chosen: 1 (T_c = 0.2 s); the gap
+            between checks is covered by the margin of ``d_hat_min_m`` over
+            the collision distance (Theorem 3, Delta d_min,cont; see
+            :mod:`mpcde.mlr_swarm`).
+        d_hat_min_m: d̂_min, minimum ellipsoidal distance between reference
+            positions at the check times in [m] (Eq. 15; Sec. 5.1 uses 0.25 m
+            for Crazyflies. Chosen: 0.45 m, so that straight-line motion at
+            the speed limits keeps >= 0.25 m between checks 0.2 s apart).
+        downwash: c >= 1 of Theta = diag(1, 1, c) (Eq. 2; chosen: 1.5).
+        v_max: per-axis speed limit |v| <= v_max in [m/s] (X̂, Eq. 13d; chosen: 1.0).
+        a_max: per-axis acceleration limit in [m/s^2] (X̂; chosen: 3.0).
+        j_max: per-axis jerk limit |u| <= j_max in [m/s^3] (Û, Eq. 13c; chosen: 10).
+        pos_min_world: (3,) lower corner of the flying space in [m] (X̂;
+            chosen: a 6 m x 6 m hall, 0.2 m above the ground).
+        pos_max_world: (3,) upper corner in [m] (chosen: 2.8 m high).
+        weight_pos: Q on position error in [1/m^2] (Eq. 13a; chosen 1).
+        weight_vel: Q on velocity (target velocity 0) in [s^2/m^2] (chosen 0.2).
+        weight_acc: Q on acceleration in [s^4/m^2] (chosen 0.05).
+        weight_jerk: R on the jerk input in [s^6/m^2] (chosen 0.01). With
+            0.05 / 0.01 / 1e-3 for the three, OSQP needed 2-3x more
+            iterations on the same 16-UAV problems (275 against 100 on an
+            open one, 2400 against 1100 on a boxed-in one).
+        max_candidates: most trajectories a non-deprecated tracker can hold
+            (old + new one: 2, Lemma 1); the QP is sized for
+            (N - 1) x ``max_candidates`` x h_c BVC rows.
+        max_kept_deprecated: a deprecated tracker keeps at most this many
+            candidates (the newest), so that a later UAV state message naming
+            one of them restores it (chosen: 8).
+        trigger: event trigger of Appendix A: ``"rr"`` (round-robin, A1),
+            ``"db"`` (distance-based, A2) or ``"ht"`` (hybrid, A3).
+        priority_scale_rr: one 8-bit priority unit of RR in rounds (chosen 1).
+        priority_scale_db_m: one unit of DB in [m] (chosen 0.02: 255 = 5.1 m).
+        priority_scale_ht: one unit of HT in [m x rounds] (chosen 0.1).
+        osqp_eps_abs: OSQP absolute tolerance (chosen 1e-4: BVC rows are met
+            to about this, far inside the d̂_min margin; 1e-5 took 2-3x the iterations).
+        osqp_eps_rel: OSQP relative tolerance (chosen 1e-4).
+        osqp_max_iter: OSQP iteration limit (chosen 20000).
+        osqp_polish: OSQP polishing (chosen False).
+    """
+
+    n_uavs: int = 16
+    n_cus: int = 3
+    round_s: float = 0.2
+    horizon_rounds: int = 15
+    input_steps_per_round: int = 1
+    collision_checks_per_round: int = 1
+    d_hat_min_m: float = 0.45
+    downwash: float = 1.5
+    v_max: float = 1.0
+    a_max: float = 3.0
+    j_max: float = 10.0
+    pos_min_world: tuple[float, float, float] = (-3.0, -3.0, 0.2)
+    pos_max_world: tuple[float, float, float] = (3.0, 3.0, 2.8)
+    weight_pos: float = 1.0
+    weight_vel: float = 0.2
+    weight_acc: float = 0.05
+    weight_jerk: float = 0.01
+    max_candidates: int = 2
+    max_kept_deprecated: int = 8
+    trigger: str = "ht"
+    priority_scale_rr: float = 1.0
+    priority_scale_db_m: float = 0.02
+    priority_scale_ht: float = 0.1
+    osqp_eps_abs: float = 1e-4
+    osqp_eps_rel: float = 1e-4
+    osqp_max_iter: int = 20000
+    osqp_polish: bool = False
+
+    def __post_init__(self) -> None:
+        require_integer_at_least("n_uavs", self.n_uavs, 2)
+        require_integer_at_least("n_cus", self.n_cus, 1)
+        if self.n_cus >= self.n_uavs:
+            raise ValueError(f"n_cus={self.n_cus!r}: an integer < n_uavs={self.n_uavs} (M < N)")
+        require_positive("round_s", self.round_s)
+        require_integer_at_least("horizon_rounds", self.horizon_rounds, 2)
+        require_integer_at_least("input_steps_per_round", self.input_steps_per_round, 1)
+        require_integer_at_least("collision_checks_per_round", self.collision_checks_per_round, 1)
+        if self.collision_checks_per_round % self.input_steps_per_round:
+            raise ValueError(
+                f"collision_checks_per_round={self.collision_checks_per_round!r}: "
+                f"a multiple of input_steps_per_round={self.input_steps_per_round}"
+            )
+        for name in ("d_hat_min_m", "v_max", "a_max", "j_max", "weight_pos"):
+            require_positive(name, getattr(self, name))
+        for name in ("weight_vel", "weight_acc", "weight_jerk"):
+            require_non_negative(name, getattr(self, name))
+        if not (np.isfinite(self.downwash) and self.downwash >= 1.0):
+            raise ValueError(f"downwash={self.downwash!r}: a finite number >= 1")
+        lo, hi = np.asarray(self.pos_min_world, float), np.asarray(self.pos_max_world, float)
+        if lo.shape != (3,) or hi.shape != (3,) or not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+            raise ValueError(f"pos_min_world={self.pos_min_world!r}: two finite (3,) corners with pos_max_world")
+        if not np.all(lo < hi):
+            raise ValueError(f"pos_max_world={self.pos_max_world!r}: every component > pos_min_world")
+        require_integer_at_least("max_candidates", self.max_candidates, 1)
+        require_integer_at_least("max_kept_deprecated", self.max_kept_deprecated, 1)
+        if self.trigger not in TRIGGERS:
+            raise ValueError(f"trigger={self.trigger!r}: one of {', '.join(TRIGGERS)}")
+        for name in ("priority_scale_rr", "priority_scale_db_m", "priority_scale_ht", "osqp_eps_abs", "osqp_eps_rel"):
+            require_positive(name, getattr(self, name))
+        require_integer_at_least("osqp_max_iter", self.osqp_max_iter, 1)
+        if not isinstance(self.osqp_polish, bool):
+            raise ValueError(f"osqp_polish={self.osqp_polish!r}: True or False")
+
+    @property
+    def input_step_s(self) -> float:
+        """T_s = T / (T / T_s) in [s]."""
+        return self.round_s / self.input_steps_per_round
+
+    @property
+    def n_inputs(self) -> int:
+        """h_s, number of piecewise-constant inputs of a trajectory (H T / T_s)."""
+        return self.horizon_rounds * self.input_steps_per_round
+
+    @property
+    def check_step_s(self) -> float:
+        """T_c in [s]."""
+        return self.round_s / self.collision_checks_per_round
+
+    @property
+    def n_checks(self) -> int:
+        """h_c, number of BVC check times of a trajectory (H T / T_c)."""
+        return self.horizon_rounds * self.collision_checks_per_round
+
+    @property
+    def horizon_s(self) -> float:
+        """H T in [s]."""
+        return self.horizon_rounds * self.round_s
+
+    @property
+    def theta_inv_diag(self) -> np.ndarray:
+        """(3,) diagonal of Theta^-1 = diag(1, 1, 1/c) (Eq. 2)."""
+        return np.array([1.0, 1.0, 1.0 / self.downwash])

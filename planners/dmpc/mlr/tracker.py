@@ -1,0 +1,152 @@
+"""Information trackers D_iw(k) of one CU (DMPC-Swarm Sec. 4.2.1, Alg. 2, Lemma 1-2).
+
+D_iw(k) holds every trajectory UAV i may be following during round k, as far
+as CU w knows. Alg. 2 is garbled in our copy of the paper; this is its
+reconstruction from the prose of Sec. 4.2.1 and the proofs of Appendix C.
+In round k's computation phase, with the messages of round k - 1:
+
+1. Metadata (Line 6): if UAV i's state message of round k - 1 arrived, it
+   names the trajectory i followed in round k - 1; keep only the candidate
+   with that metadata. If no candidate has it, the tracker is deprecated.
+2. Missing metadata (Line 13): if the state message was lost and the tracker
+   holds more than one candidate, the CU cannot tell which one i follows:
+   deprecated. With one candidate it stays as it is (Lemma 1's proof).
+3. Recovery replies: a reply of round k - 1 carries the trajectory i followed
+   in round k - 1; the tracker becomes exactly that one, not deprecated.
+4. Missing CU messages (Line 18): if a CU slot of round k - 1 is unaccounted
+   for (neither a CU message, nor a reply in a donated slot, nor a slot the
+   CU knows was donated), a new trajectory for an unknown UAV may be missing:
+   every tracker is deprecated.
+5. New trajectories (Line 22): every trajectory computed in round k - 1 (by
+   this CU, or received from another) is added: i follows it in round k if
+   it received it, else its old one, so the tracker keeps both.
+
+Choices where the paper is silent: a deprecated tracker whose UAV later
+names (step 1) a candidate the tracker still holds is restored to that
+candidate (the metadata identifies it as well as a reply would); step 4
+overrides such a restore in the same round. A deprecated tracker keeps adding
+new trajectories (step 5, newest ``max_kept`` kept) so that it can be restored
+this way. Steps 1-3 run before 4-5 because the metadata of round k - 1 refers
+to trajectories followed in round k - 1, before those computed in k - 1 start.
+
+:meth:`InformationTrackers.update_ignoring_loss` is the baseline of Sec. 5.4
+(Gräfe et al. 2022): one trajectory per UAV, the newest known, never deprecated.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
+
+__all__ = ["InformationTrackers", "TrackerEntry", "TrackerUpdate"]
+
+
+@dataclass(frozen=True)
+class TrackerEntry:
+    """D_iw for one UAV i.
+
+    Attributes:
+        candidates: the trajectories i may follow, oldest first.
+        deprecated: True when they may not contain i's true trajectory.
+    """
+
+    candidates: tuple[ReferenceTrajectory, ...]
+    deprecated: bool = False
+
+    @property
+    def metas(self) -> tuple[TrajectoryId, ...]:
+        """Metadata of the candidates, oldest first."""
+        return tuple(c.meta for c in self.candidates)
+
+
+@dataclass(frozen=True)
+class TrackerUpdate:
+    """What one Alg. 2 update did.
+
+    Attributes:
+        newly_deprecated: UAVs whose tracker became deprecated in this update.
+        restored: UAVs whose deprecated tracker was restored (reply or metadata).
+        all_deprecated: a CU slot was unaccounted for (step 4).
+    """
+
+    newly_deprecated: tuple[int, ...]
+    restored: tuple[int, ...]
+    all_deprecated: bool
+
+
+class InformationTrackers:
+    """The N information trackers D_iw of CU w (Alg. 2).
+
+    Args:
+        initial: N initial trajectories, known to every CU (Remark 2: hover).
+        max_kept: most candidates a deprecated tracker keeps (newest first).
+    """
+
+    def __init__(self, initial: Sequence[ReferenceTrajectory], max_kept: int = 8) -> None:
+        self.entries: list[TrackerEntry] = [TrackerEntry((t,)) for t in initial]
+        self.max_kept = int(max_kept)
+
+    def __len__(self) -> int:
+        return len(self.entries)
+
+    def __getitem__(self, uav_id: int) -> TrackerEntry:
+        return self.entries[uav_id]
+
+    @property
+    def deprecated_ids(self) -> tuple[int, ...]:
+        """UAVs whose tracker is deprecated."""
+        return tuple(i for i, e in enumerate(self.entries) if e.deprecated)
+
+    @property
+    def any_deprecated(self) -> bool:
+        """Whether MLR is needed (Alg. 1)."""
+        return any(e.deprecated for e in self.entries)
+
+    def update(
+        self,
+        following: Mapping[int, TrajectoryId],
+        new_trajectories: Mapping[int, ReferenceTrajectory],
+        replies: Mapping[int, ReferenceTrajectory],
+        all_cu_slots_accounted: bool,
+    ) -> TrackerUpdate:
+        """Alg. 2 with the messages of the previous round (steps 1-5 of the module docstring).
+
+        Args:
+            following: UAV i -> metadata in its received state message of the previous round.
+            new_trajectories: UAV i -> trajectory computed for it in the previous round
+                (received from a CU, or computed by this CU).
+            replies: UAV i -> trajectory from a received recovery reply of the previous round.
+            all_cu_slots_accounted: False if a CU slot of the previous round is missing.
+        """
+        before = [e.deprecated for e in self.entries]
+        restored = []
+        for i, entry in enumerate(self.entries):
+            if i in replies:  # step 3
+                self.entries[i] = TrackerEntry((replies[i],))
+                continue
+            if i in following:  # step 1 (Line 6)
+                match = [c for c in entry.candidates if c.meta == following[i]]
+                self.entries[i] = TrackerEntry((match[0],)) if match else TrackerEntry(entry.candidates, True)
+            elif len(entry.candidates) > 1:  # step 2 (Line 13)
+                self.entries[i] = TrackerEntry(entry.candidates, True)
+        if not all_cu_slots_accounted:  # step 4 (Line 18)
+            self.entries = [TrackerEntry(e.candidates, True) for e in self.entries]
+        for i, traj in new_trajectories.items():  # step 5 (Line 22)
+            e = self.entries[i]
+            cands = tuple(c for c in e.candidates if c.meta != traj.meta) + (traj,)
+            if e.deprecated:
+                cands = cands[-self.max_kept:]
+            self.entries[i] = TrackerEntry(cands, e.deprecated)
+        for i, e in enumerate(self.entries):
+            if before[i] and not e.deprecated:
+                restored.append(i)
+        newly = tuple(i for i, e in enumerate(self.entries) if e.deprecated and not before[i])
+        return TrackerUpdate(newly, tuple(restored), not all_cu_slots_accounted)
+
+    def update_ignoring_loss(self, new_trajectories: Mapping[int, ReferenceTrajectory]) -> TrackerUpdate:
+        """Baseline (Sec. 5.4, Gräfe et al. 2022): assume every UAV got its newest known trajectory."""
+        for i, traj in new_trajectories.items():
+            self.entries[i] = TrackerEntry((traj,))
+        return TrackerUpdate((), (), False)

@@ -1,0 +1,119 @@
+"""The messages of MLR-DMPC (DMPC-Swarm Sec. 4.2, Alg. 1 and 2): what UAVs and CUs broadcast each round.
+
+Every round k has a computation phase then a communication phase (Sec. 3.1,
+Fig. 1). In the communication phase every UAV sends a :class:`UavStateMessage`
+in its own slot, and every CU w sends in its slot either a
+:class:`CuTrajectoryMessage` (a new trajectory, or none, plus its priorities)
+or a :class:`RecoveryRequest` (MLR, Alg. 1 Line 25). One round after a
+request, the CU stays silent and the requested UAV sends a
+:class:`RecoveryReply` in the CU's slot (Alg. 1 Line 30). Messages of round k
+are read in round k + 1's computation phase. Positions are world frame, z up, [m].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
+
+__all__ = ["CuTrajectoryMessage", "RecoveryReply", "RecoveryRequest", "UavStateMessage"]
+
+
+def _frozen_vector(obj: object, name: str, size: int | None = None, dtype: type = float) -> None:
+    arr = np.array(getattr(obj, name), dtype=dtype)
+    if arr.ndim != 1 or (size is not None and arr.size != size):
+        raise ValueError(f"{type(obj).__name__}.{name} shape {arr.shape}: expected ({size or 'N'},)")
+    arr.setflags(write=False)
+    object.__setattr__(obj, name, arr)
+
+
+@dataclass(frozen=True)
+class UavStateMessage:
+    """A UAV's broadcast in its own slot of round k (Sec. 4.2.1).
+
+    Attributes:
+        uav_id: i in 0..N-1.
+        round_index: k.
+        pos_world: (3,) the UAV's measured position at the start of round k [m].
+        vel_world: (3,) measured velocity [m/s].
+        target_world: (3,) its current target p_i,target [m].
+        following: metadata of the reference trajectory it follows during round k.
+    """
+
+    uav_id: int
+    round_index: int
+    pos_world: np.ndarray
+    vel_world: np.ndarray
+    target_world: np.ndarray
+    following: TrajectoryId
+
+    def __post_init__(self) -> None:
+        for name in ("pos_world", "vel_world", "target_world"):
+            _frozen_vector(self, name, 3)
+
+
+@dataclass(frozen=True)
+class CuTrajectoryMessage:
+    """A CU's broadcast of round k: the MLR-DMPC result and its priorities (Alg. 1 Line 35).
+
+    Attributes:
+        cu_id: w in 0..M-1.
+        round_index: k.
+        priorities: (N,) uint8 J_{i,w}(k) for the next round's consensus
+            (Appendix A; 0 for the UAV the CU just recomputed).
+        uav_id: the UAV it computed, or None (nothing computed this round).
+        trajectory: the new trajectory for ``uav_id`` (meta (k, w), starts
+            at (k + 1) T), or None.
+    """
+
+    cu_id: int
+    round_index: int
+    priorities: np.ndarray
+    uav_id: int | None = None
+    trajectory: ReferenceTrajectory | None = None
+
+    def __post_init__(self) -> None:
+        _frozen_vector(self, "priorities", dtype=np.uint8)
+        if (self.uav_id is None) != (self.trajectory is None):
+            raise ValueError(f"uav_id={self.uav_id!r}: given exactly when a trajectory is given")
+
+
+@dataclass(frozen=True)
+class RecoveryRequest:
+    """A CU in MLR asks a UAV for the trajectory it follows (Alg. 1 Line 25).
+
+    The CU donates its slot of round k + 1 to the UAV (Line 30).
+
+    Attributes:
+        cu_id: w.
+        round_index: k.
+        priorities: (N,) uint8 J_{i,w}(k) (the CU still takes part in the consensus).
+        uav_id: the UAV whose trajectory is requested.
+    """
+
+    cu_id: int
+    round_index: int
+    priorities: np.ndarray
+    uav_id: int
+
+    def __post_init__(self) -> None:
+        _frozen_vector(self, "priorities", dtype=np.uint8)
+
+
+@dataclass(frozen=True)
+class RecoveryReply:
+    """A UAV's answer to a request, sent in the requesting CU's slot of the next round.
+
+    Attributes:
+        uav_id: i.
+        slot_cu_id: w, the CU that requested it and donated its slot.
+        round_index: k, the round in which the reply is sent.
+        trajectory: the reference trajectory i follows during round k (with its metadata).
+    """
+
+    uav_id: int
+    slot_cu_id: int
+    round_index: int
+    trajectory: ReferenceTrajectory
