@@ -12,6 +12,7 @@ x_{kappa+1} = A x_kappa + B u_kappa (:mod:`planners.dmpc.model`)::
          v(H T) = 0, a(H T) = 0                                     (13e, terminal halt)
          for every other UAV j, every candidate p̃_j in D_j(k), h = 1..h_c, t_h = t_0 + h T_c:
          n0^T Theta^-1 [p̃_j(t_h) - p_i(t_h)] >= (d̂ + ||n||)/2  if j in A_ET(k), else d̂   (13f, 15)
+         (d̂ plus a small margin, clipped at ||n||: :func:`time_varying_bvc`)
 
 with n = Theta^-1 [p̃_j(t_h) - p̂_i(t_h)] (Eq. 14) from UAV i's current
 trajectory p̂_i and n0 = n / ||n||; x_target = [p_target, 0, 0]. The cost's
@@ -37,7 +38,7 @@ import scipy.sparse as sp
 
 from planners.dmpc.mlr.config import MlrConfig
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
-from planners.dmpc.model import discrete_model
+from planners.dmpc.model import discrete_model, stacked_state_matrices
 from planners.dmpc.pattern import SparsePattern
 from planners.dmpc.qp_result import DmpcSolveError, QpSnapshot
 
@@ -65,9 +66,23 @@ class BvcRows:
 
 
 def time_varying_bvc(
-    own_pos_world: np.ndarray, others_pos_world: np.ndarray, midway: np.ndarray, d_hat_m: float, downwash: float
+    own_pos_world: np.ndarray,
+    others_pos_world: np.ndarray,
+    midway: np.ndarray,
+    d_hat_m: float,
+    downwash: float,
+    margin_m: float = 0.0,
 ) -> BvcRows:
     """The separating planes of Eq. 14-15 between UAV i and each other trajectory.
+
+    With ``margin_m`` = m the plane distances are min((d̂ + m + ||n||)/2, ||n||)
+    (midway) and min(d̂ + m, ||n||) (relaxed): Eq. 15 with d̂ + m, clipped at
+    ||n|| so that UAV i's current trajectory always meets its own planes.
+    Whenever ||n|| >= d̂ + m (Theorem 1's invariant, which the previous solves
+    establish up to OSQP's tolerance, well below m) the clip is inactive and
+    this is exactly Eq. 15; without the clip, a pair left at d̂ - 1e-4 by the
+    solver's tolerance made the next QP primal infeasible (observed in the
+    16-UAV swap), although Theorem 1 says the shifted trajectory is feasible.
 
     Args:
         own_pos_world: (h_c, 3) p̂_i(t_h), UAV i's current trajectory at the check times [m].
@@ -76,6 +91,7 @@ def time_varying_bvc(
             case), False where j keeps its trajectory (relaxed plane at d̂ from j).
         d_hat_m: d̂_min [m].
         downwash: c of Theta = diag(1, 1, c).
+        margin_m: m >= 0 added to d̂ in the constraint [m] (see above).
     """
     theta_inv = np.array([1.0, 1.0, 1.0 / downwash])
     others = np.asarray(others_pos_world, float).reshape(-1, own_pos_world.shape[0], 3)
@@ -86,7 +102,8 @@ def time_varying_bvc(
         n = np.where(tiny[..., None], np.array([1.0, 0.0, 0.0]), n)
     n0 = n / np.maximum(np.linalg.norm(n, axis=-1), _EPS_M)[..., None]
     mid = np.asarray(midway, bool).reshape(-1, 1)
-    dist = np.where(mid, 0.5 * (d_hat_m + norm), d_hat_m)  # Eq. 15 right-hand side
+    d = d_hat_m + margin_m
+    dist = np.minimum(np.where(mid, 0.5 * (d + norm), d), norm)  # Eq. 15 right-hand side, clipped at ||n||
     # n0^T Theta^-1 (p̃_j - p) >= dist  <=>  (-Theta^-1 n0)^T p >= dist - n0^T Theta^-1 p̃_j
     normal = -n0 * theta_inv
     offset = dist - np.einsum("rhd,rhd->rh", n0 * theta_inv, others)
@@ -122,7 +139,11 @@ class MlrProblem:
     Sparse form: z = [x_1; ...; x_{h_s}; u_0; ...; u_{h_s-1}] (9 h_s + 3 h_s,) with the
     dynamics x_{kappa+1} = A x_kappa + B u_kappa as equality rows. The condensed form
     (U only, positions cubic in the jerk) took 1000-2000 OSQP iterations (60-90 ms) on
-    the 16-UAV problem; this one has a diagonal cost and BVC rows of at most 12 entries.
+    the 16-UAV problem; this one has a diagonal cost and BVC rows of 3 entries (at a knot)
+    or 12. The trajectory is rolled out from the solver's inputs U (exact dynamics), and
+    U gets the minimum-norm correction that makes the terminal halt (13e) exact, so that
+    a halted trajectory stays put after its horizon; the correction is of the size of
+    OSQP's tolerance.
 
     Args:
         config: the :class:`MlrConfig`.
@@ -137,18 +158,14 @@ class MlrProblem:
         n = self._nx + self._n_u
         self._n = n
         self._max_rows_bvc = (cfg.n_uavs - 1) * cfg.max_candidates * hc
-        # Check time t_h = t_0 + h T_c lies in input interval m_h at offset tau_h in (0, T_s]:
-        # p(t_h) = C A(tau) x_m + C B(tau) u_m  (x_0 is the constant initial state).
+        # Check time t_h = t_0 + h T_c. At a knot (t_h = t_0 + (m+1) T_s) p(t_h) is the position of
+        # x_{m+1}; inside input interval m at offset tau in (0, T_s) it is C A(tau) x_m + C B(tau) u_m
+        # (x_0 is data). Knot rows have 3 entries, which OSQP handles better than 12.
         s = cfg.check_step_s * np.arange(1, hc + 1)
         m = np.ceil(s / Ts - 1e-9).astype(int) - 1
         tau = s - m * Ts
-        self._check_m = m
-        self._CA = np.empty((hc, 3, 9))
-        self._CB = np.empty((hc, 3, 3))
-        for h in range(hc):
-            A_t, B_t = discrete_model("triple", tau[h])
-            self._CA[h], self._CB[h] = A_t[:3], B_t[:3]
-
+        self._check_const = np.zeros((hc, 3, 9))  # p(t_h) = G_h z[cols_h] + const_h x_0
+        checks: list[tuple[np.ndarray, np.ndarray]] = []  # (cols_h, G_h (3, n_h))
         def xcol(k: int) -> int:  # first column of x_k, k = 1..h_s
             return 9 * (k - 1)
 
@@ -174,15 +191,20 @@ class MlrProblem:
         row += self._n_u
         self._row_bvc = row  # 13f: one block of h_c rows per other trajectory
         slots = (cfg.n_uavs - 1) * cfg.max_candidates
-        r_one, c_one = [], []
         for h in range(hc):
-            cols = list(range(ucol(m[h]), ucol(m[h]) + 3))
+            if abs(tau[h] - Ts) < 1e-9:  # at knot x_{m+1}
+                checks.append((np.arange(xcol(m[h] + 1), xcol(m[h] + 1) + 3), np.eye(3)))
+                continue
+            A_t, B_t = discrete_model("triple", tau[h])
+            cols, G = np.arange(ucol(m[h]), ucol(m[h]) + 3), B_t[:3]
             if m[h] >= 1:
-                cols = list(range(xcol(m[h]), xcol(m[h]) + 9)) + cols
-            r_one += [h] * len(cols)
-            c_one += cols
-        r_one, c_one = np.array(r_one), np.array(c_one)
-        self._per_row = np.bincount(r_one, minlength=hc)
+                cols, G = np.r_[np.arange(xcol(m[h]), xcol(m[h]) + 9), cols], np.hstack([A_t[:3], G])
+            else:
+                self._check_const[h] = A_t[:3]
+            checks.append((cols, G))
+        self._checks = checks
+        r_one = np.concatenate([np.full(c.size, h) for h, (c, _) in enumerate(checks)])
+        c_one = np.concatenate([c for c, _ in checks])
         rows = (np.arange(slots)[:, None] * hc + r_one[None, :]).ravel()
         self._bvc_slice = pat.add(row + rows, np.tile(c_one, slots), np.zeros(rows.size))
         row += self._max_rows_bvc
@@ -205,6 +227,10 @@ class MlrProblem:
         )  # fmt: skip
         self._snapshot: QpSnapshot | None = None
         self._check_offsets_s = s
+        # Terminal [v; a](H T) = G_x x_0 + G_u U, for the exact halt after the solve.
+        A0_x, L_x = stacked_state_matrices(A, B, hs)
+        self._G_x, self._G_u = A0_x[-6:], L_x[-6:]
+        self._G_u_pinv = np.linalg.pinv(self._G_u)
 
     @property
     def max_bvc_rows(self) -> int:
@@ -270,19 +296,15 @@ class MlrProblem:
         rb = slice(self._row_bvc, self._n_rows)
         l[rb], u[rb] = -_INF, _INF
         n_slots = self._max_rows_bvc // hc
-        vals = np.zeros((n_slots, hc, 12))
+        normal = np.zeros((n_slots, hc, 3))  # unused slots: zero coefficients, bounds (-inf, inf)
         if R:
             own_pos = own.positions_at(self.check_times(t_start_s))
-            rows = time_varying_bvc(own_pos, others, others_midway, cfg.d_hat_min_m, cfg.downwash)
-            aCA = np.einsum("rhd,hdn->rhn", rows.normal, self._CA)  # a^T C A(tau) on x_m
-            aCB = np.einsum("rhd,hdn->rhn", rows.normal, self._CB)  # a^T C B(tau) on u_m
-            first = self._check_m == 0
-            const = np.where(first[None], np.einsum("rhn,n->rh", aCA, x0), 0.0)  # x_0 is data
-            vals[:R, :, :9] = aCA
-            vals[:R, :, 9:] = aCB
-            l[self._row_bvc:self._row_bvc + R * hc] = (rows.offset - const).ravel()  # Eq. 15
-        # Pack the per-row values into the pattern order (12 entries, or 3 where m_h = 0).
-        packed = np.concatenate([vals[:, h, 12 - self._per_row[h]:] for h in range(hc)], axis=1)
+            rows = time_varying_bvc(own_pos, others, others_midway, cfg.d_hat_min_m, cfg.downwash, cfg.bvc_margin_m)
+            normal[:R] = rows.normal
+            const = np.einsum("rhd,hdn,n->rh", rows.normal, self._check_const, x0)  # a^T C A(tau) x_0 (data)
+            l[self._row_bvc:self._row_bvc + R * hc] = (rows.offset - const).ravel()  # Eq. 15: a^T p(t_h) >= b
+        # a^T G_h on each row's columns, in the pattern's order (slot-major, then check h).
+        packed = np.concatenate([normal[:, h] @ G for h, (_, G) in enumerate(self._checks)], axis=1)
         self._Ax[self._coo_to_csc[self._bvc_slice]] = packed.ravel()
         target = np.zeros(9)
         target[:3] = np.asarray(target_world, float).reshape(3)
@@ -301,7 +323,9 @@ class MlrProblem:
         self._snapshot = QpSnapshot(self._P, q.copy(), A, l.copy(), u.copy(), x, y, status)
         if res.info.status_val not in _ACCEPTED:
             raise DmpcSolveError(status, self._snapshot)
-        U = x[self._nx:].reshape(hs, 3)
+        U = x[self._nx:]
+        U = U - self._G_u_pinv @ (self._G_x @ x0 + self._G_u @ U)  # minimum-norm fix: 13e exactly
+        U = U.reshape(hs, 3)
         traj = ReferenceTrajectory(meta, float(t_start_s), x0, U, cfg.input_step_s)
         X = traj.knots[1:].ravel()
         cost = float(np.sum(self._Qbar * (X - np.tile(target, hs)) ** 2) + cfg.weight_jerk * np.sum(U**2))
