@@ -23,7 +23,9 @@ critically damped tracking transient, e'' + 2 w e' + w^2 e = 0 with w =
 switch: the actual position stays continuous and converges to the new
 reference (a stand-in for the low-level controller; Assumption 1 does not
 hold during it). MLR-DMPC's switches are always continuous (checked:
-``max_reference_jump_m``).
+``max_reference_jump_m``). In the Fig. 4 setting (:mod:`mpcde.eval_mlr`) the
+baseline collided with seed 0 but not with seed 1: in this kinematic model
+its failure is not certain, it depends on which stale beliefs meet.
 
 Collisions are pairs whose ellipsoidal distance ||Theta^-1 (p_i - p_j)|| of
 the ACTUAL positions is below ``collision_distance_m`` at any time of a fine
