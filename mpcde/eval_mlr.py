@@ -193,7 +193,8 @@ def _fmt(value: float, spec: str = ".2f") -> str:
 def format_table(results: dict) -> str:
     """Markdown tables: the swap (collisions, distances, arrival, MLR) and the formation times."""
     rows = results["rows"]
-    lines = [] if not any(r["experiment"] == "fig4_swap" for r in rows) else ["### Fig. 4: 16-UAV circle swap, 3 CUs", "",
+    lines = [] if not any(r["experiment"] == "fig4_swap" for r in rows) else [
+             "### Fig. 4: 16-UAV circle swap, 3 CUs", "",
              "| variant | seed | collisions | min dist [m] | arrival [s] | MLR rounds | deprecated | requests "
              "| max ref jump [m] | QP median [ms] |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -211,7 +212,8 @@ def format_table(results: dict) -> str:
         sel = [r for r in rows if r["experiment"] == exp]
         if not sel:
             continue
-        lines += ([""] if lines else []) + [f"### {title}", "", f"| variant | seed | {head} | total [s] | collisions | min dist [m] |",
+        lines += ([""] if lines else []) + [
+                  f"### {title}", "", f"| variant | seed | {head} | total [s] | collisions | min dist [m] |",
                   "|---|---|" + "---|" * (len(names) - 1) + "---|---|---|"]
         for r in sel:
             times = " | ".join(_fmt(t, ".1f") for t in r["formation_times_s"])

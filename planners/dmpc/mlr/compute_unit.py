@@ -118,7 +118,11 @@ class ComputeUnit:
         replies = {m.slot_cu_id: m for m in inbox if isinstance(m, RecoveryReply)}
         for i, m in states.items():
             self.targets_world[i] = m.target_world
-        new = {m.uav_id: m.trajectory for m in cu_msgs.values() if isinstance(m, CuTrajectoryMessage) and m.uav_id is not None}
+        new = {
+            m.uav_id: m.trajectory
+            for m in cu_msgs.values()
+            if isinstance(m, CuTrajectoryMessage) and m.uav_id is not None
+        }
         own = self._own_last
         if isinstance(own, CuTrajectoryMessage) and own.uav_id is not None:
             new[own.uav_id] = own.trajectory

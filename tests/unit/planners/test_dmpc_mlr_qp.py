@@ -88,7 +88,8 @@ def test_a_neighbour_dead_ahead_yields_a_separating_plane() -> None:
     own = _hover(cfg, [0.0, 0.0, 1.2])
     times = problem.check_times(cfg.round_s)
     blocker = _hover(cfg, [1.0, 0.0, 1.2]).positions_at(times)
-    res = problem.solve(own, cfg.round_s, np.array([2.5, 0.0, 1.2]), blocker[None], np.array([False]), TrajectoryId(0, 0))
+    goal = np.array([2.5, 0.0, 1.2])
+    res = problem.solve(own, cfg.round_s, goal, blocker[None], np.array([False]), TrajectoryId(0, 0))
     p = res.trajectory.positions_at(times)
     # Relaxed plane (j keeps its trajectory): x <= 1 - d̂, and the UAV presses against it.
     assert np.all(p[:, 0] <= 1.0 - cfg.d_hat_min_m + 5e-5)
