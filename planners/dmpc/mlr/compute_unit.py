@@ -40,7 +40,7 @@ import numpy as np
 from planners.dmpc.mlr.config import MlrConfig
 from planners.dmpc.mlr.qp import MlrProblem, MlrQpResult
 from planners.dmpc.mlr.tracker import InformationTrackers, TrackerUpdate
-from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
+from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId, positions_at_each
 from planners.dmpc.mlr.trigger import consensus, event_set, quantize, raw_priorities, selected_uav
 from planners.dmpc.mlr.types import CuTrajectoryMessage, RecoveryReply, RecoveryRequest, UavStateMessage
 from planners.dmpc.qp_result import DmpcSolveError
@@ -190,7 +190,7 @@ class ComputeUnit:
         firsts = [e.candidates[0] for e in self.trackers.entries]
         calc = np.array([t.meta.calc_round for t in firsts], float)
         t_now = k * cfg.round_s
-        pos = np.array([t.positions_at(np.array([max(t_now, t.t_start_s)]))[0] for t in firsts])
+        pos = positions_at_each(firsts, np.array([max(t_now, t.t_start_s) for t in firsts]))
         dist = np.linalg.norm(self.targets_world - pos, axis=1)
         scale = {"rr": cfg.priority_scale_rr, "db": cfg.priority_scale_db_m, "ht": cfg.priority_scale_ht}[cfg.trigger]
         q = quantize(raw_priorities(cfg.trigger, k, calc, dist), scale)

