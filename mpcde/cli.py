@@ -5,7 +5,8 @@ Subcommands: ``fly`` (a headless scenario -> run folder), ``train-detector``
 ``eval-detector`` (held-out renders -> results.json), ``eval-tracking``
 (tracker evaluation -> results.json), ``eval-dmpc`` (on-demand DMPC vs
 BVC -> results.json), ``compare`` (one scenario in each mode, paired by
-seed -> results.json + run folders) and ``bench`` (the hot-path benchmarks ->
+seed -> results.json + run folders), ``eval-mlr`` (DMPC-Swarm's message-loss
+recovery experiments -> results.json) and ``bench`` (the hot-path benchmarks ->
 their printed figures + results.json). Bad input prints one
 line ``mpcde: error: <field>=<value>: <allowed>`` and exits with status 2,
 having written nothing.
@@ -104,6 +105,15 @@ def build_parser() -> argparse.ArgumentParser:
     cmp.add_argument("--overwrite", action="store_true", help="replace an existing non-empty --out")
     cmp.add_argument("--jobs", type=int, default=1, help="flights at once, one process each (metrics do not depend on it)")
     cmp.add_argument("--quiet", action="store_true", help="no progress bar")
+    em = sub.add_parser(
+        "eval-mlr", help="MLR-DMPC: message-loss recovery, event-triggered compute units (DMPC-Swarm Fig. 3-4)"
+    )
+    em.add_argument("--out", required=True, type=Path)
+    em.add_argument(
+        "--experiments", nargs="+", choices=["fig4_swap", "fig3b_cus", "fig3c_triggers"],
+        default=["fig4_swap", "fig3b_cus", "fig3c_triggers"], help="which of the paper's experiments (default all)",
+    )  # fmt: skip
+    em.add_argument("--seeds", type=int, default=1, help="runs per row (seeds 0..N-1)")
     bn = sub.add_parser("bench", help="run the hot-path benchmarks (benchmarks/) -> their figures + results.json")
     bn.add_argument("names", nargs="*", metavar="NAME", help="benchmarks to run (default all): sim, detector, map, ...")
     bn.add_argument("--out", required=True, type=Path, help="output folder (must be empty unless --overwrite)")
@@ -257,6 +267,16 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_eval_mlr(args: argparse.Namespace) -> int:
+    from mpcde.eval_mlr import run_eval_mlr
+
+    _at_least("--seeds", args.seeds, 1)
+    _check_out_dir(args.out)
+    run_eval_mlr(args.out, seeds=args.seeds, experiments=tuple(dict.fromkeys(args.experiments)))  # prints its table
+    print(f"-> {args.out / 'results.json'}")
+    return 0
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from mpcde.bench import format_table, run_bench
 
@@ -283,6 +303,8 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_eval_dmpc(args)
         if args.command == "compare":
             return _cmd_compare(args)
+        if args.command == "eval-mlr":
+            return _cmd_eval_mlr(args)
         if args.command == "bench":
             return _cmd_bench(args)
     except (MpcdeError, ValueError) as e:
