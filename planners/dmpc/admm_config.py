@@ -16,7 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.checks import require_boolean, require_integer_at_least, require_non_negative, require_positive
+from planners.checks import (
+    require_boolean, require_box, require_integer_at_least, require_non_negative, require_positive,
+)
 
 __all__ = ["AdmmFormationConfig"]
 
@@ -136,11 +138,7 @@ class AdmmFormationConfig:
             require_non_negative(name, getattr(self, name))
         require_positive("weight_input", self.weight_input)
         require_positive("weight_slack", self.weight_slack)
-        lo, hi = np.asarray(self.pos_min_world, float), np.asarray(self.pos_max_world, float)
-        if lo.shape != (3,) or not np.all(np.isfinite(lo)):
-            raise ValueError(f"pos_min_world={self.pos_min_world!r}: three finite numbers [m]")
-        if hi.shape != (3,) or not np.all(np.isfinite(hi)) or not np.all(lo < hi):
-            raise ValueError(f"pos_max_world={self.pos_max_world!r}: three finite numbers > pos_min_world")
+        require_box("pos_min_world", self.pos_min_world, "pos_max_world", self.pos_max_world)
         require_positive("v_max", self.v_max)
         require_positive("a_max", self.a_max)
         require_positive("rho", self.rho)

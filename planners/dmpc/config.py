@@ -16,7 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.checks import require_boolean, require_integer_at_least, require_non_negative, require_positive
+from planners.checks import (
+    require_at_least, require_boolean, require_box, require_integer_at_least, require_non_negative, require_positive,
+)
 
 __all__ = ["DmpcConfig"]
 
@@ -179,19 +181,10 @@ class DmpcConfig:
             require_non_negative(name, getattr(self, name))
         require_positive("weight_slack_quadratic", self.weight_slack_quadratic)
         require_positive("slack_max_m", self.slack_max_m)
-        lo, hi = np.asarray(self.pos_min_world, float), np.asarray(self.pos_max_world, float)
-        if lo.shape != (3,) or hi.shape != (3,) or not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-            raise ValueError(
-                f"pos_min_world={self.pos_min_world!r}, pos_max_world={self.pos_max_world!r}: two finite (3,) corners"
-            )
-        if not np.all(lo < hi):
-            raise ValueError(
-                f"pos_max_world={self.pos_max_world!r}: every component > pos_min_world={self.pos_min_world!r}"
-            )
+        require_box("pos_min_world", self.pos_min_world, "pos_max_world", self.pos_max_world)
         for name in ("v_max", "a_max", "j_max", "r_min", "neighbourhood_factor"):
             require_positive(name, getattr(self, name))
-        if not (np.isfinite(self.downwash) and self.downwash >= 1.0):
-            raise ValueError(f"downwash={self.downwash!r}: a finite number >= 1")
+        require_at_least("downwash", self.downwash, 1.0)
         if self.collision_mode not in _COLLISION_MODES:
             raise ValueError(f"collision_mode={self.collision_mode!r}: one of {', '.join(_COLLISION_MODES)}")
         if self.neighbourhood_factor < 1.0:

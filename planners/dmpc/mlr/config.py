@@ -13,7 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.checks import require_integer_at_least, require_non_negative, require_positive
+from planners.checks import (
+    require_at_least, require_boolean, require_box, require_integer_at_least, require_non_negative, require_positive,
+)
 
 __all__ = ["MlrConfig", "TRIGGERS"]
 
@@ -133,13 +135,8 @@ class MlrConfig:
             require_positive(name, getattr(self, name))
         for name in ("weight_vel", "weight_acc", "weight_jerk", "bvc_margin_m"):
             require_non_negative(name, getattr(self, name))
-        if not (np.isfinite(self.downwash) and self.downwash >= 1.0):
-            raise ValueError(f"downwash={self.downwash!r}: a finite number >= 1")
-        lo, hi = np.asarray(self.pos_min_world, float), np.asarray(self.pos_max_world, float)
-        if lo.shape != (3,) or hi.shape != (3,) or not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-            raise ValueError(f"pos_min_world={self.pos_min_world!r}: two finite (3,) corners with pos_max_world")
-        if not np.all(lo < hi):
-            raise ValueError(f"pos_max_world={self.pos_max_world!r}: every component > pos_min_world")
+        require_at_least("downwash", self.downwash, 1.0)
+        require_box("pos_min_world", self.pos_min_world, "pos_max_world", self.pos_max_world)
         require_integer_at_least("max_candidates", self.max_candidates, 1)
         require_integer_at_least("max_kept_deprecated", self.max_kept_deprecated, 1)
         if self.trigger not in TRIGGERS:
@@ -147,8 +144,7 @@ class MlrConfig:
         for name in ("priority_scale_rr", "priority_scale_db_m", "priority_scale_ht", "osqp_eps_abs", "osqp_eps_rel"):
             require_positive(name, getattr(self, name))
         require_integer_at_least("osqp_max_iter", self.osqp_max_iter, 1)
-        if not isinstance(self.osqp_polish, bool):
-            raise ValueError(f"osqp_polish={self.osqp_polish!r}: True or False")
+        require_boolean("osqp_polish", self.osqp_polish)
 
     @property
     def input_step_s(self) -> float:
