@@ -6,33 +6,14 @@ import dataclasses
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
 
 from planners.dmpc.mlr.config import MlrConfig
 from planners.dmpc.mlr.qp import MlrProblem, time_varying_bvc
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
-from planners.dmpc.qp_result import QpSnapshot
+from qp_kkt import assert_kkt  # tests/unit/planners/qp_kkt.py
 
 TIGHT = dict(osqp_eps_abs=1e-6, osqp_eps_rel=1e-6, osqp_polish=True, osqp_max_iter=200000)
 THETA_INV = np.array([1.0, 1.0, 1.0 / 1.5])
-
-
-def assert_kkt(snap: QpSnapshot, tol: float = 1e-5) -> None:
-    """Stationarity, primal feasibility, dual feasibility and complementarity (OSQP sign convention)."""
-    x, y = snap.x, snap.y
-    P_full = snap.P + snap.P.T - sp.diags(snap.P.diagonal())
-    Ax = snap.A @ x
-    scale = max(1.0, np.abs(snap.q).max(), np.abs(P_full @ x).max())
-    assert np.abs(P_full @ x + snap.q + snap.A.T @ y).max() <= tol * scale  # P x + q + A^T y = 0
-    assert np.all(Ax >= snap.l - tol) and np.all(Ax <= snap.u + tol)
-    y_up, y_lo = np.maximum(y, 0.0), np.maximum(-y, 0.0)
-    upper_gap = np.where(snap.u < 1e29, snap.u - Ax, np.inf)
-    lower_gap = np.where(snap.l > -1e29, Ax - snap.l, np.inf)
-    assert np.all(y_up[np.isinf(upper_gap)] <= tol * scale)
-    assert np.all(y_lo[np.isinf(lower_gap)] <= tol * scale)
-    fu, fl = np.isfinite(upper_gap), np.isfinite(lower_gap)
-    assert np.abs(y_up[fu] * upper_gap[fu]).max(initial=0.0) <= tol * scale
-    assert np.abs(y_lo[fl] * lower_gap[fl]).max(initial=0.0) <= tol * scale
 
 
 def _hover(cfg: MlrConfig, pos, meta=TrajectoryId(-1, -1), t0: float = 0.0) -> ReferenceTrajectory:

@@ -6,13 +6,13 @@ import dataclasses
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
 
 from planners.dmpc.collision import ellipsoidal_distance, on_demand_constraints
 from planners.dmpc.config import DmpcConfig
 from planners.dmpc.model import rollout
 from planners.dmpc.qp import DmpcProblem, DmpcSolveError, QpSnapshot
 from planners.dmpc.types import DmpcPlan
+from qp_kkt import assert_kkt  # tests/unit/planners/qp_kkt.py
 
 TIGHT = dict(osqp_eps_abs=1e-8, osqp_eps_rel=1e-8, osqp_polish=True, osqp_max_iter=100000)
 
@@ -26,27 +26,6 @@ def _x0(cfg: DmpcConfig, pos=(0.0, 0.0, 1.5), vel=(1.5, 0.0, 0.0)) -> np.ndarray
 def _hover_neighbour(pos, neighbor_id: int = 1, cfg: DmpcConfig | None = None):
     cfg = cfg or DmpcConfig()
     return DmpcPlan.hover(0.0, cfg.step_s, cfg.horizon_steps, pos).as_neighbor_prediction(neighbor_id, 0.0)
-
-
-def assert_kkt(snap: QpSnapshot, tol: float = 1e-5) -> None:
-    """Stationarity, primal feasibility, dual feasibility and complementarity (OSQP sign convention)."""
-    x, y = snap.x, snap.y
-    P_full = snap.P + snap.P.T - sp.diags(snap.P.diagonal())
-    Ax = snap.A @ x
-    scale = max(1.0, np.abs(snap.q).max(), np.abs(P_full @ x).max())
-    # Stationarity: P x + q + A^T y = 0.
-    assert np.abs(P_full @ x + snap.q + snap.A.T @ y).max() <= tol * scale
-    # Primal feasibility: l <= A x <= u.
-    assert np.all(Ax >= snap.l - tol) and np.all(Ax <= snap.u + tol)
-    # Dual feasibility and complementarity: y+ only on active upper bounds, y- only on active lower bounds.
-    y_up, y_lo = np.maximum(y, 0.0), np.maximum(-y, 0.0)
-    upper_gap = np.where(snap.u < 1e29, snap.u - Ax, np.inf)
-    lower_gap = np.where(snap.l > -1e29, Ax - snap.l, np.inf)
-    assert np.all(y_up[np.isinf(upper_gap)] <= tol * scale)
-    assert np.all(y_lo[np.isinf(lower_gap)] <= tol * scale)
-    fin_u, fin_l = np.isfinite(upper_gap), np.isfinite(lower_gap)
-    assert np.abs(y_up[fin_u] * upper_gap[fin_u]).max(initial=0.0) <= tol * scale
-    assert np.abs(y_lo[fin_l] * lower_gap[fin_l]).max(initial=0.0) <= tol * scale
 
 
 CASES = {
