@@ -68,6 +68,7 @@ from mpcde.errors import ConfigError
 from mpcde.loop import PreparedRun, RunResult, prepare_run, run_scenario
 from mpcde.modes import MODES
 from mpcde.scenario import load_scenario
+from mpcde.text_table import cell
 
 __all__ = [
     "DEFAULT_MODES", "ROW_KEYS", "SUMMARY_KEYS", "check_modes", "default_modes", "format_table",
@@ -173,11 +174,6 @@ def summarize(rows: Sequence[dict[str, Any]], modes: Sequence[str]) -> list[dict
     return out
 
 
-def _fmt(value: float | None, spec: str) -> str:
-    """``value`` formatted with ``spec`` (e.g. ``"7.3f"``), or ``-`` right-aligned to the same width."""
-    return format("-", f">{spec.split('.')[0]}") if value is None else format(value, spec)
-
-
 def format_table(results: dict) -> str:
     """Human-readable table of ``results["rows"]`` and, when present, of ``results["summary"]``."""
     head = (
@@ -190,11 +186,11 @@ def format_table(results: dict) -> str:
         lines.append(
             f"{r['mode']:<12} {r['seed']:>4d} {'yes' if r['success'] else 'no':>3} "
             f"{str(r['arrived']) + '/' + str(r['n_drones']):>7} {r['collisions']:>4d} "
-            f"{_fmt(r['min_distance_m'], '7.3f')} {_fmt(r['min_obstacle_clearance_m'], '9.3f')} "
-            f"{_fmt(r['mission_time_s'], '9.2f')} {_fmt(r['path_length_m'], '7.2f')} "
-            f"{_fmt(r['mean_speed_mps'], '9.2f')} "
-            f"{_fmt(r['tracking_pos_rmse_m'], '9.3f')} {_fmt(r['tracking_vel_rmse_mps'], '11.3f')} "
-            f"{_fmt(radio, '5.1f')}% {_fmt(r['real_time_factor'], '5.2f')}"
+            f"{cell(r['min_distance_m'], '7.3f')} {cell(r['min_obstacle_clearance_m'], '9.3f')} "
+            f"{cell(r['mission_time_s'], '9.2f')} {cell(r['path_length_m'], '7.2f')} "
+            f"{cell(r['mean_speed_mps'], '9.2f')} "
+            f"{cell(r['tracking_pos_rmse_m'], '9.3f')} {cell(r['tracking_vel_rmse_mps'], '11.3f')} "
+            f"{cell(radio, '5.1f')}% {cell(r['real_time_factor'], '5.2f')}"
         )
     summary = results.get("summary") or []
     if summary:
@@ -206,9 +202,9 @@ def format_table(results: dict) -> str:
         for s in summary:
             rate = None if s["success_rate"] is None else 100.0 * s["success_rate"]
             lines.append(
-                f"{s['mode']:<12} {s['runs']:>4d} {_fmt(rate, '6.0f')}% {s['collisions']:>4d} "
-                f"{_fmt(s['min_distance_m'], '7.3f')} {_fmt(s['mission_time_s'], '9.2f')} {s['mission_time_runs']:>4d} "
-                f"{_fmt(s['path_length_m'], '7.2f')}"
+                f"{s['mode']:<12} {s['runs']:>4d} {cell(rate, '6.0f')}% {s['collisions']:>4d} "
+                f"{cell(s['min_distance_m'], '7.3f')} {cell(s['mission_time_s'], '9.2f')} {s['mission_time_runs']:>4d} "
+                f"{cell(s['path_length_m'], '7.2f')}"
             )
     return "\n".join(lines)
 
@@ -344,8 +340,8 @@ def run_compare(
             if progress:
                 bar.write(
                     f"{mode} seed {seed}: success={row['success']} arrived {row['arrived']}/{row['n_drones']} "
-                    f"collisions={row['collisions']} min_distance={_fmt(row['min_distance_m'], '.3f')} m "
-                    f"mission_time={_fmt(row['mission_time_s'], '.2f')} s"
+                    f"collisions={row['collisions']} min_distance={cell(row['min_distance_m'], '.3f')} m "
+                    f"mission_time={cell(row['mission_time_s'], '.2f')} s"
                 )
         results = {
             "scenario": name,

@@ -50,6 +50,7 @@ import numpy as np
 
 from mpcde.loop import prepare_run, run_scenario
 from mpcde.scenario import load_scenario
+from mpcde.text_table import cell
 
 __all__ = ["ROW_KEYS", "format_table", "formation_error", "run_eval_dmpc"]
 
@@ -143,11 +144,6 @@ def _row(method: str, obstacles: str | None, scenario: str, runs: list[dict]) ->
     }
 
 
-def _fmt(value: float | None, spec: str) -> str:
-    """``value`` formatted with ``spec`` (e.g. ``"7.3f"``), or ``-`` right-aligned to the same width."""
-    return format("-", f">{spec.split('.')[0]}") if value is None else format(value, spec)
-
-
 def format_table(results: dict) -> str:
     """Human-readable table of ``results["rows"]`` (scenario x variant), with QP-time ratios BVC / on-demand."""
     head = (
@@ -159,9 +155,9 @@ def format_table(results: dict) -> str:
     for r in rows:
         lines.append(
             f"{r['scenario']:<17} {r['method']:<10} {r['obstacles'] or '-':<10} {r['collisions']:>4d} "
-            f"{_fmt(r['min_distance_m'], '7.3f')} {_fmt(r['min_obstacle_clearance_m'], '9.3f')} "
-            f"{_fmt(r['qp_ms_median'], '9.3f')} {_fmt(r['qp_ms_p95'], '9.3f')} {_fmt(r['qp_ms_mean'], '8.3f')} "
-            f"{_fmt(r['mission_time_s'], '9.2f')} "
+            f"{cell(r['min_distance_m'], '7.3f')} {cell(r['min_obstacle_clearance_m'], '9.3f')} "
+            f"{cell(r['qp_ms_median'], '9.3f')} {cell(r['qp_ms_p95'], '9.3f')} {cell(r['qp_ms_mean'], '8.3f')} "
+            f"{cell(r['mission_time_s'], '9.2f')} "
             f"{r['path_length_m']:>7.2f} {r['mean_speed_mps']:>9.2f} {r['mean_accel_mps2']:>8.2f}"
         )
     ratios = []

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import pathlib
 import time
 from typing import Any
@@ -44,6 +43,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from mpcde.mlr_swarm import MlrSwarmConfig, run_mlr_swarm
+from mpcde.text_table import cell
 from planners.dmpc.collision import ellipsoidal_distance
 from planners.dmpc.mlr.config import MlrConfig
 from sim.radio import RadioConfig
@@ -186,10 +186,6 @@ def run_eval_mlr(
     return results
 
 
-def _fmt(value: float, spec: str = ".2f") -> str:
-    return "-" if value is None or (isinstance(value, float) and math.isnan(value)) else format(value, spec)
-
-
 def format_table(results: dict) -> str:
     """Markdown tables: the swap (collisions, distances, arrival, MLR) and the formation times."""
     rows = results["rows"]
@@ -200,10 +196,10 @@ def format_table(results: dict) -> str:
     for r in rows:
         if r["experiment"] == "fig4_swap":
             lines.append(
-                f"| {r['variant']} | {r['seed']} | {r['collisions']} | {_fmt(r['min_distance_m'], '.3f')} "
-                f"| {_fmt(r['arrival_time_s'], '.1f')} | {r['rounds_with_mlr']} | {r['deprecated_trackers']} "
-                f"| {r['recovery_requests']} | {_fmt(r['max_reference_jump_m'], '.3f')} "
-                f"| {_fmt(r['qp_step_ms_median'])} |"
+                f"| {r['variant']} | {r['seed']} | {r['collisions']} | {cell(r['min_distance_m'], '.3f')} "
+                f"| {cell(r['arrival_time_s'], '.1f')} | {r['rounds_with_mlr']} | {r['deprecated_trackers']} "
+                f"| {r['recovery_requests']} | {cell(r['max_reference_jump_m'], '.3f')} "
+                f"| {cell(r['qp_step_ms_median'], '.2f')} |"
             )
     names = results.get("formations", FORMATIONS)
     head = " | ".join(f"-> {n} [s]" for n in names[1:])
@@ -216,7 +212,7 @@ def format_table(results: dict) -> str:
                   f"### {title}", "", f"| variant | seed | {head} | total [s] | collisions | min dist [m] |",
                   "|---|---|" + "---|" * (len(names) - 1) + "---|---|---|"]
         for r in sel:
-            times = " | ".join(_fmt(t, ".1f") for t in r["formation_times_s"])
-            lines.append(f"| {r['variant']} | {r['seed']} | {times} | {_fmt(r['arrival_time_s'], '.1f')} "
-                         f"| {r['collisions']} | {_fmt(r['min_distance_m'], '.3f')} |")
+            times = " | ".join(cell(t, ".1f") for t in r["formation_times_s"])
+            lines.append(f"| {r['variant']} | {r['seed']} | {times} | {cell(r['arrival_time_s'], '.1f')} "
+                         f"| {r['collisions']} | {cell(r['min_distance_m'], '.3f')} |")
     return "\n".join(lines)
