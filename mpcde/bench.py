@@ -11,7 +11,7 @@ torch thread pool of one does not warm or slow the next) with
     OUT/results.json       {"quick": bool, "machine": {...},
                             "rows": [{"name", "command", "exit_code", "wall_s", "output_file"}]}
 
-all or nothing: into a staging folder beside ``OUT`` that is renamed to
+all or nothing (:class:`mpcde.run_folder.RunFolder`): into a staging folder beside ``OUT`` that is renamed to
 ``OUT`` at the end (an interrupted run leaves no half-written ``OUT``).
 
 The figures stay text: each script's table has its own columns, and the
@@ -29,7 +29,6 @@ from __future__ import annotations
 import json
 import os
 import platform
-import shutil
 import subprocess
 import sys
 import time
@@ -117,15 +116,12 @@ def run_bench(
         ConfigError: an unknown name, a bad ``out``, no source checkout
             (before anything runs or is written).
     """
+    from mpcde.run_folder import RunFolder  # the all-or-nothing staging of every output folder
+
     chosen = _resolve(names)
     folder = benchmarks_dir()
-    out = Path(out)
-    if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not overwrite)):
-        raise ConfigError("--out", str(out), "exists and is not an empty folder; pass --overwrite or choose another")
-    out.resolve().parent.mkdir(parents=True, exist_ok=True)
-    staging = out.resolve().parent / f".{out.name}.partial-{os.getpid()}"
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir()
+    target = RunFolder(Path(out), overwrite)  # checks --out, stages in a hidden sibling folder
+    staging = target.staging
     env = dict(os.environ)
     env.setdefault("OMP_NUM_THREADS", "1")
     rows = []
@@ -157,11 +153,9 @@ def run_bench(
         results = {"quick": quick, "machine": machine, "rows": rows}
         (staging / "results.json").write_text(json.dumps(results, indent=2) + "\n")
     except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
+        target.discard()
         raise
-    if out.exists():
-        shutil.rmtree(out)
-    os.replace(staging, out)
+    target.publish()
     return results
 
 
