@@ -105,14 +105,8 @@ class ReferenceTrajectory:
         h_s, Ts = self.inputs.shape[0], self.input_step_s
         idx = np.clip(np.floor(tau_all / Ts + 1e-9).astype(int), 0, h_s)
         tau = np.maximum(tau_all - idx * Ts, 0.0)[:, None]
-        x = self.knots[idx]
         j = np.vstack([self.inputs, np.zeros((1, 3))])[idx]  # zero input after the horizon
-        p, v, a = x[:, :3], x[:, 3:6], x[:, 6:9]
-        out = np.empty((t.size, 9))
-        out[:, :3] = p + v * tau + a * tau**2 / 2.0 + j * tau**3 / 6.0
-        out[:, 3:6] = v + a * tau + j * tau**2 / 2.0
-        out[:, 6:9] = a + j * tau
-        return out
+        return _from_knots(self.knots[idx], j, tau)
 
     def positions_at(self, times_s: np.ndarray) -> np.ndarray:
         """p̂(t) at ``times_s`` (n,) -> (n, 3) [m]."""
@@ -145,4 +139,14 @@ def positions_at_each(trajectories: "list[ReferenceTrajectory]", times_s: np.nda
     tau = np.maximum(tau_all - idx * step, 0.0)[:, None]
     x = np.array([tr.knots[i] for tr, i in zip(trajectories, idx)])
     j = np.array([tr.inputs[i] if i < tr.inputs.shape[0] else np.zeros(3) for tr, i in zip(trajectories, idx)])
-    return x[:, :3] + x[:, 3:6] * tau + x[:, 6:9] * tau**2 / 2.0 + j * tau**3 / 6.0
+    return _from_knots(x, j, tau)[:, :3]
+
+
+def _from_knots(x: np.ndarray, j: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """States (n, 9) a time tau (n, 1) [s] after knot states x (n, 9) under constant jerk j (n, 3) (Eq. 12)."""
+    p, v, a = x[:, :3], x[:, 3:6], x[:, 6:9]
+    out = np.empty((x.shape[0], 9))
+    out[:, :3] = p + v * tau + a * tau**2 / 2.0 + j * tau**3 / 6.0
+    out[:, 3:6] = v + a * tau + j * tau**2 / 2.0
+    out[:, 6:9] = a + j * tau
+    return out
