@@ -46,10 +46,10 @@ import numpy as np
 
 from planners.checks import require_boolean, require_integer_at_least, require_non_negative, require_positive
 from planners.dmpc.collision import ellipsoidal_distance
-from planners.dmpc.mlr.compute_unit import ComputeUnit, CuStepReport
+from planners.dmpc.mlr.compute_unit import ComputeUnit, CuStepReport, summarize_reports
 from planners.dmpc.mlr.config import MlrConfig
-from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
-from planners.dmpc.mlr.uav import Uav
+from planners.dmpc.mlr.trajectory import ReferenceTrajectory
+from planners.dmpc.mlr.uav import Uav, initial_trajectory
 from sim.radio import Radio, RadioConfig
 
 __all__ = ["MlrRunResult", "MlrSwarmConfig", "run_mlr_swarm"]
@@ -238,7 +238,7 @@ def run_mlr_swarm(
     goals = [np.asarray(f, float).reshape(N, 3) for f in formations_world]
     if not goals:
         raise ValueError("formations_world: at least one (N, 3) target set")
-    initial = [ReferenceTrajectory.hover(TrajectoryId(-1, -1), 0.0, p, mlr.n_inputs, mlr.input_step_s) for p in start]
+    initial = [initial_trajectory(mlr, p) for p in start]
     uavs = [Uav(i, initial[i], goals[0][i]) for i in range(N)]
     cus = [ComputeUnit(mlr, w, initial, goals[0], cfg.ignore_message_loss) for w in range(M)]
     radio = Radio(cfg.radio, N + M, cfg.seed)
@@ -300,10 +300,7 @@ def run_mlr_swarm(
                 deaf_drops += len(got) - len(kept)
                 got = kept
             inbox[r] = [m.payload for m in got]
-    qps = [r.qp for r in reports if r.qp is not None]
-    solve_ms = np.array([q.solve_time_s * 1e3 for q in qps]) if qps else np.array([np.nan])
-    step_ms = np.array([(q.solve_time_s + q.build_time_s) * 1e3 for q in qps]) if qps else np.array([np.nan])
-    mlr_rounds = {r.round_index for r in reports if r.mode in ("request", "donate")}
+    summary = summarize_reports(reports)
     done = formation == len(goals)
     return MlrRunResult(
         collisions=len(pairs),
@@ -312,15 +309,15 @@ def run_mlr_swarm(
         arrival_time_s=float((k + 1) * T) if done else float("nan"),
         formation_times_s=tuple(formation_times),
         rounds=k + 1,
-        rounds_with_mlr=len(mlr_rounds),
-        deprecated_trackers=sum(len(r.tracker_update.newly_deprecated) for r in reports),
-        recovery_requests=sum(r.mode == "request" for r in reports),
-        qp_solves=len(qps),
-        qp_failures=sum(r.mode == "failed" for r in reports),
-        qp_solve_ms_median=float(np.median(solve_ms)),
-        qp_solve_ms_max=float(np.max(solve_ms)),
-        qp_step_ms_median=float(np.median(step_ms)),
-        qp_iterations_median=float(np.median([q.iterations for q in qps])) if qps else float("nan"),
+        rounds_with_mlr=summary["rounds_with_mlr"],
+        deprecated_trackers=summary["deprecated_trackers"],
+        recovery_requests=summary["recovery_requests"],
+        qp_solves=summary["computations"],
+        qp_failures=summary["qp_failures"],
+        qp_solve_ms_median=summary["qp_solve_ms_median"],
+        qp_solve_ms_max=summary["qp_solve_ms_max"],
+        qp_step_ms_median=summary["qp_step_ms_median"],
+        qp_iterations_median=summary["qp_iterations_median"],
         max_reference_jump_m=max_jump,
         cu_deaf_drops=deaf_drops,
         radio=radio.stats(),

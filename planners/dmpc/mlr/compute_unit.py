@@ -24,6 +24,13 @@ communication phase:
    MLR tend to ask for different UAVs.
 6. Priorities for round k + 1 (Line 34, Appendix A), 0 for the UAV it just computed.
 
+Start (Remark 2): all CUs start together in round ``first_round`` with the
+N initial trajectories; that round has no CU slot of the previous round to
+miss. A CU that starts later (``joined_late``, e.g. it had not yet heard
+every initial trajectory) may have missed trajectories computed since:
+every tracker starts deprecated, and it recovers them like after any loss
+(a UAV state message naming a held candidate, or a recovery request).
+
 ``ignore_message_loss=True`` is the baseline of Sec. 5.4 (Gräfe et al. 2022):
 every received or own new trajectory replaces the one in the store, nothing is
 ever deprecated or requested, and the CU always computes its selected UAV
@@ -34,6 +41,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -45,7 +53,7 @@ from planners.dmpc.mlr.trigger import consensus, event_set, quantize, raw_priori
 from planners.dmpc.mlr.types import CuTrajectoryMessage, RecoveryReply, RecoveryRequest, UavStateMessage
 from planners.dmpc.qp_result import DmpcSolveError
 
-__all__ = ["ComputeUnit", "CuStepReport"]
+__all__ = ["ComputeUnit", "CuStepReport", "summarize_reports"]
 
 
 @dataclass(frozen=True)
@@ -82,6 +90,8 @@ class ComputeUnit:
         initial: N initial trajectories (Remark 2), known to all CUs.
         initial_targets_world: (N, 3) targets known at start [m] (then from UAV messages).
         ignore_message_loss: run the Sec. 5.4 baseline instead of MLR-DMPC.
+        first_round: the round in which all CUs start (see the module docstring).
+        joined_late: the CU starts after ``first_round``: every tracker starts deprecated.
     """
 
     def __init__(
@@ -91,6 +101,8 @@ class ComputeUnit:
         initial: Sequence[ReferenceTrajectory],
         initial_targets_world: np.ndarray,
         ignore_message_loss: bool = False,
+        first_round: int = 0,
+        joined_late: bool = False,
     ) -> None:
         if not 0 <= cu_index < config.n_cus:
             raise ValueError(f"cu_index={cu_index!r}: an integer in [0, {config.n_cus - 1}]")
@@ -100,6 +112,9 @@ class ComputeUnit:
         self.cu_index = int(cu_index)
         self.ignore_message_loss = bool(ignore_message_loss)
         self.trackers = InformationTrackers(initial, config.max_kept_deprecated)
+        self.first_round = int(first_round)
+        if joined_late and not self.ignore_message_loss:
+            self.trackers.deprecate_all()
         self.targets_world = np.array(initial_targets_world, float).reshape(config.n_uavs, 3)
         self.problem = MlrProblem(config)
         self._own_last: CuTrajectoryMessage | RecoveryRequest | None = None  # what this CU sent last round
@@ -129,7 +144,7 @@ class ComputeUnit:
         if self.ignore_message_loss:
             update = self.trackers.update_ignoring_loss(new)
         else:
-            accounted = k == 0 or all(  # round 0 has no previous round to miss
+            accounted = k == self.first_round or all(  # the first round has no previous round to miss
                 v == w or v in cu_msgs or v in replies or v in self._heard_requests for v in range(cfg.n_cus)
             )
             update = self.trackers.update(
@@ -197,3 +212,29 @@ class ComputeUnit:
         if just_computed is not None:
             q[just_computed] = 0  # Appendix A: just recomputed
         return q
+
+
+def summarize_reports(reports: Sequence[CuStepReport]) -> dict[str, Any]:
+    """Counts and QP timings over CU rounds (one CU's or several; NaN timings when no QP was solved).
+
+    Keys: ``rounds_with_mlr`` (distinct rounds in which a CU requested or
+    donated), ``deprecated_trackers`` (tracker deprecations summed),
+    ``recovery_requests``, ``computations`` (rounds that solved a QP),
+    ``qp_failures``, ``qp_solve_ms_median`` / ``qp_solve_ms_max`` (OSQP update +
+    solve [ms]), ``qp_step_ms_median`` (build + solve [ms]), ``qp_iterations_median``.
+    """
+    qps = [r.qp for r in reports if r.qp is not None]
+    nan = float("nan")
+    solve_ms = [q.solve_time_s * 1e3 for q in qps]
+    step_ms = [(q.solve_time_s + q.build_time_s) * 1e3 for q in qps]
+    return {
+        "rounds_with_mlr": len({r.round_index for r in reports if r.mode in ("request", "donate")}),
+        "deprecated_trackers": sum(len(r.tracker_update.newly_deprecated) for r in reports),
+        "recovery_requests": sum(r.mode == "request" for r in reports),
+        "computations": len(qps),
+        "qp_failures": sum(r.mode == "failed" for r in reports),
+        "qp_solve_ms_median": float(np.median(solve_ms)) if qps else nan,
+        "qp_solve_ms_max": float(np.max(solve_ms)) if qps else nan,
+        "qp_step_ms_median": float(np.median(step_ms)) if qps else nan,
+        "qp_iterations_median": float(np.median([q.iterations for q in qps])) if qps else nan,
+    }

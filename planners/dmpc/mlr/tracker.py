@@ -99,6 +99,10 @@ class InformationTrackers:
         """UAVs whose tracker is deprecated."""
         return tuple(i for i, e in enumerate(self.entries) if e.deprecated)
 
+    def deprecate_all(self) -> None:
+        """Mark every tracker deprecated (a CU that may have missed trajectories: it joins late)."""
+        self.entries = [TrackerEntry(e.candidates, True) for e in self.entries]
+
     @property
     def any_deprecated(self) -> bool:
         """Whether MLR is needed (Alg. 1)."""

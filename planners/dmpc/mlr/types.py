@@ -8,6 +8,10 @@ or a :class:`RecoveryRequest` (MLR, Alg. 1 Line 25). One round after a
 request, the CU stays silent and the requested UAV sends a
 :class:`RecoveryReply` in the CU's slot (Alg. 1 Line 30). Messages of round k
 are read in round k + 1's computation phase. Positions are world frame, z up, [m].
+
+:class:`MlrBundle` is what one drone broadcasts per round when the UAVs
+themselves host the CUs (:mod:`mpcde.agent_mlr`): a radio with one payload
+per drone and round carries the UAV's messages and its CU's message together.
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ import numpy as np
 
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
 
-__all__ = ["CuTrajectoryMessage", "RecoveryReply", "RecoveryRequest", "UavStateMessage"]
+__all__ = ["CuTrajectoryMessage", "MlrBundle", "RecoveryReply", "RecoveryRequest", "UavStateMessage"]
 
 
 def _frozen_vector(obj: object, name: str, size: int | None = None, dtype: type = float) -> None:
@@ -117,3 +121,56 @@ class RecoveryReply:
     slot_cu_id: int
     round_index: int
     trajectory: ReferenceTrajectory
+
+
+@dataclass(frozen=True)
+class MlrBundle:
+    """Everything one drone broadcasts in round k: its UAV's messages and, if it hosts a CU, that CU's.
+
+    The paper gives every UAV and every CU a slot of its own (Sec. 3.1, Fig. 1)
+    and sends a recovery reply in the requesting CU's donated slot; here the
+    drone's payloads share one radio message, so they are lost together. The
+    receiving CU still accounts for a donated slot by the reply's
+    ``slot_cu_id``, wherever the reply travelled.
+
+    Attributes:
+        state: the UAV's state message of round k (it names the sender and the round).
+        replies: the UAV's recovery replies of round k (one per request it received in round k - 1).
+        cu_message: the hosted CU's message of round k, or None (no CU on
+            this drone, it has not started, or it donates its slot).
+        initial: the UAV's initial trajectory while it still follows it, else
+            None: the CUs learn the initial trajectories (Remark 2) from it.
+    """
+
+    state: UavStateMessage
+    replies: tuple[RecoveryReply, ...] = ()
+    cu_message: CuTrajectoryMessage | RecoveryRequest | None = None
+    initial: ReferenceTrajectory | None = None
+
+    def __post_init__(self) -> None:
+        k, i = self.state.round_index, self.state.uav_id
+        object.__setattr__(self, "replies", tuple(self.replies))
+        for r in self.replies:
+            if r.uav_id != i or r.round_index != k:
+                raise ValueError(f"replies: uav {r.uav_id} round {r.round_index}, expected uav {i} round {k}")
+        if self.cu_message is not None and self.cu_message.round_index != k:
+            raise ValueError(f"cu_message.round_index={self.cu_message.round_index!r}: the bundle's round {k}")
+        if self.initial is not None and self.initial.meta.calc_round >= 0:
+            raise ValueError(f"initial.meta={self.initial.meta!r}: an initial trajectory (calc_round -1)")
+
+    @property
+    def sender_id(self) -> int:
+        """The drone (UAV i) that sent the bundle."""
+        return self.state.uav_id
+
+    @property
+    def round_index(self) -> int:
+        """k."""
+        return self.state.round_index
+
+    def messages(self) -> list[object]:
+        """The MLR messages it carries: the state message, the replies, then the CU message if any."""
+        out: list[object] = [self.state, *self.replies]
+        if self.cu_message is not None:
+            out.append(self.cu_message)
+        return out

@@ -22,10 +22,18 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planners.dmpc.mlr.trajectory import ReferenceTrajectory
+from planners.dmpc.mlr.config import MlrConfig
+from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
 from planners.dmpc.mlr.types import CuTrajectoryMessage, RecoveryReply, RecoveryRequest, UavStateMessage
 
-__all__ = ["Uav"]
+__all__ = ["INITIAL_ID", "Uav", "initial_trajectory"]
+
+INITIAL_ID = TrajectoryId(-1, -1)  # metadata of every initial trajectory (Remark 2)
+
+
+def initial_trajectory(config: MlrConfig, pos_world: np.ndarray, t_start_s: float = 0.0) -> ReferenceTrajectory:
+    """A UAV's initial trajectory (Remark 2): hover at ``pos_world`` (3,) [m] from ``t_start_s`` [s] on."""
+    return ReferenceTrajectory.hover(INITIAL_ID, t_start_s, pos_world, config.n_inputs, config.input_step_s)
 
 
 class Uav:
