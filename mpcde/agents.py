@@ -14,6 +14,7 @@ from mpcde.agent import Agent, OnboardAgent
 from mpcde.agent_auto import AutoAgent
 from mpcde.agent_denied import DeniedAgent
 from mpcde.agent_dmpc import DmpcAgent, DmpcAgentConfig
+from mpcde.agent_mlr import MlrAgent
 from mpcde.neighbour_fusion import FusionConfig
 from mpcde.neighbour_perception import NeighbourPerception, PerceptionConfig
 from mpcde.scenario import ScenarioConfig
@@ -36,6 +37,9 @@ def make_agent(cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obst
     kind = cfg.planner.kind
     if kind == "min_jerk_line":
         return Agent(drone_id, np.asarray(goal_world, float), cfg.planner.cruise_speed_mps, cfg.planner.start_delay_s)
+    if kind == "mlr":  # MLR-DMPC does not perceive: no detector, no tracks
+        mlr = cfg.mlr.planner_config(len(goals_world), cfg.world.arena_size_m)
+        return MlrAgent(drone_id, goals_world, mlr, cfg.planner.start_delay_s, cfg.mlr.ignore_message_loss)
     # back-projection uncertainty includes the drone's own localisation noise (what its VIO reports)
     pe, pc = cfg.pose_estimate, cfg.perception
     bp = replace(pc.backprojection, pose_pos_std_m=pe.pos_noise_m, pose_yaw_std_rad=pe.yaw_noise_rad)

@@ -60,7 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="onboard stack, overriding the file's planner.kind: placeholder (blind straight line), "
         "denied (MP-CDE: own map, tracks, active yaw, MINCO), comm (DMPC on radio plans), "
-        "auto (DMPC, falling back to tracks and to MP-CDE when the radio fails)",
+        "auto (DMPC, falling back to tracks and to MP-CDE when the radio fails), "
+        "mlr (MLR-DMPC: compute units on the first drones, message-loss recovery; no obstacles)",
     )
     fly.add_argument("--video", action="store_true", help="also write video.mp4 (top view beside each camera)")
     fly.add_argument("--no-cameras", action="store_true", help="do not render cameras (faster; no video tiles)")

@@ -17,6 +17,7 @@ import numpy as np
 from mpcde.agent_auto import AutoAgentConfig
 from mpcde.agent_denied import DeniedAgentConfig
 from mpcde.agent_dmpc import DmpcAgentConfig
+from mpcde.agent_mlr import MlrAgentConfig
 from mpcde.config_io import from_dict, load_yaml
 from mpcde.errors import ConfigError
 from mpcde.neighbour_perception import PerceptionConfig
@@ -134,7 +135,7 @@ class DronesConfig:
             raise ConfigError("altitude_m", self.altitude_m, "in [0.3, 20] m")
 
 
-PlannerKind = Literal["min_jerk_line", "mpcde", "dmpc", "auto"]
+PlannerKind = Literal["min_jerk_line", "mpcde", "dmpc", "auto", "mlr"]
 
 
 @dataclass(frozen=True)
@@ -150,7 +151,10 @@ class PlannerConfig:
             plans; settings in ``dmpc``), or ``"auto"``, both: DMPC while
             the radio delivers, falling back neighbour by neighbour to camera
             tracks and, when the radio is out, to the denied stack (settings
-            in ``auto``, ``dmpc`` and ``denied``; :mod:`mpcde.agent_auto`).
+            in ``auto``, ``dmpc`` and ``denied``; :mod:`mpcde.agent_auto`), or
+            ``"mlr"``, MLR-DMPC (DMPC-Swarm: compute units hosted by the first
+            drones, message-loss recovery; settings in ``mlr``; obstacle-free
+            scenarios only; :mod:`mpcde.agent_mlr`).
         cruise_speed_mps: peak speed along the line [m/s] (MP-CDE flights: 1 m/s).
         start_delay_s: hover time before departure [s].
     """
@@ -215,6 +219,7 @@ class ScenarioConfig:
         denied: the MP-CDE (communication-denied) agent's settings.
         dmpc: the DMPC (communicating) agent's settings.
         auto: the ``auto`` agent's mode switch and plan/track fusion.
+        mlr: the MLR-DMPC agent's settings.
         run: simulation options.
     """
 
@@ -232,6 +237,7 @@ class ScenarioConfig:
     denied: DeniedAgentConfig = field(default_factory=DeniedAgentConfig)
     dmpc: DmpcAgentConfig = field(default_factory=DmpcAgentConfig)
     auto: AutoAgentConfig = field(default_factory=AutoAgentConfig)
+    mlr: MlrAgentConfig = field(default_factory=MlrAgentConfig)
     run: RunOptions = field(default_factory=RunOptions)
 
     def __post_init__(self) -> None:
@@ -244,6 +250,35 @@ class ScenarioConfig:
             raise ConfigError("run.cameras", self.run.cameras, allowed)
         if self.planner.kind in ("dmpc", "auto") and abs(self.dmpc.qp.step_s * self.radio.rate_hz - 1.0) > 1e-6:
             raise ConfigError("dmpc.qp.step_s", self.dmpc.qp.step_s, f"must equal 1 / radio.rate_hz = {1.0 / self.radio.rate_hz:g} s (one DMPC round per step)")
+        if self.planner.kind == "mlr":
+            _check_mlr(self)
+
+
+def _check_mlr(cfg: ScenarioConfig) -> None:
+    """The cross-field rules of ``planner.kind: mlr`` (:mod:`mpcde.agent_mlr`); raises ConfigError."""
+    mlr, radio, world = cfg.mlr, cfg.radio, cfg.world
+    if abs(mlr.round_s * radio.rate_hz - 1.0) > 1e-6:
+        allowed = f"must equal 1 / radio.rate_hz = {1.0 / radio.rate_hz:g} s (one MLR round per radio round)"
+        raise ConfigError("mlr.round_s", mlr.round_s, allowed)
+    if not radio.delay_s < mlr.round_s:
+        allowed = f"< mlr.round_s = {mlr.round_s:g} s for planner.kind 'mlr' (messages are read in the next round)"
+        raise ConfigError("radio.delay_s", radio.delay_s, allowed)
+    why = "MLR-DMPC has no obstacle constraints; fly obstacles with planner.kind 'dmpc' (--mode comm)"
+    if world.obstacles:
+        raise ConfigError("world.obstacles", [o.kind for o in world.obstacles], f"none for planner.kind 'mlr': {why}")
+    if world.obstacle_density_per_100m2 > 0:
+        density = world.obstacle_density_per_100m2
+        raise ConfigError("world.obstacle_density_per_100m2", density, f"0 for planner.kind 'mlr': {why}")
+    starts, goals = build_layout(cfg.drones)
+    planner = mlr.planner_config(len(starts), world.arena_size_m)  # M < N and the flying box
+    lo, hi = np.asarray(planner.pos_min_world), np.asarray(planner.pos_max_world)
+    for name, pts in (("drones.starts", starts), ("drones.goals", goals)):
+        outside = np.flatnonzero(np.any((pts < lo) | (pts > hi), axis=1))
+        if outside.size:
+            i = int(outside[0])
+            box = f"[{', '.join(f'{v:g}' for v in lo)}] to [{', '.join(f'{v:g}' for v in hi)}] m"
+            allowed = f"inside MLR-DMPC's flying box {box} (the arena less mlr.arena_margin_m, mlr.altitude_range_m)"
+            raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], allowed)
 
 
 def build_layout(drones: DronesConfig) -> tuple[np.ndarray, np.ndarray]:
