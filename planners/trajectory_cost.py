@@ -20,6 +20,16 @@ enters as the C^2 cubic ``max(v, 0)^3`` (GCOPTER's choice):
   prediction's uncertainty: ``r_n = min(n_sigma sqrt(tr P_pos(t)), r_max)``, the
   same radius as ``NeighborPrediction.uncertainty_radius`` (0 for exact radio
   plans), capped so that an old track cannot block the whole space.
+* swarm, a neighbour already inside its clearance at the start (our addition,
+  not in MP-CDE): if the start position p(t0) is at ``d0 < C_s + margin + r_n(t0)``
+  from ``p_n(t0)`` (metric E), the clearance of that neighbour starts at d0 and
+  grows back at ``swarm_recovery_mps``: ``clr_n(t) = C_s + margin + r_n(t) - s_n(t)``
+  with ``s_n(t) = max(0, s0_n - rho (t - t0))``, ``s0_n = C_s + margin + r_n(t0) - d0``.
+  With the full clearance from the first sample, a start inside it asks for
+  an instantaneous jump in separation: the swarm penalty then outweighs the
+  obstacle penalty and the optimiser returns a plan through an obstacle (seen
+  when the ``auto`` agent hands a drone flying 0.4 m behind another, as DMPC
+  allows, to MINCO's C_s = 0.7 m). ``swarm_recovery_mps = inf`` turns it off.
 
 The gradient by ``T_i`` collects the growth of the sample spacing, the motion of
 the sample along the piece, and (swarm term only) the dependence of the
@@ -59,6 +69,9 @@ class PenaltyParameters:
             soft constraint settles outside C_o and C_s; default 0.1.
         uncertainty_sigma: n_sigma of the neighbour uncertainty radius [-]; default 1.0.
         max_uncertainty_inflation_m: cap r_max on the inflation [m]; default 0.5.
+        swarm_recovery_mps: rate rho at which the clearance of a neighbour that the start
+            is already inside grows back to C_s + margin [m/s] (module docstring); default 0.5;
+            ``inf``: no relaxation (the full clearance from the first sample).
         weight_vel, weight_acc, weight_obstacle, weight_swarm: penalty weights [-]
             (w_s is MP-CDE's swarm weight); default 1e5 each.
         samples_per_piece: K, sample intervals per piece [-]; default 16 (GCOPTER).
@@ -72,6 +85,7 @@ class PenaltyParameters:
     clearance_margin_m: float = 0.1
     uncertainty_sigma: float = 1.0
     max_uncertainty_inflation_m: float = 0.5
+    swarm_recovery_mps: float = 0.5
     weight_vel: float = 1.0e5
     weight_acc: float = 1.0e5
     weight_obstacle: float = 1.0e5
@@ -94,6 +108,8 @@ class PenaltyParameters:
         ):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"{name}={getattr(self, name)!r}: must be >= 0")
+        if not self.swarm_recovery_mps > 0.0:  # inf allowed
+            raise ValueError(f"swarm_recovery_mps={self.swarm_recovery_mps!r}: must be > 0 (inf: no relaxation)")
         if not self.swarm_z_scale >= 1.0:
             raise ValueError(f"swarm_z_scale={self.swarm_z_scale!r}: must be >= 1")
         if not (isinstance(self.samples_per_piece, int) and self.samples_per_piece >= 2):
@@ -108,7 +124,9 @@ class NeighborTable:
         pos_world: (sum K, 3) positions [m]; vel_world: (sum K, 3) velocities [m/s].
         offsets: (N+1,) start of neighbour n's samples.
         t_last_s: (N,) last sample time [s] (covariance grows after it).
-        cov_trace_poly: (N, 3) ``(a, b, c)`` with ``tr P_pos(t) = a + b dt + c dt^2``, dt = max(t - t_last, 0).
+        radius_terms: (N, 4) ``(a, b, c, s0)``: ``tr P_pos(t) = a + b dt + c dt^2`` with
+            dt = max(t - t_last, 0), and s0 [m] the start deficit of the clearance (0 until
+            :meth:`set_start_deficits`; module docstring).
     """
 
     def __init__(self, neighbors: list[NeighborPrediction]):
@@ -119,11 +137,31 @@ class NeighborTable:
         self.offsets = np.zeros(n + 1, dtype=np.int64)
         self.offsets[1:] = np.cumsum([np.shape(nb.times_s)[0] for nb in neighbors]).astype(np.int64)
         self.t_last_s = np.array([float(nb.times_s[-1]) for nb in neighbors]) if n else np.zeros(0)
-        self.cov_trace_poly = np.zeros((n, 3))
+        self.radius_terms = np.zeros((n, 4))
         for k, nb in enumerate(neighbors):
             P = np.asarray(nb.cov_world, float)
             # tr P_pos(t) = tr Ppp + dt tr(Ppv + Ppv^T) + dt^2 tr Pvv   (perception.types, MP-CDE Eq. 12)
-            self.cov_trace_poly[k] = (np.trace(P[:3, :3]), 2.0 * np.trace(P[:3, 3:]), np.trace(P[3:, 3:]))
+            self.radius_terms[k, :3] = (np.trace(P[:3, :3]), 2.0 * np.trace(P[:3, 3:]), np.trace(P[3:, 3:]))
+
+    def set_start_deficits(self, start_world: np.ndarray, t0_s: float, params: PenaltyParameters) -> None:
+        """Set s0_n = max(0, C_s + margin + r_n(t0) - ||E^{1/2}(start - p_n(t0))||) [m] for every neighbour.
+
+        All zero when ``params.swarm_recovery_mps`` is inf (no relaxation).
+        """
+        self.radius_terms[:, 3] = 0.0
+        if not np.isfinite(params.swarm_recovery_mps):
+            return
+        p0 = np.asarray(start_world, float).reshape(3)
+        c_sw = params.swarm_clearance_m + params.clearance_margin_m
+        for n in range(self.count):
+            px, py, pz, _, _, _ = _neighbor_state(
+                self.times_s, self.pos_world, self.vel_world, self.offsets[n], self.offsets[n + 1], float(t0_s)
+            )
+            d = p0 - (px, py, pz)
+            ell = float(np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2 / params.swarm_z_scale))
+            r, _ = _inflation(self.radius_terms[n], float(t0_s) - self.t_last_s[n],
+                              params.uncertainty_sigma, params.max_uncertainty_inflation_m)  # fmt: skip
+            self.radius_terms[n, 3] = max(0.0, c_sw + r - ell)
 
     @property
     def count(self) -> int:
@@ -250,6 +288,30 @@ def _neighbor_state(ts, ps, vs, lo, hi, t):
 
 
 @njit(cache=True)
+def _inflation(terms, dt, n_sig, r_max):
+    """Uncertainty inflation r_n = min(n_sigma sqrt(tr P_pos), r_max) [m] and its time derivative [m/s].
+
+    ``terms``: one row of ``NeighborTable.radius_terms``; ``dt``: t - t_last [s] (the trace is constant
+    for dt <= 0).
+    """
+    r = 0.0
+    dr = 0.0
+    if n_sig > 0.0:
+        if dt > 0.0:
+            tr = terms[0] + terms[1] * dt + terms[2] * dt * dt
+            if tr > 0.0:
+                sq = np.sqrt(tr)
+                r = n_sig * sq  # r_n = n_sigma sqrt(tr P_pos(t))
+                dr = n_sig * (terms[1] + 2.0 * terms[2] * dt) / (2.0 * sq)
+        else:
+            r = n_sig * np.sqrt(max(terms[0], 0.0))
+        if r > r_max:
+            r = r_max
+            dr = 0.0
+    return r, dr
+
+
+@njit(cache=True)
 def _penalty_kernel(
     coeffs, T, K, t0, prm, dist, dist_grad, use_field, nb_t, nb_p, nb_v, nb_off, nb_tlast, nb_cov, gdc, gdt, out, stats
 ):
@@ -257,10 +319,11 @@ def _penalty_kernel(
 
     With ``stats`` False the minimum swarm margin (out[7]) is not recorded, which lets far samples skip early.
 
-    prm = (v_max, a_max, C_o + margin, C_s + margin, 1/c, n_sigma, r_max, w_v, w_a, w_o, w_s).
+    prm = (v_max, a_max, C_o + margin, C_s + margin, 1/c, n_sigma, r_max, w_v, w_a, w_o, w_s, rho);
+    nb_cov = NeighborTable.radius_terms.
     """
     v_max, a_max, c_obs, c_sw, inv_c, n_sig, r_max = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6]
-    w_v, w_a, w_o, w_s = prm[7], prm[8], prm[9], prm[10]
+    w_v, w_a, w_o, w_s, rho = prm[7], prm[8], prm[9], prm[10], prm[11]
     m = T.shape[0]
     n_nb = nb_tlast.shape[0]
     vmax2 = v_max * v_max
@@ -374,24 +437,15 @@ def _penalty_kernel(
                 ell2 = dx * dx + dy * dy + dz * dz * inv_c  # ||E^{1/2}(p - p_n)||^2
                 if ell2 >= far2 and not stats:  # beyond C_s + margin + r_max: no penalty, nothing to record
                     continue
-                dt = t_abs - nb_tlast[n]
-                r = 0.0
-                dr = 0.0
-                if n_sig > 0.0:
-                    if dt > 0.0:
-                        tr = nb_cov[n, 0] + nb_cov[n, 1] * dt + nb_cov[n, 2] * dt * dt
-                        if tr > 0.0:
-                            sq = np.sqrt(tr)
-                            r = n_sig * sq  # r_n = n_sigma sqrt(tr P_pos(t))
-                            dr = n_sig * (nb_cov[n, 1] + 2.0 * nb_cov[n, 2] * dt) / (2.0 * sq)
-                    else:
-                        r = n_sig * np.sqrt(max(nb_cov[n, 0], 0.0))
-                    if r > r_max:
-                        r = r_max
-                        dr = 0.0
+                r, dr = _inflation(nb_cov[n], t_abs - nb_tlast[n], n_sig, r_max)
                 if stats:
                     min_margin = min(min_margin, np.sqrt(ell2) - r)
                 clr = c_sw + r
+                if nb_cov[n, 3] > 0.0:  # start inside the clearance: s_n(t) = max(0, s0 - rho (t - t0))
+                    cut = nb_cov[n, 3] - rho * (t_abs - t0)
+                    if cut > 0.0:
+                        clr -= cut
+                        dr += rho  # d clr / d t_abs (enters through 2 clr dr below)
                 viol = clr * clr - ell2  # MP-CDE Eq. 16
                 if viol > 0.0 and w_s > 0.0:
                     pen = w_s * viol * viol * viol
@@ -434,6 +488,8 @@ class TrajectoryCost:
         t0_s: absolute time [s] of the trajectory start.
         distance_field: obstacle field or None (no obstacle term).
         neighbors: predictions of the other drones (may be empty).
+        start_world: (3,) trajectory start position [m]; with it, neighbours it is already
+            inside the clearance of get the relaxed clearance (module docstring); None: none do.
     """
 
     def __init__(
@@ -442,11 +498,14 @@ class TrajectoryCost:
         t0_s: float,
         distance_field: DistanceField | None,
         neighbors: list[NeighborPrediction],
+        start_world: np.ndarray | None = None,
     ):
         self.params = params
         self.t0_s = float(t0_s)
         self.distance_field = distance_field
         self.neighbors = NeighborTable(list(neighbors))
+        if start_world is not None:
+            self.neighbors.set_start_deficits(start_world, self.t0_s, params)
         #: (distance (nx, ny, nz) float64 [m], origin (3,) [m], voxel [m]) when the field is an
         #: OccupancySnapshot: its trilinear ESDF is then evaluated by a compiled kernel (same formula)
         self.grid = None
@@ -457,7 +516,7 @@ class TrajectoryCost:
                 float(distance_field.voxel_m),
             )
         p = params
-        #: (11,) kernel parameters (v_max, a_max, C_o + margin, C_s + margin, 1/c, n_sigma, r_max, w_v, w_a, w_o, w_s)
+        #: (12,) kernel parameters (v_max, a_max, C_o + margin, C_s + margin, 1/c, n_sigma, r_max, w_v, w_a, w_o, w_s, rho)
         self.parameter_vector = np.array(
             [
                 p.v_max_mps,
@@ -471,6 +530,7 @@ class TrajectoryCost:
                 p.weight_acc,
                 p.weight_obstacle,
                 p.weight_swarm,
+                p.swarm_recovery_mps,
             ]
         )
         self._out = np.zeros(8)
@@ -503,7 +563,7 @@ class TrajectoryCost:
         nb = self.neighbors
         _penalty_kernel(
             coeffs, durations, K, self.t0_s, self.parameter_vector, d, gd, use_field,
-            nb.times_s, nb.pos_world, nb.vel_world, nb.offsets, nb.t_last_s, nb.cov_trace_poly,
+            nb.times_s, nb.pos_world, nb.vel_world, nb.offsets, nb.t_last_s, nb.radius_terms,
             gdc, gdt, self._out, stats,
         )  # fmt: skip
         return self._out.copy()

@@ -65,6 +65,9 @@ class TrajectoryOptimizerConfig:
         clearance_margin_m: margin added to both clearances inside the penalties [m]; default 0.1.
         uncertainty_sigma: n_sigma of the neighbour uncertainty inflation [-]; default 1.0.
         max_uncertainty_inflation_m: cap on that inflation [m]; default 0.5.
+        swarm_recovery_mps: a neighbour the start is already inside C_s + margin of gets the
+            clearance it has, growing back at this rate [m/s]; default 0.5; inf: off
+            (:mod:`planners.trajectory_cost`).
         weight_vel: weight of the speed penalty [-]; default 1e5.
         weight_acc: weight of the acceleration penalty [-]; default 1e5.
         weight_obstacle: weight of the obstacle penalty [-]; default 1e5.
@@ -90,6 +93,7 @@ class TrajectoryOptimizerConfig:
     clearance_margin_m: float = 0.1
     uncertainty_sigma: float = 1.0
     max_uncertainty_inflation_m: float = 0.5
+    swarm_recovery_mps: float = 0.5
     weight_vel: float = 1.0e5
     weight_acc: float = 1.0e5
     weight_obstacle: float = 1.0e5
@@ -220,7 +224,7 @@ class TrajectoryProblem:
         self.initial_points, self.initial_durations = initial_points, initial_durations
         self.t0_s, self.config = float(t0_s), config
         self.distance_field, self.neighbors = distance_field, list(neighbors)
-        self.cost = TrajectoryCost(config.penalty_parameters(), t0_s, distance_field, self.neighbors)
+        self.cost = TrajectoryCost(config.penalty_parameters(), t0_s, distance_field, self.neighbors, start_pva[0])
         self.num_pieces = int(initial_durations.shape[0])
         self.x0 = np.concatenate([initial_points.ravel(), _time_to_tau(initial_durations)])
         self.evaluations = 0
@@ -251,7 +255,7 @@ class TrajectoryProblem:
             d, gd, use_field = self._no_dist, self._no_grad, False
         f, g = _backward(
             x, n_q, T, coeffs, ab, K, cost.t0_s, cost.parameter_vector, d, gd, use_field,
-            nb.times_s, nb.pos_world, nb.vel_world, nb.offsets, nb.t_last_s, nb.cov_trace_poly,
+            nb.times_s, nb.pos_world, nb.vel_world, nb.offsets, nb.t_last_s, nb.radius_terms,
             cfg.weight_energy, cfg.weight_time, self.last_terms, stats,
         )  # fmt: skip
         self.evaluations += 1
@@ -528,7 +532,7 @@ def _lbfgs(problem: TrajectoryProblem) -> tuple[np.ndarray, float, int, str]:
         args = (
             problem.start_pva, problem.goal_pva, 3 * (problem.num_pieces - 1), cost.params.samples_per_piece,
             cost.t0_s, cost.parameter_vector, grid[0], grid[1], grid[2], cost.grid is not None,
-            (nb.times_s, nb.pos_world, nb.vel_world, nb.offsets, nb.t_last_s, nb.cov_trace_poly),
+            (nb.times_s, nb.pos_world, nb.vel_world, nb.offsets, nb.t_last_s, nb.radius_terms),
             float(cfg.weight_energy), float(cfg.weight_time), np.zeros(9),
         )  # fmt: skip
         x, f, k, code, evals = _lbfgs_compiled(args, problem.x0, *opts)

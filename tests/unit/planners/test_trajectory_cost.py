@@ -75,7 +75,7 @@ def test_neighbor_kernel_matches_neighbor_prediction():
             np.testing.assert_allclose(v, (nb.position(t + h) - nb.position(t - h)) / (2 * h), atol=1e-5)
         t = np.array([12.0])
         dt = t - table.t_last_s[n]
-        a, b, c = table.cov_trace_poly[n]
+        a, b, c = table.radius_terms[n, :3]
         np.testing.assert_allclose(np.sqrt(a + b * dt + c * dt**2), nb.uncertainty_radius(t), rtol=1e-12)
 
 
@@ -152,7 +152,7 @@ def test_penalties_vanish_inside_the_limits():
 
 
 @pytest.mark.parametrize(
-    "field, value", [("v_max_mps", 0.0), ("swarm_z_scale", 0.5), ("samples_per_piece", 1), ("weight_swarm", -1.0)]
+    "field, value", [("v_max_mps", 0.0), ("swarm_z_scale", 0.5), ("samples_per_piece", 1), ("weight_swarm", -1.0), ("swarm_recovery_mps", 0.0)]
 )
 def test_invalid_parameters_raise_one_line_value_error(field, value):
     with pytest.raises(ValueError, match=field):
@@ -195,3 +195,88 @@ def test_skipping_far_neighbors_changes_neither_penalties_nor_gradients():
     np.testing.assert_array_equal(o1[:7], o2[:7])
     np.testing.assert_array_equal(c1, c2)
     np.testing.assert_array_equal(t1, t2)
+
+
+def _close_neighbour(t0: float) -> list[NeighborPrediction]:
+    """A track 0.3 m beside the start of :func:`_problem`, flying the same way (the start is inside C_s)."""
+    cov = np.diag([0.01, 0.01, 0.01, 0.02, 0.02, 0.02])
+    return [NeighborPrediction.constant_velocity(4, "perception", t0 - 0.1, [0.2, 0.25, 1.0], [1.0, 0.1, 0.0], cov)]
+
+
+def _relaxed_cost(rho: float, start: bool = True) -> TrajectoryCost:
+    params = PenaltyParameters(
+        v_max_mps=50.0, a_max_mps2=50.0, weight_vel=0.0, weight_acc=0.0, weight_obstacle=0.0,
+        samples_per_piece=8, max_uncertainty_inflation_m=5.0, swarm_recovery_mps=rho,
+    )  # fmt: skip
+    head = _problem()[0]
+    return TrajectoryCost(params, 10.0, None, _close_neighbour(10.0), head[0] if start else None)
+
+
+def test_start_inside_the_clearance_starts_at_the_current_distance_and_grows_back():
+    """clr(t) = C_s + margin + r(t) - max(0, s0 - rho (t - t0)): zero penalty at t0, brute force elsewhere."""
+    rho = 0.4
+    cost = _relaxed_cost(rho)
+    head, tail, q, T = _problem()
+    p = cost.params
+    nb = _close_neighbour(10.0)[0]
+    t0 = cost.t0_s
+    e0 = head[0] - nb.position(t0)
+    ell0 = np.sqrt(e0[0] ** 2 + e0[1] ** 2 + e0[2] ** 2 / p.swarm_z_scale)
+    r0 = min(float(nb.uncertainty_radius(np.array([t0]), p.uncertainty_sigma)[0]), p.max_uncertainty_inflation_m)
+    s0 = p.swarm_clearance_m + p.clearance_margin_m + r0 - ell0
+    assert s0 > 0.3  # deep inside
+    assert cost.neighbors.radius_terms[0, 3] == pytest.approx(s0, rel=1e-12)
+    terms, _, _ = _total_cost(cost, head, tail, q, T)
+    minco = MincoS3()
+    minco.set_conditions(head, tail, T.size)
+    minco.set_parameters(q, T)
+    traj = minco.trajectory(t0)
+    K = p.samples_per_piece
+    start = np.concatenate([[0.0], np.cumsum(T)[:-1]])
+    sw = 0.0
+    for i in range(T.size):
+        t_loc = start[i] + np.linspace(0.0, T[i], K + 1)
+        w = np.full(K + 1, T[i] / K)
+        w[[0, -1]] *= 0.5
+        x, t_abs = traj.pos(t_loc), t0 + t_loc
+        e = x - nb.position(t_abs)
+        ell2 = e[:, 0] ** 2 + e[:, 1] ** 2 + e[:, 2] ** 2 / p.swarm_z_scale
+        r = np.minimum(nb.uncertainty_radius(t_abs, p.uncertainty_sigma), p.max_uncertainty_inflation_m)
+        clr = p.swarm_clearance_m + p.clearance_margin_m + r - np.maximum(0.0, s0 - rho * (t_abs - t0))
+        viol = np.maximum(clr**2 - ell2, 0)
+        if i == 0:
+            assert viol[0] == pytest.approx(0.0, abs=1e-12)  # the start itself is not penalised
+        sw += np.sum(w * viol**3) * p.weight_swarm
+    assert terms.swarm > 0
+    assert terms.swarm == pytest.approx(sw, rel=1e-9)
+    full, _, _ = _total_cost(_relaxed_cost(rho, start=False), head, tail, q, T)
+    assert full.swarm > 10 * terms.swarm  # the paper's form asks for the jump at once
+
+
+def test_relaxed_clearance_gradient_matches_finite_differences():
+    cost = _relaxed_cost(0.4)
+    head, tail, q, T = _problem()
+    terms, gq, gt = _total_cost(cost, head, tail, q, T)
+    assert terms.swarm > 1e-6
+    h = 1e-6
+    for i in range(q.shape[0]):
+        for d in range(3):
+            qp, qm = q.copy(), q.copy()
+            qp[i, d] += h
+            qm[i, d] -= h
+            fd = (_total_cost(cost, head, tail, qp, T)[0].total - _total_cost(cost, head, tail, qm, T)[0].total) / (2 * h)
+            assert gq[i, d] == pytest.approx(fd, rel=1e-5, abs=1e-6 * (1 + abs(fd)))
+    for i in range(T.size):
+        Tp, Tm = T.copy(), T.copy()
+        Tp[i] += h
+        Tm[i] -= h
+        fd = (_total_cost(cost, head, tail, q, Tp)[0].total - _total_cost(cost, head, tail, q, Tm)[0].total) / (2 * h)
+        assert gt[i] == pytest.approx(fd, rel=1e-5, abs=1e-6 * (1 + abs(fd)))
+
+
+def test_infinite_recovery_rate_is_the_full_clearance():
+    head, tail, q, T = _problem()
+    off, _, _ = _total_cost(_relaxed_cost(np.inf), head, tail, q, T)
+    full, _, _ = _total_cost(_relaxed_cost(0.4, start=False), head, tail, q, T)
+    assert not _relaxed_cost(np.inf).neighbors.radius_terms[:, 3].any()
+    assert off.swarm == full.swarm > 0
