@@ -201,23 +201,25 @@ class AutoAgent:
                 self.comm.take_over(plan, self.denied.reference(t).yaw)
             self._switch(t, COMM)
 
-    def _denied_neighbours(self, t: float) -> list[NeighborPrediction]:
-        """What the denied half plans and points its camera against at ``t`` [s]: tracks plus radio memory.
+    def _denied_neighbours(self, t: float, count: bool = True) -> list[NeighborPrediction]:
+        """What the denied half plans, maps and points its camera against at ``t`` [s]: tracks plus radio memory.
 
         The neighbours' last plans sent within ``plan_memory_s`` are fused with
         the tracks exactly as in comm mode (:func:`mpcde.neighbour_fusion.fuse_neighbours`):
         a plan whose drone is tracked gives way to the track, an untracked one
-        is kept (extrapolated at constant velocity past its horizon).
+        is kept (extrapolated at constant velocity past its horizon). ``count``:
+        tally the remembered plans used (planning calls; the map's are not).
         """
         tracks = self.perception.predictions(t)
-        if self.config.plan_memory_s <= 0:  # called by the denied half's plan_step, i.e. in denied mode only
+        if self.config.plan_memory_s <= 0:
             return tracks
         plans = self.comm.radio_predictions(t, self.config.plan_memory_s)
         if not plans:
             return tracks
         f = self.config.fusion
         fused = fuse_neighbours(plans, tracks, t, f.stale_after_s, f.gate_m, self.comm.qp_config.v_max)
-        self.remembered_plans += fused.fresh_plans + fused.stale_plans
+        if count:  # planning calls (denied mode) only; the map asks at every frame in both modes
+            self.remembered_plans += fused.fresh_plans + fused.stale_plans
         return fused.predictions
 
     def _switch(self, t: float, mode: str) -> None:

@@ -166,7 +166,8 @@ class DeniedAgent:
         self.perception, self.detector_request = onboard_perception(c.perceive_neighbours, perception_config, perception)
         self.search = PathSearchConfig()
         # where plan_step reads the neighbours from (None: this drone's tracks); the auto agent adds its radio memory
-        self.neighbour_source: Callable[[float], list[NeighborPrediction]] | None = None
+        # (t, count) -> predictions; count: whether the call is a planning use the source may tally
+        self.neighbour_source: Callable[[float, bool], list[NeighborPrediction]] | None = None
 
     # inputs ---------------------------------------------------------------
     def on_pose_estimate(self, estimate: PoseEstimate) -> None:
@@ -202,7 +203,10 @@ class DeniedAgent:
         if self.perception is not None and detections is not None:
             self.perception.update(frame, detections)
         t0 = time.perf_counter()
-        self.map.update(frame, detections or ())
+        # where it believes its neighbours are: their depth hits are not obstacles (MapConfig.neighbour_exclusion_m)
+        t = np.array([frame.time_s])
+        near = [nb.position(t)[0] for nb in self.neighbours(frame.time_s, count=False)]
+        self.map.update(frame, detections or (), np.array(near).reshape(-1, 3))
         snap = self.map.snapshot()
         self.stats.map_ms.append(1e3 * (time.perf_counter() - t0))
         return snap
@@ -225,10 +229,13 @@ class DeniedAgent:
             if not replanned and unsafe:
                 self._brake(t)
 
-    def neighbours(self, t: float) -> list[NeighborPrediction]:
-        """The neighbour predictions planned against at ``t`` [s]: ``neighbour_source``'s, else the tracks."""
+    def neighbours(self, t: float, count: bool = True) -> list[NeighborPrediction]:
+        """The neighbour predictions planned against at ``t`` [s]: ``neighbour_source``'s, else the tracks.
+
+        ``count`` False: a look that is not a planning use (the map's exclusion), not tallied by the source.
+        """
         if self.neighbour_source is not None:
-            return self.neighbour_source(t)
+            return self.neighbour_source(t, count)
         return self.perception.predictions(t) if self.perception is not None else []
 
     def outgoing(self, time_s: float) -> None:

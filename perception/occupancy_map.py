@@ -99,14 +99,30 @@ class OccupancyMap:
         self._origin_index = new_origin
         self._snapshot = None
 
-    def update(self, frame: RgbdFrame, detections: Sequence[Detection] = ()) -> None:
-        """Integrate one depth frame; pixels inside ``detections`` boxes are ignored."""
+    def update(
+        self, frame: RgbdFrame, detections: Sequence[Detection] = (), neighbours_world: np.ndarray | None = None
+    ) -> None:
+        """Integrate one depth frame.
+
+        Pixels inside ``detections`` boxes are ignored, and so are rays that hit
+        within ``config.neighbour_exclusion_m`` of a row of ``neighbours_world``
+        ((n, 3) [m], world frame: where the drone believes its neighbours are at
+        the frame time), so a neighbour the detector missed is not mapped.
+        """
         cfg = self.config
         T_wc = np.asarray(frame.transform_camera_to_world, float)
         cam_world = T_wc[:3, 3]
         self.recenter(cam_world)
         ends_cam, is_hit = self._rays_camera(frame, detections)
         ends_world = ends_cam @ T_wc[:3, :3].T + cam_world  # p_w = R_wc p_c + t_wc (MP-CDE Eq. 8)
+        if neighbours_world is not None and cfg.neighbour_exclusion_m > 0.0 and len(neighbours_world):
+            centres = np.asarray(neighbours_world, float).reshape(-1, 3)
+            r2 = cfg.neighbour_exclusion_m**2
+            on_nb = np.zeros(is_hit.shape, bool)
+            for c in centres:
+                on_nb |= np.einsum("ij,ij->i", ends_world - c, ends_world - c) < r2
+            keep = ~(is_hit & on_nb)
+            ends_world, is_hit = np.ascontiguousarray(ends_world[keep]), np.ascontiguousarray(is_hit[keep])
         origin = self.origin_world
         _integrate_rays(
             (cam_world - origin) / cfg.voxel_m,

@@ -172,6 +172,23 @@ def test_detection_box_keeps_its_voxels_from_becoming_occupied(wall_scene) -> No
     assert np.all(masked.snapshot().state_at(centres[outside]) == 1)  # the rest of the wall is still seen
 
 
+def test_hits_near_a_predicted_neighbour_are_not_mapped(wall_scene) -> None:
+    """A neighbour the detector missed (depth hits, no box) is not mapped where the drone believes it is."""
+    K, T, depth = wall_scene
+    centres = wall_voxel_centres(K, T, margin_px=8)
+    nb = np.array([X_WALL, 0.3, 1.5])  # where the drone's tracks / radio plans put a neighbour
+    near = np.linalg.norm(centres - nb, axis=1) < 0.4 - 0.5 * VOXEL_M * np.sqrt(3)  # whole voxel inside the ball
+    far = np.linalg.norm(centres - nb, axis=1) > 0.4 + VOXEL_M * np.sqrt(3)
+    assert near.sum() >= 4 and far.sum() > 50
+    excluded = OccupancyMap()
+    excluded.update(make_frame(K, T, depth), (), nb[None])
+    assert not np.any(excluded.snapshot().state_at(centres[near]) == 1)
+    assert np.all(excluded.snapshot().state_at(centres[far]) == 1)
+    off = OccupancyMap(MapConfig(neighbour_exclusion_m=0.0))
+    off.update(make_frame(K, T, depth), (), nb[None])
+    assert np.all(off.snapshot().state_at(centres[near]) == 1)
+
+
 def test_wall_that_moved_back_is_erased_after_three_frames() -> None:
     K = intrinsics()
     T = camera_pose(np.array([0.0, 0.0, 1.5]), 0.0)
@@ -239,7 +256,7 @@ def test_snapshot_is_cached_and_read_only(wall_scene) -> None:
     ("field", "value"),
     [("voxel_m", 0.05), ("window_size_m", (10.0, 10.0, 0.1)), ("pixel_stride", 0), ("log_odds_miss", 0.2),
      ("min_range_m", 20.0), ("esdf_max_m", 0.0), ("clear_invalid_m", -1.0),
-     ("invalid_neighborhood_px", -1)],
+     ("invalid_neighborhood_px", -1), ("neighbour_exclusion_m", -0.1)],
 )
 def test_map_config_rejects_bad_values(field: str, value: object) -> None:
     with pytest.raises(ValueError, match=f"^{field}="):
