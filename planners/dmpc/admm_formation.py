@@ -134,8 +134,9 @@ does this; a local QP past ``osqp_max_iter`` is used as it is and counted.
 
 Left out: coupled constraints (1f) such as minimum distances (the paper's
 Sec. 5.2 needs dSQP for them); lost or late messages (Assumption 1 is
-assumed, :func:`solve_admm_round` is the ideal network); the triple
-integrator.
+assumed here, :func:`solve_admm_round` is the ideal network;
+:mod:`mpcde.agent_admm` flies over a lossy radio with
+:meth:`AdmmFormationAgent.add_to_copy_multiplier`); the triple integrator.
 """
 
 from __future__ import annotations
@@ -355,6 +356,21 @@ class AdmmFormationAgent:
         self._zbar = zbar
         self._book_s[-1] += time.perf_counter() - t0
         self._phase = "local"
+
+    def add_to_copy_multiplier(self, j: int, delta_world: np.ndarray) -> None:
+        """gamma_i's block of the copy w_ji += ``delta_world`` (K, 3): a Step 8 (4c) term applied late.
+
+        For a lossy network (:mod:`mpcde.agent_admm`): a drone that missed
+        xbar_j^l left its copy's block out of Step 8 in iteration l (zbar = its
+        own copy there); adding rho (w_ji^l - xbar_j^l) once it learns
+        xbar_j^l restores Eq. (5) for j's trajectory. Allowed in any phase of
+        a started step (Step 3 reads gamma).
+        """
+        gamma = self._require(self._gamma, "gamma")
+        delta = np.asarray(delta_world, float)
+        if delta.shape != (self.config.horizon_steps, 3) or not np.all(np.isfinite(delta)):
+            raise ValueError(f"delta_world shape {delta.shape}: a finite ({self.config.horizon_steps}, 3)")
+        gamma[self.layout.copy(j)] += delta.ravel()
 
     def _expect(self, phase: str) -> None:
         if self._phase != phase:

@@ -1,4 +1,5 @@
-"""What the formation ADMM sends and returns: :class:`CopyMessage`, :class:`MeanMessage`, :class:`AdmmStepResult`.
+"""What the formation ADMM sends and returns: :class:`CopyMessage`, :class:`MeanMessage`, :class:`AdmmBundle`,
+:class:`AdmmStepResult`.
 
 Messages of Algorithm 2 (Stomberg et al.) between neighbours i and j, one pair
 per ADMM iteration l (paper Assumption 1: delivered, in order):
@@ -10,6 +11,11 @@ per ADMM iteration l (paper Assumption 1: delivered, in order):
 
 Both carry a (K, 3) trajectory p[1..K] in the world frame (ENU) [m], sampled at
 t + k h, k = 1..K, of the MPC step that started at t.
+
+Over a broadcast radio a drone sends one :class:`AdmmBundle` per exchange: the
+copies of one iteration for all its neighbours (Step 4), or its mean for all
+of them (Step 6); each receiver takes the message addressed to it
+(:mod:`mpcde.agent_admm`).
 """
 
 from __future__ import annotations
@@ -20,7 +26,7 @@ import numpy as np
 
 from planners.dmpc.types import DmpcPlan
 
-__all__ = ["AdmmStepResult", "CopyMessage", "MeanMessage"]
+__all__ = ["AdmmBundle", "AdmmStepResult", "CopyMessage", "MeanMessage", "MeanRecord"]
 
 
 def _frozen_trajectory(obj: object, name: str) -> None:
@@ -69,6 +75,98 @@ class MeanMessage:
 
     def __post_init__(self) -> None:
         _frozen_trajectory(self, "pos_world")
+
+
+@dataclass(frozen=True)
+class MeanRecord:
+    """A mean an owner sent earlier, repeated in its later bundles for holders that missed it.
+
+    Attributes:
+        step_index: s, the MPC step of the mean.
+        iteration: its ADMM iteration (1-based within the step).
+        pos_world: (K, 3) xbar_j [m], world frame.
+        averaged: ids of the neighbours whose copies went into it (the others' were lost).
+    """
+
+    step_index: int
+    iteration: int
+    pos_world: np.ndarray
+    averaged: tuple[int, ...]
+
+    def __post_init__(self) -> None:
+        _frozen_trajectory(self, "pos_world")
+        object.__setattr__(self, "averaged", tuple(int(j) for j in self.averaged))
+
+
+@dataclass(frozen=True)
+class AdmmBundle:
+    """One drone's broadcast in one exchange of Algorithm 2: its copies (Step 4) or its means (Step 6).
+
+    Exactly one of ``copies`` and ``means`` is non-empty; every message in it
+    is from ``sender_id``, of ``iteration``, and addressed to a different
+    neighbour. A bundle of means also says whose copies its mean averaged
+    and repeats the sender's earlier means (for a lossy radio: a holder whose
+    copy was not averaged, or that missed a mean, adjusts its multipliers,
+    :mod:`mpcde.agent_admm`).
+
+    Attributes:
+        sender_id: the broadcasting drone i.
+        step_index: s, the MPC step the messages belong to (it started at s h).
+        iteration: ADMM iteration l + 1 of the messages (1-based within the step).
+        copies: one :class:`CopyMessage` w_ji per neighbour j (Step 4).
+        means: one :class:`MeanMessage` xbar_i per neighbour j (Step 6; the
+            same trajectory for every receiver).
+        averaged: with ``means``: the neighbours whose copies xbar_i averages.
+        history: with ``means``: the sender's means of earlier iterations
+            (the most recent first), which a receiver may have missed.
+    """
+
+    sender_id: int
+    step_index: int
+    iteration: int
+    copies: tuple[CopyMessage, ...] = ()
+    means: tuple[MeanMessage, ...] = ()
+    averaged: tuple[int, ...] = ()
+    history: tuple[MeanRecord, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name in ("copies", "means", "history"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        object.__setattr__(self, "averaged", tuple(int(j) for j in self.averaged))
+        if bool(self.copies) == bool(self.means):
+            raise ValueError(f"AdmmBundle of drone {self.sender_id}: either copies or means, not both or neither")
+        if self.copies and (self.averaged or self.history):
+            raise ValueError(f"AdmmBundle of drone {self.sender_id}: averaged and history go with means only")
+        receivers = [m.receiver for m in self.messages]
+        if len(set(receivers)) != len(receivers):
+            raise ValueError(f"AdmmBundle of drone {self.sender_id}: two messages for one receiver {receivers}")
+        for m in self.messages:
+            if m.sender != self.sender_id or m.iteration != self.iteration:
+                raise ValueError(
+                    f"AdmmBundle of drone {self.sender_id}, iteration {self.iteration}: holds a message of drone "
+                    f"{m.sender}, iteration {m.iteration}"
+                )
+
+    @property
+    def kind(self) -> str:
+        """``"copies"`` or ``"means"``."""
+        return "copies" if self.copies else "means"
+
+    @property
+    def messages(self) -> tuple[CopyMessage, ...] | tuple[MeanMessage, ...]:
+        """The copies or the means, whichever the bundle holds."""
+        return self.copies or self.means
+
+    def message_for(self, receiver: int) -> CopyMessage | MeanMessage | None:
+        """The message addressed to ``receiver``, or None."""
+        return next((m for m in self.messages if m.receiver == receiver), None)
+
+    def mean_records(self) -> tuple[MeanRecord, ...]:
+        """Every mean the bundle carries as a :class:`MeanRecord`: its own (first), then the history."""
+        if not self.means:
+            return ()
+        own = MeanRecord(self.step_index, self.iteration, self.means[0].pos_world, self.averaged)
+        return (own, *self.history)
 
 
 @dataclass(frozen=True)
