@@ -61,7 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="onboard stack, overriding the file's planner.kind: placeholder (blind straight line), "
         "denied (MP-CDE: own map, tracks, active yaw, MINCO), comm (DMPC on radio plans), "
         "auto (DMPC, falling back to tracks and to MP-CDE when the radio fails), "
-        "mlr (MLR-DMPC: compute units on the first drones, message-loss recovery; no obstacles)",
+        "mlr (MLR-DMPC: compute units on the first drones, message-loss recovery; no obstacles), "
+        "admm (formation DMPC by ADMM across neighbours, the goals are the formation; radio at 2 l_max / h; "
+        "no obstacles)",
     )
     fly.add_argument("--video", action="store_true", help="also write video.mp4 (top view beside each camera)")
     fly.add_argument("--no-cameras", action="store_true", help="do not render cameras (faster; no video tiles)")
@@ -152,12 +154,10 @@ def _cmd_fly(args: argparse.Namespace) -> int:
         overrides["seed"] = args.seed
     if args.duration is not None:
         overrides["duration_s"] = args.duration
-    cfg = load_scenario(args.scenario, overrides)
+    # the mode replaces planner.kind before the checks (what a kind derives starts from the file's values)
+    cfg = load_scenario(args.scenario, overrides, planner_kind=None if args.mode is None else MODES[args.mode])
     from dataclasses import replace
 
-    if args.mode is not None:
-        cfg = replace(cfg, planner=replace(cfg.planner, kind=MODES[args.mode]))
-        cfg.__post_init__()  # re-check cross-field rules for the new kind
     if args.no_cameras:
         cfg = replace(cfg, run=replace(cfg.run, cameras=False))
     if args.video and not cfg.run.cameras:

@@ -256,8 +256,7 @@ def _prepare_all(scenario: str, modes: tuple[str, ...], seeds: tuple[int, ...], 
         if duration_s is not None:
             overrides["duration_s"] = float(duration_s)
         for mode in modes:
-            cfg = load_scenario(scenario, overrides)
-            cfg = replace(cfg, planner=replace(cfg.planner, kind=MODES[mode]))  # re-runs the cross-field checks
+            cfg = load_scenario(scenario, overrides, planner_kind=MODES[mode])  # the kind before the checks
             prepared[(mode, seed)] = prepare_run(cfg)
     return prepared
 

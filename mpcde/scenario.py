@@ -8,12 +8,13 @@ pose estimate, physics) so there is one definition of each field.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal, get_args
 
 import numpy as np
 
+from mpcde.agent_admm_config import AdmmAgentConfig
 from mpcde.agent_auto import AutoAgentConfig
 from mpcde.agent_denied import DeniedAgentConfig
 from mpcde.agent_dmpc import DmpcAgentConfig
@@ -135,7 +136,7 @@ class DronesConfig:
             raise ConfigError("altitude_m", self.altitude_m, "in [0.3, 20] m")
 
 
-PlannerKind = Literal["min_jerk_line", "mpcde", "dmpc", "auto", "mlr"]
+PlannerKind = Literal["min_jerk_line", "mpcde", "dmpc", "auto", "mlr", "admm"]
 
 
 @dataclass(frozen=True)
@@ -154,7 +155,11 @@ class PlannerConfig:
             in ``auto``, ``dmpc`` and ``denied``; :mod:`mpcde.agent_auto`), or
             ``"mlr"``, MLR-DMPC (DMPC-Swarm: compute units hosted by the first
             drones, message-loss recovery; settings in ``mlr``; obstacle-free
-            scenarios only; :mod:`mpcde.agent_mlr`).
+            scenarios only; :mod:`mpcde.agent_mlr`), or ``"admm"``, the
+            cooperative formation DMPC solved by ADMM across neighbours
+            (Stomberg et al.; the goals are the formation; settings in
+            ``admm``; obstacle-free scenarios whose drones start in formation;
+            the radio runs at the ADMM exchange rate; :mod:`mpcde.agent_admm`).
         cruise_speed_mps: peak speed along the line [m/s] (MP-CDE flights: 1 m/s).
         start_delay_s: hover time before departure [s].
     """
@@ -220,6 +225,10 @@ class ScenarioConfig:
         dmpc: the DMPC (communicating) agent's settings.
         auto: the ``auto`` agent's mode switch and plan/track fusion.
         mlr: the MLR-DMPC agent's settings.
+        admm: the ADMM formation DMPC agent's settings. With ``planner.kind:
+            admm`` and ``admm.radio_rate_from_step`` (default) the scenario's
+            ``radio.rate_hz`` becomes ``2 admm.l_max / admm.step_s`` (the
+            resolved config, written to the run folder, shows it).
         run: simulation options.
     """
 
@@ -238,6 +247,7 @@ class ScenarioConfig:
     dmpc: DmpcAgentConfig = field(default_factory=DmpcAgentConfig)
     auto: AutoAgentConfig = field(default_factory=AutoAgentConfig)
     mlr: MlrAgentConfig = field(default_factory=MlrAgentConfig)
+    admm: AdmmAgentConfig = field(default_factory=AdmmAgentConfig)
     run: RunOptions = field(default_factory=RunOptions)
 
     def __post_init__(self) -> None:
@@ -252,6 +262,10 @@ class ScenarioConfig:
             raise ConfigError("dmpc.qp.step_s", self.dmpc.qp.step_s, f"must equal 1 / radio.rate_hz = {1.0 / self.radio.rate_hz:g} s (one DMPC round per step)")
         if self.planner.kind == "mlr":
             _check_mlr(self)
+        if self.planner.kind == "admm":
+            if self.admm.radio_rate_from_step:  # one radio sub-round per ADMM exchange
+                object.__setattr__(self, "radio", replace(self.radio, rate_hz=self.admm.radio_rate_hz))
+            _check_admm(self)
 
 
 def _check_mlr(cfg: ScenarioConfig) -> None:
@@ -279,6 +293,52 @@ def _check_mlr(cfg: ScenarioConfig) -> None:
             box = f"[{', '.join(f'{v:g}' for v in lo)}] to [{', '.join(f'{v:g}' for v in hi)}] m"
             allowed = f"inside MLR-DMPC's flying box {box} (the arena less mlr.arena_margin_m, mlr.altitude_range_m)"
             raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], allowed)
+
+
+def _check_admm(cfg: ScenarioConfig) -> None:
+    """The cross-field rules of ``planner.kind: admm`` (:mod:`mpcde.agent_admm`); raises ConfigError."""
+    admm, radio, world = cfg.admm, cfg.radio, cfg.world
+    if abs(radio.rate_hz * admm.step_s - admm.rounds_per_step) > 1e-6:
+        allowed = (
+            f"must equal 2 x admm.l_max / admm.step_s = {admm.radio_rate_hz:g} Hz for planner.kind 'admm' (one "
+            "radio sub-round per ADMM exchange), or set admm.radio_rate_from_step: true"
+        )
+        raise ConfigError("radio.rate_hz", radio.rate_hz, allowed)
+    if not radio.delay_s < admm.sub_round_s:
+        allowed = f"< one ADMM sub-round admm.step_s / (2 admm.l_max) = {admm.sub_round_s:g} s for planner.kind 'admm'"
+        raise ConfigError("radio.delay_s", radio.delay_s, allowed)
+    if cfg.physics.physics_hz < radio.rate_hz - 1e-9:
+        allowed = f">= the ADMM radio rate {radio.rate_hz:g} Hz for planner.kind 'admm' (a tick per sub-round)"
+        raise ConfigError("physics.physics_hz", cfg.physics.physics_hz, allowed)
+    why = "the ADMM formation OCP has no obstacle constraints; fly obstacles with planner.kind 'dmpc' (--mode comm)"
+    if world.obstacles:
+        raise ConfigError("world.obstacles", [o.kind for o in world.obstacles], f"none for planner.kind 'admm': {why}")
+    if world.obstacle_density_per_100m2 > 0:
+        density = world.obstacle_density_per_100m2
+        raise ConfigError("world.obstacle_density_per_100m2", density, f"0 for planner.kind 'admm': {why}")
+    if cfg.planner.cruise_speed_mps > admm.v_max:
+        allowed = f"<= admm.v_max = {admm.v_max:g} m/s for planner.kind 'admm' (the own reference's speed)"
+        raise ConfigError("planner.cruise_speed_mps", cfg.planner.cruise_speed_mps, allowed)
+    starts, goals = build_layout(cfg.drones)
+    planner = admm.planner_config(cfg.world.arena_size_m)  # the soft position box fits the arena
+    lo, hi = np.asarray(planner.pos_min_world), np.asarray(planner.pos_max_world)
+    for name, pts in (("drones.starts", starts), ("drones.goals", goals)):
+        outside = np.flatnonzero(np.any((pts < lo) | (pts > hi), axis=1))
+        if outside.size:
+            i = int(outside[0])
+            box = f"[{', '.join(f'{v:g}' for v in lo)}] to [{', '.join(f'{v:g}' for v in hi)}] m"
+            allowed = f"inside the ADMM position box {box} (the arena less admm.arena_margin_m, admm.altitude_range_m)"
+            raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], allowed)
+    # no collision avoidance: the drones must start in the goals' formation (moved to the starts' centroid)
+    slots = goals - goals.mean(axis=0) + starts.mean(axis=0)
+    offset = np.linalg.norm(starts - slots, axis=1)
+    if np.any(offset > admm.max_start_offset_m):
+        i = int(np.argmax(offset))
+        allowed = (
+            f"within admm.max_start_offset_m = {admm.max_start_offset_m:g} m of its slot in the goals' formation "
+            f"({offset[i]:.2f} m off) for planner.kind 'admm': it has no collision avoidance"
+        )
+        raise ConfigError(f"drones.starts[{i}]", [round(float(v), 3) for v in starts[i]], allowed)
 
 
 def build_layout(drones: DronesConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -327,12 +387,17 @@ def check_layout(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray, obs
             raise ConfigError(f"{name}[{j}]", [round(float(v), 3) for v in pts[j]], f"closer than the safety distance {2 * r + 0.1:.2f} m to {name}[{i}]")
 
 
-def load_scenario(path_or_name: str | Path, overrides: dict | None = None) -> ScenarioConfig:
+def load_scenario(
+    path_or_name: str | Path, overrides: dict | None = None, planner_kind: str | None = None
+) -> ScenarioConfig:
     """Read a scenario file (or the name of a built-in one in ``data/scenarios``).
 
     Args:
         path_or_name: a YAML path, or a built-in name such as ``"crossing"``.
         overrides: top-level fields replacing the file's (e.g. ``{"seed": 3}``).
+        planner_kind: replaces the file's ``planner.kind`` before the scenario
+            is checked (``--mode``), so that whatever a kind derives (the
+            ``admm`` radio rate) starts from the file's own values.
     """
     p = Path(path_or_name)
     if not p.exists() and (SCENARIO_DIR / f"{path_or_name}.yaml").exists():
@@ -346,5 +411,10 @@ def load_scenario(path_or_name: str | Path, overrides: dict | None = None) -> Sc
     if not isinstance(data, dict):
         raise ConfigError("scenario", str(p), "must be a YAML mapping of fields")
     data = {**data, **(overrides or {})}
+    if planner_kind is not None:
+        planner = data.get("planner")
+        planner = planner if isinstance(planner, dict) else ({} if planner is None else planner)
+        if isinstance(planner, dict):  # anything else: from_dict names it
+            data["planner"] = {**planner, "kind": planner_kind}
     data.setdefault("name", p.stem)
     return from_dict(ScenarioConfig, data)
