@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from mpcde.agent import Agent, OnboardAgent
+from mpcde.agent_admm import AdmmAgent
 from mpcde.agent_auto import AutoAgent
 from mpcde.agent_denied import DeniedAgent
 from mpcde.agent_dmpc import DmpcAgent, DmpcAgentConfig
@@ -27,8 +28,8 @@ def make_agent(cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obst
     """The onboard agent of drone ``drone_id``.
 
     Args:
-        goals_world: (N, 3) every drone's goal [m] (the mission; a DMPC
-            formation takes its offsets from them).
+        goals_world: (N, 3) every drone's goal [m] (the mission; a DMPC or
+            ADMM formation takes its offsets from them).
         obstacles: the static obstacles, given only to the DMPC agent as its
             prior map (the on-demand DMPC paper assumes known obstacles); the
             other stacks map with their cameras.
@@ -40,6 +41,9 @@ def make_agent(cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obst
     if kind == "mlr":  # MLR-DMPC does not perceive: no detector, no tracks
         mlr = cfg.mlr.planner_config(len(goals_world), cfg.world.arena_size_m)
         return MlrAgent(drone_id, goals_world, mlr, cfg.planner.start_delay_s, cfg.mlr.ignore_message_loss)
+    if kind == "admm":  # the ADMM formation DMPC does not perceive either; the goals are its formation
+        p = cfg.planner
+        return AdmmAgent(drone_id, goals_world, cfg.admm, cfg.world.arena_size_m, p.start_delay_s, p.cruise_speed_mps)
     # back-projection uncertainty includes the drone's own localisation noise (what its VIO reports)
     pe, pc = cfg.pose_estimate, cfg.perception
     bp = replace(pc.backprojection, pose_pos_std_m=pe.pos_noise_m, pose_yaw_std_rad=pe.yaw_noise_rad)
