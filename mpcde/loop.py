@@ -27,7 +27,7 @@ from typing import Any, Callable
 import numpy as np
 
 from mpcde.agents import make_agent
-from mpcde.metrics import MetricsAccumulator
+from mpcde.metrics import MetricsAccumulator, formation_metrics
 from mpcde.onboard_detection import BatchedDetector
 from mpcde.scenario import ScenarioConfig, build_layout, check_layout, resolve_obstacles
 from mpcde.tracking_score import TrackingScore
@@ -218,11 +218,19 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
         "frames_received": int(sum(a.counters.frames for a in agents)),
     }
     extra.update(track_score.result())
+    if _flies_formation(cfg):
+        extra.update(formation_metrics(log.arrays["pos_world"], goals))
     agent_metrics = [a.extra_metrics() for a in agents if hasattr(a, "extra_metrics")]
     if agent_metrics:
         extra["agents"] = agent_metrics
     result = metrics.result(wall, truth.failed, extra)
     return RunResult(cfg, prepared.obstacles, starts, goals, result, log)
+
+
+def _flies_formation(cfg: ScenarioConfig) -> bool:
+    """Whether the planner keeps the goals' formation (then the metrics report chi)."""
+    kind = cfg.planner.kind
+    return kind == "admm" or (kind in ("dmpc", "auto") and cfg.dmpc.formation_from_goals)
 
 
 def _detect(detector: BatchedDetector | None, frames: list[RgbdFrame], agents: list, failed: np.ndarray) -> list:

@@ -13,6 +13,10 @@ Accumulated every physics tick from :class:`sim.ground_truth.TrueState`:
 * path length, mean speed and mean acceleration magnitude (averaged over
   drones, from the true state);
 * real-time factor = simulated time / wall time of the loop.
+
+:func:`formation_metrics` adds the formation error chi(k) of a flight that
+keeps the goals' formation (DMPC with ``formation_from_goals``, ADMM), from
+the state log.
 """
 
 from __future__ import annotations
@@ -21,10 +25,35 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from planners.dmpc.formation_graph import FormationGraph, complete_edges, formation_error
 from sim.ground_truth import TrueState, pairwise_distances
 from sim.obstacles import ObstacleField, ObstacleSpec
 
-__all__ = ["MetricsAccumulator"]
+__all__ = ["MetricsAccumulator", "formation_metrics"]
+
+
+def formation_metrics(pos_world: np.ndarray, goals_world: np.ndarray) -> dict[str, float | None]:
+    """Formation error of a flight that keeps the formation its goals form (true positions).
+
+    chi(k) = sqrt( (1/E) sum_{i<j} ||(p_i(k) - p_j(k)) - (g_i - g_j)||^2 ) [m] over every pair of drones
+    (:func:`planners.dmpc.formation_graph.formation_error` on the complete graph of the goals), so the
+    same for every planner and coupling graph; 0 for the goals' shape anywhere, translated.
+
+    Args:
+        pos_world: (T, N, 3) true positions of the state log [m].
+        goals_world: (N, 3) goals [m].
+
+    Returns:
+        ``formation_error_final_m`` (the last sample), ``formation_error_mean_m`` and
+        ``formation_error_max_m`` (over the log); None without samples or with one drone.
+    """
+    goals = np.asarray(goals_world, float)
+    pos = np.asarray(pos_world, float)
+    keys = ("formation_error_final_m", "formation_error_mean_m", "formation_error_max_m")
+    if goals.shape[0] < 2 or pos.ndim != 3 or pos.shape[0] == 0:
+        return dict.fromkeys(keys)
+    chi = formation_error(pos, FormationGraph(goals - goals.mean(axis=0), complete_edges(goals.shape[0])))
+    return dict(zip(keys, (float(chi[-1]), float(chi.mean()), float(chi.max()))))
 
 
 class MetricsAccumulator:
