@@ -56,6 +56,23 @@ def _total_cost(cost: TrajectoryCost, head, tail, q, T):
     return terms, gq, gt
 
 
+def _assert_gradients_match_finite_differences(cost, head, tail, q, T, gq, gt, h: float = 1e-6) -> None:
+    """Central differences of the total penalty by every inner point coordinate and duration."""
+    for i in range(q.shape[0]):
+        for d in range(3):
+            qp, qm = q.copy(), q.copy()
+            qp[i, d] += h
+            qm[i, d] -= h
+            fd = (_total_cost(cost, head, tail, qp, T)[0].total - _total_cost(cost, head, tail, qm, T)[0].total) / (2 * h)
+            assert gq[i, d] == pytest.approx(fd, rel=1e-5, abs=1e-6 * (1 + abs(fd)))
+    for i in range(T.size):
+        Tp, Tm = T.copy(), T.copy()
+        Tp[i] += h
+        Tm[i] -= h
+        fd = (_total_cost(cost, head, tail, q, Tp)[0].total - _total_cost(cost, head, tail, q, Tm)[0].total) / (2 * h)
+        assert gt[i] == pytest.approx(fd, rel=1e-5, abs=1e-6 * (1 + abs(fd)))
+
+
 @pytest.fixture
 def cost():
     params = PenaltyParameters(v_max_mps=1.5, a_max_mps2=2.0, samples_per_piece=8, max_uncertainty_inflation_m=5.0)
@@ -94,20 +111,7 @@ def test_each_penalty_gradient_matches_finite_differences(term):
     head, tail, q, T = _problem()
     terms, gq, gt = _total_cost(cost, head, tail, q, T)
     assert getattr(terms, term) > 1e-6
-    h = 1e-6
-    for i in range(q.shape[0]):
-        for d in range(3):
-            qp, qm = q.copy(), q.copy()
-            qp[i, d] += h
-            qm[i, d] -= h
-            fd = (_total_cost(cost, head, tail, qp, T)[0].total - _total_cost(cost, head, tail, qm, T)[0].total) / (2 * h)
-            assert gq[i, d] == pytest.approx(fd, rel=1e-5, abs=1e-6 * (1 + abs(fd)))
-    for i in range(T.size):
-        Tp, Tm = T.copy(), T.copy()
-        Tp[i] += h
-        Tm[i] -= h
-        fd = (_total_cost(cost, head, tail, q, Tp)[0].total - _total_cost(cost, head, tail, q, Tm)[0].total) / (2 * h)
-        assert gt[i] == pytest.approx(fd, rel=1e-5, abs=1e-6 * (1 + abs(fd)))
+    _assert_gradients_match_finite_differences(cost, head, tail, q, T, gq, gt)
 
 
 def test_penalty_values_match_a_brute_force_trapezoid(cost):
@@ -258,20 +262,7 @@ def test_relaxed_clearance_gradient_matches_finite_differences():
     head, tail, q, T = _problem()
     terms, gq, gt = _total_cost(cost, head, tail, q, T)
     assert terms.swarm > 1e-6
-    h = 1e-6
-    for i in range(q.shape[0]):
-        for d in range(3):
-            qp, qm = q.copy(), q.copy()
-            qp[i, d] += h
-            qm[i, d] -= h
-            fd = (_total_cost(cost, head, tail, qp, T)[0].total - _total_cost(cost, head, tail, qm, T)[0].total) / (2 * h)
-            assert gq[i, d] == pytest.approx(fd, rel=1e-5, abs=1e-6 * (1 + abs(fd)))
-    for i in range(T.size):
-        Tp, Tm = T.copy(), T.copy()
-        Tp[i] += h
-        Tm[i] -= h
-        fd = (_total_cost(cost, head, tail, q, Tp)[0].total - _total_cost(cost, head, tail, q, Tm)[0].total) / (2 * h)
-        assert gt[i] == pytest.approx(fd, rel=1e-5, abs=1e-6 * (1 + abs(fd)))
+    _assert_gradients_match_finite_differences(cost, head, tail, q, T, gq, gt)
 
 
 def test_infinite_recovery_rate_is_the_full_clearance():
