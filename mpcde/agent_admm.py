@@ -34,7 +34,8 @@ over :mod:`sim.radio`. Choices:
   the step started from the plan's state. Before the first plan (at h) the
   reference is a hover at the start.
 * **State.** A step starts from the pose estimate extrapolated to s h, or
-  from the own plan's state at s h while the estimate agrees with it within
+  from the reference's state at s h (the own plan's, or the start hover
+  before the first) while the estimate agrees with it within
   ``state_tolerance_m`` / ``state_tolerance_mps`` (as the DMPC agent, so that
   estimate noise does not jolt every plan).
 * **Own reference r_i.** A straight line from the start (the first pose
@@ -67,8 +68,11 @@ never decays: with 20 % loss the formation stopped 0.8 m short of its goals.
    repeats j's means of the last l_max iterations; when one arrives with
    xbar_j^l, the holder adds the Step 8 term it skipped,
    rho (w_ji^l - xbar_j^l) (shifted one step if it came in the next MPC step,
-   as the warm start shifts gamma), and the sum is zero again. Missed means
-   not repaired within that window are counted (``unresolved_means``).
+   as the warm start shifts gamma), and the sum is zero again. A bundle whose
+   repeats span iteration l without xbar_j^l tells that j never computed it
+   (its step was aborted): then no term is due, as j skipped its Step 8 too.
+   Missed means not resolved within that window are counted
+   (``unresolved_means``: each may leave one term of Eq. (5) off).
 3. A message of an earlier sub-round (late) is not used as its iteration's
    message (counted ``late_messages``); a late means bundle still repairs.
 
@@ -123,8 +127,10 @@ class AdmmRoundStats:
         means_received: neighbours' means received in their sub-round.
         means_missing: expected means that did not come (Step 8 skipped on that copy).
         not_averaged: means received that left this drone's copy out (its copy was lost).
-        repaired_means: missed means whose Step 8 term was added late (rule 2).
-        unresolved_means: missed means never heard of within the window.
+        resolved_means: missed means resolved from a later bundle of their owner
+            (rule 2): the skipped Step 8 term added, or none due (the mean left
+            this drone's copy out, or was never computed).
+        unresolved_means: missed means not resolved within the window.
         late_messages: bundles addressed to this drone that came after their sub-round.
         state_resets: steps started from the estimate because it disagreed with the plan.
         max_reference_jump_m: largest jump of the reference when a new plan took over [m].
@@ -146,7 +152,7 @@ class AdmmRoundStats:
     means_received: int = 0
     means_missing: int = 0
     not_averaged: int = 0
-    repaired_means: int = 0
+    resolved_means: int = 0
     unresolved_means: int = 0
     late_messages: int = 0
     state_resets: int = 0
@@ -335,17 +341,23 @@ class AdmmAgent:
         """Rule 2: the Step 8 terms of missed means that a bundle now repeats."""
         if not self._pending:
             return
-        K, rho = self.config.horizon_steps, self.config.rho
+        K, rho, l_max = self.config.horizon_steps, self.config.rho, self.config.l_max
         for b in inbox:
-            for rec in b.mean_records():
-                w = self._pending.pop((b.sender_id, rec.step_index, rec.iteration), None)
-                if w is None:
-                    continue
-                self.stats.repaired_means += 1
-                if self.drone_id not in rec.averaged:
-                    continue  # the mean left this copy out: no Step 8 term was due
+            if b.kind != "means":
+                continue
+            records = {(rec.step_index, rec.iteration): rec for rec in b.mean_records()}
+            latest = b.step_index * l_max + b.iteration - 1  # iterations counted over the steps
+            for key in [k for k in self._pending if k[0] == b.sender_id]:
+                _, s, it = key
+                rec = records.get((s, it))
+                if rec is None and not latest - l_max <= s * l_max + it - 1 < latest:
+                    continue  # not covered by this bundle's repeats
+                w = self._pending.pop(key)
+                self.stats.resolved_means += 1
+                if rec is None or self.drone_id not in rec.averaged:
+                    continue  # never computed, or it left this copy out: no Step 8 term was due
                 delta = rho * (w - rec.pos_world)  # gamma += rho (w_ji^l - xbar_j^l)   (4c)
-                if rec.step_index == self._step - 1:  # the warm start has shifted gamma since
+                if s == self._step - 1:  # the warm start has shifted gamma since
                     delta = shift_trajectory(delta.ravel(), extrapolate=False).reshape(K, 3)
                 self.admm.add_to_copy_multiplier(b.sender_id, delta)
 
@@ -359,14 +371,17 @@ class AdmmAgent:
         return k if abs(u - k) < 1e-6 and 0 <= k <= self.config.horizon_steps else None
 
     def _state(self, t0_s: float) -> np.ndarray:
-        """x_i(t0) (6,) [p m, v m/s]: the estimate extrapolated to ``t0_s``, or the plan's state if they agree."""
+        """x_i(t0) (6,) [p m, v m/s]: the estimate extrapolated to ``t0_s``, or the reference's state if they agree.
+
+        Before the first plan the reference is the hover at the start.
+        """
         est = self.latest_estimate
         pos = np.asarray(est.pos_world, float) + np.asarray(est.vel_world, float) * (t0_s - est.time_s)
         vel = np.asarray(est.vel_world, float)
-        if self.plan is None:
-            return np.r_[pos, vel]
         k = self._plan_knot(t0_s)
-        if k is not None:
+        if self.plan is None:
+            plan_pos, plan_vel = self.start_world, np.zeros(3)
+        elif k is not None:
             plan_pos, plan_vel = self.plan.pos_world[k], self.plan.vel_world[k]
         else:
             plan_pos, plan_vel, _ = self._sampler.sample(t0_s)
@@ -456,7 +471,7 @@ class AdmmAgent:
             "copies_missing": s.copies_missing,
             "means_missing": s.means_missing,
             "not_averaged": s.not_averaged,
-            "repaired_means": s.repaired_means,
+            "resolved_means": s.resolved_means,
             "unresolved_means": s.unresolved_means,
             "late_messages": s.late_messages,
             "state_resets": s.state_resets,
