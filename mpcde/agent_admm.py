@@ -75,6 +75,9 @@ never decays: with 20 % loss the formation stopped 0.8 m short of its goals.
    (``unresolved_means``: each may leave one term of Eq. (5) off).
 3. A message of an earlier sub-round (late) is not used as its iteration's
    message (counted ``late_messages``); a late means bundle still repairs.
+   The scenario check keeps ``radio.delay_s`` below a sub-round, but rounds
+   fire on physics ticks (at 240 Hz a 50 Hz sub-round is 4 or 5 ticks), so a
+   delay above 4 ticks (16.7 ms) makes some messages late.
 
 A local QP that OSQP fails on ends the drone's step (``qp_failures``); it
 keeps flying its last plan and starts afresh in the next step, its
@@ -82,7 +85,18 @@ neighbours treating its silence as lost messages.
 
 No collision avoidance and no obstacles: the OCP has neither, so the scenario
 check refuses obstacles and starts that are not in the goals' formation
-(:func:`mpcde.scenario.ScenarioConfig`).
+(:class:`mpcde.scenario.ScenarioConfig`).
+
+Measured on ``formation_open`` (four drones, a 1.6 m square from starts
+scattered by up to 0.36 m, 10 m at 1 m/s; cameras off), seed 0: the
+formation error chi is 5 cm after 1.05 s, 8-14 mm while cruising (the OCP's
+balance of the formation term against each drone's own line, which starts
+off the formation) and 0.3 mm at the end; all arrive in 10.48 s, min
+distance 1.298 m. The same with 20 % Bernoulli loss (750 copies and 701
+means missed, 700 resolved), 50 % (71 of 1778 missed means unresolved,
+chi 1.3 mm at the end, 10.51 s), Gilbert-Elliott loss, a 2 s jamming
+window, an 18 ms delay (1368 late messages): no collision, no aborted step.
+DMPC (``--mode comm``, 5 Hz) on the same file: 7.93 s, chi 0.6 mm at the end.
 """
 
 from __future__ import annotations
