@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Literal, get_args
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -268,6 +268,28 @@ class ScenarioConfig:
             _check_admm(self)
 
 
+def _refuse_obstacles(world: WorldConfig, kind: str, why: str) -> None:
+    """ConfigError if the world has static obstacles: planner.kind ``kind`` cannot avoid them (``why``)."""
+    why = f"{why}; fly obstacles with planner.kind 'dmpc' (--mode comm)"
+    if world.obstacles:
+        raise ConfigError("world.obstacles", [o.kind for o in world.obstacles], f"none for planner.kind {kind!r}: {why}")
+    if world.obstacle_density_per_100m2 > 0:
+        density = world.obstacle_density_per_100m2
+        raise ConfigError("world.obstacle_density_per_100m2", density, f"0 for planner.kind {kind!r}: {why}")
+
+
+def _require_inside_box(starts: np.ndarray, goals: np.ndarray, planner: Any, box_name: str, section: str) -> None:
+    """ConfigError naming the first start or goal (n, 3) [m] outside ``planner``'s pos_min_world..pos_max_world."""
+    lo, hi = np.asarray(planner.pos_min_world), np.asarray(planner.pos_max_world)
+    for name, pts in (("drones.starts", starts), ("drones.goals", goals)):
+        outside = np.flatnonzero(np.any((pts < lo) | (pts > hi), axis=1))
+        if outside.size:
+            i = int(outside[0])
+            box = f"[{', '.join(f'{v:g}' for v in lo)}] to [{', '.join(f'{v:g}' for v in hi)}] m"
+            allowed = f"inside {box_name} {box} (the arena less {section}.arena_margin_m, {section}.altitude_range_m)"
+            raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], allowed)
+
+
 def _check_mlr(cfg: ScenarioConfig) -> None:
     """The cross-field rules of ``planner.kind: mlr`` (:mod:`mpcde.agent_mlr`); raises ConfigError."""
     mlr, radio, world = cfg.mlr, cfg.radio, cfg.world
@@ -277,22 +299,10 @@ def _check_mlr(cfg: ScenarioConfig) -> None:
     if not radio.delay_s < mlr.round_s:
         allowed = f"< mlr.round_s = {mlr.round_s:g} s for planner.kind 'mlr' (messages are read in the next round)"
         raise ConfigError("radio.delay_s", radio.delay_s, allowed)
-    why = "MLR-DMPC has no obstacle constraints; fly obstacles with planner.kind 'dmpc' (--mode comm)"
-    if world.obstacles:
-        raise ConfigError("world.obstacles", [o.kind for o in world.obstacles], f"none for planner.kind 'mlr': {why}")
-    if world.obstacle_density_per_100m2 > 0:
-        density = world.obstacle_density_per_100m2
-        raise ConfigError("world.obstacle_density_per_100m2", density, f"0 for planner.kind 'mlr': {why}")
+    _refuse_obstacles(world, "mlr", "MLR-DMPC has no obstacle constraints")
     starts, goals = build_layout(cfg.drones)
     planner = mlr.planner_config(len(starts), world.arena_size_m)  # M < N and the flying box
-    lo, hi = np.asarray(planner.pos_min_world), np.asarray(planner.pos_max_world)
-    for name, pts in (("drones.starts", starts), ("drones.goals", goals)):
-        outside = np.flatnonzero(np.any((pts < lo) | (pts > hi), axis=1))
-        if outside.size:
-            i = int(outside[0])
-            box = f"[{', '.join(f'{v:g}' for v in lo)}] to [{', '.join(f'{v:g}' for v in hi)}] m"
-            allowed = f"inside MLR-DMPC's flying box {box} (the arena less mlr.arena_margin_m, mlr.altitude_range_m)"
-            raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], allowed)
+    _require_inside_box(starts, goals, planner, "MLR-DMPC's flying box", "mlr")
 
 
 def _check_admm(cfg: ScenarioConfig) -> None:
@@ -310,25 +320,13 @@ def _check_admm(cfg: ScenarioConfig) -> None:
     if cfg.physics.physics_hz < radio.rate_hz - 1e-9:
         allowed = f">= the ADMM radio rate {radio.rate_hz:g} Hz for planner.kind 'admm' (a tick per sub-round)"
         raise ConfigError("physics.physics_hz", cfg.physics.physics_hz, allowed)
-    why = "the ADMM formation OCP has no obstacle constraints; fly obstacles with planner.kind 'dmpc' (--mode comm)"
-    if world.obstacles:
-        raise ConfigError("world.obstacles", [o.kind for o in world.obstacles], f"none for planner.kind 'admm': {why}")
-    if world.obstacle_density_per_100m2 > 0:
-        density = world.obstacle_density_per_100m2
-        raise ConfigError("world.obstacle_density_per_100m2", density, f"0 for planner.kind 'admm': {why}")
+    _refuse_obstacles(world, "admm", "the ADMM formation OCP has no obstacle constraints")
     if cfg.planner.cruise_speed_mps > admm.v_max:
         allowed = f"<= admm.v_max = {admm.v_max:g} m/s for planner.kind 'admm' (the own reference's speed)"
         raise ConfigError("planner.cruise_speed_mps", cfg.planner.cruise_speed_mps, allowed)
     starts, goals = build_layout(cfg.drones)
     planner = admm.planner_config(cfg.world.arena_size_m)  # the soft position box fits the arena
-    lo, hi = np.asarray(planner.pos_min_world), np.asarray(planner.pos_max_world)
-    for name, pts in (("drones.starts", starts), ("drones.goals", goals)):
-        outside = np.flatnonzero(np.any((pts < lo) | (pts > hi), axis=1))
-        if outside.size:
-            i = int(outside[0])
-            box = f"[{', '.join(f'{v:g}' for v in lo)}] to [{', '.join(f'{v:g}' for v in hi)}] m"
-            allowed = f"inside the ADMM position box {box} (the arena less admm.arena_margin_m, admm.altitude_range_m)"
-            raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], allowed)
+    _require_inside_box(starts, goals, planner, "the ADMM position box", "admm")
     # no collision avoidance: the drones must start in the goals' formation (moved to the starts' centroid)
     slots = goals - goals.mean(axis=0) + starts.mean(axis=0)
     offset = np.linalg.norm(starts - slots, axis=1)
