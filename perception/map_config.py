@@ -51,12 +51,17 @@ class MapConfig:
         neighbour_exclusion_m: depth hits within this distance [m] of a
             neighbour's predicted position (``OccupancyMap.update``'s
             ``neighbours_world``: its tracks and radio plans) are masked out
-            like detection pixels (default 0.4: the 0.1 m robot radius plus
+            like detection pixels (0.4 is the 0.1 m robot radius plus
             prediction error). Without it a neighbour the detector misses at
             close range (it fills the image) is mapped as an obstacle, and a
             trail of phantom voxels follows its path (seen: a drone 0.35 m
             behind another found every plan 0.1 m from the leader's trail and
-            could not replan); 0 turns it off.
+            could not replan). Default 0 (off): on radio_outage, seeds 0-5,
+            it removed auto's seed-5 collision only together with MINCO's
+            ``swarm_recovery_mps``, and with both the totals did not improve
+            (auto 1 collision in 6 seeds, denied 7 instead of 5; see
+            :mod:`planners.trajectory_cost`); alone it is not yet measured
+            over those seeds.
         log_odds_hit: log-odds increment [-] of the end voxel of a ray
             (logit 0.7 = 0.847).
         log_odds_miss: log-odds increment [-] of a voxel a ray passes through
@@ -78,7 +83,7 @@ class MapConfig:
     invalid_neighborhood_px: int = 3
     pixel_stride: int = 2
     detection_margin_px: int = 4
-    neighbour_exclusion_m: float = 0.4
+    neighbour_exclusion_m: float = 0.0
     log_odds_hit: float = 0.847
     log_odds_miss: float = -0.405
     log_odds_min: float = -1.99

@@ -66,8 +66,8 @@ class TrajectoryOptimizerConfig:
         uncertainty_sigma: n_sigma of the neighbour uncertainty inflation [-]; default 1.0.
         max_uncertainty_inflation_m: cap on that inflation [m]; default 0.5.
         swarm_recovery_mps: a neighbour the start is already inside C_s + margin of gets the
-            clearance it has, growing back at this rate [m/s]; default 0.5; inf: off
-            (:mod:`planners.trajectory_cost`).
+            clearance it has, growing back at this rate [m/s]; default inf: off
+            (:mod:`planners.trajectory_cost`, with what it measured).
         weight_vel: weight of the speed penalty [-]; default 1e5.
         weight_acc: weight of the acceleration penalty [-]; default 1e5.
         weight_obstacle: weight of the obstacle penalty [-]; default 1e5.
@@ -93,7 +93,7 @@ class TrajectoryOptimizerConfig:
     clearance_margin_m: float = 0.1
     uncertainty_sigma: float = 1.0
     max_uncertainty_inflation_m: float = 0.5
-    swarm_recovery_mps: float = 0.5
+    swarm_recovery_mps: float = float("inf")
     weight_vel: float = 1.0e5
     weight_acc: float = 1.0e5
     weight_obstacle: float = 1.0e5

@@ -180,11 +180,11 @@ def test_hits_near_a_predicted_neighbour_are_not_mapped(wall_scene) -> None:
     near = np.linalg.norm(centres - nb, axis=1) < 0.4 - 0.5 * VOXEL_M * np.sqrt(3)  # whole voxel inside the ball
     far = np.linalg.norm(centres - nb, axis=1) > 0.4 + VOXEL_M * np.sqrt(3)
     assert near.sum() >= 4 and far.sum() > 50
-    excluded = OccupancyMap()
+    excluded = OccupancyMap(MapConfig(neighbour_exclusion_m=0.4))
     excluded.update(make_frame(K, T, depth), (), nb[None])
     assert not np.any(excluded.snapshot().state_at(centres[near]) == 1)
     assert np.all(excluded.snapshot().state_at(centres[far]) == 1)
-    off = OccupancyMap(MapConfig(neighbour_exclusion_m=0.0))
+    off = OccupancyMap()  # the default: off
     off.update(make_frame(K, T, depth), (), nb[None])
     assert np.all(off.snapshot().state_at(centres[near]) == 1)
 
