@@ -19,8 +19,7 @@ import yaml
 from mpcde.cli import main
 from mpcde.loop import prepare_run, run_scenario
 from mpcde.scenario import load_scenario
-
-WALL_CLOCK = {"wall_time_s", "real_time_factor"}
+from agent_metrics import agent_total, without_wall_clock  # tests/integration/agent_metrics.py
 
 
 def _fly(loss: float = 0.0, seed: int = 0) -> dict:
@@ -29,17 +28,6 @@ def _fly(loss: float = 0.0, seed: int = 0) -> dict:
     if loss:
         cfg = replace(cfg, radio=replace(cfg.radio, loss_model="bernoulli", loss_probability=loss))
     return run_scenario(prepare_run(cfg)).metrics
-
-
-def _without_wall_clock(metrics: dict) -> dict:
-    """The metrics less wall-clock figures (run time, and the agents' QP times in ms)."""
-    out = {k: v for k, v in metrics.items() if k not in WALL_CLOCK}
-    out["agents"] = [{k: v for k, v in a.items() if "_ms" not in k} for a in metrics["agents"]]
-    return out
-
-
-def _sum(metrics: dict, key: str) -> int:
-    return sum(a[key] for a in metrics["agents"])
 
 
 @pytest.mark.slow
@@ -51,23 +39,23 @@ def test_the_square_formation_arrives_in_formation_without_collision_and_repeats
     assert m["min_inter_drone_distance_m"] > 1.2  # the square's side is 1.6 m
     assert m["formation_error_final_m"] < 0.005 and m["formation_error_max_m"] > 0.4  # from the scattered start
     assert m["radio"]["lost"] == {}
-    assert _sum(m, "copies_missing") == _sum(m, "means_missing") == _sum(m, "late_messages") == 0
+    assert agent_total(m, "copies_missing") == agent_total(m, "means_missing") == agent_total(m, "late_messages") == 0
     assert all(a["planner"] == "admm" and a["steps"] > 40 and a["qp_ms_median"] > 0 for a in m["agents"])
-    assert _sum(m, "aborted_steps") == _sum(m, "qp_failures") == 0
+    assert agent_total(m, "aborted_steps") == agent_total(m, "qp_failures") == 0
     assert max(a["max_reference_jump_m"] for a in m["agents"]) < 1e-3
-    assert _without_wall_clock(_fly()) == _without_wall_clock(m)
+    assert without_wall_clock(_fly()) == without_wall_clock(m)
 
 
 @pytest.mark.slow
 def test_with_twenty_percent_loss_the_formation_still_arrives_and_the_losses_are_counted(record_property):
     m = _fly(loss=0.2, seed=1)
-    record_property("means_missing", _sum(m, "means_missing"))
+    record_property("means_missing", agent_total(m, "means_missing"))
     assert m["radio"]["lost"]["loss"] > 1000
     assert m["success"] and m["arrived"] == 4 and m["collisions"] == 0
     assert m["formation_error_final_m"] < 0.005
-    assert _sum(m, "copies_missing") > 500 and _sum(m, "means_missing") > 500 and _sum(m, "not_averaged") > 500
-    assert _sum(m, "resolved_means") >= _sum(m, "means_missing") - 5 and _sum(m, "unresolved_means") <= 5
-    assert _sum(m, "aborted_steps") == 0
+    assert agent_total(m, "copies_missing") > 500 and agent_total(m, "means_missing") > 500 and agent_total(m, "not_averaged") > 500
+    assert agent_total(m, "resolved_means") >= agent_total(m, "means_missing") - 5 and agent_total(m, "unresolved_means") <= 5
+    assert agent_total(m, "aborted_steps") == 0
 
 
 def test_fly_mode_admm_writes_the_derived_radio_rate_and_the_agents_figures(tmp_path):

@@ -15,8 +15,7 @@ import pytest
 from mpcde.cli import main
 from mpcde.loop import prepare_run, run_scenario
 from mpcde.scenario import load_scenario
-
-WALL_CLOCK = {"wall_time_s", "real_time_factor"}
+from agent_metrics import agent_total, without_wall_clock  # tests/integration/agent_metrics.py
 
 
 def _swap(loss: float = 0.0, seed: int = 0) -> dict:
@@ -28,17 +27,6 @@ def _swap(loss: float = 0.0, seed: int = 0) -> dict:
     return run_scenario(prepare_run(cfg)).metrics
 
 
-def _without_wall_clock(metrics: dict) -> dict:
-    """The metrics less wall-clock figures (run time, and the agents' QP times in ms)."""
-    out = {k: v for k, v in metrics.items() if k not in WALL_CLOCK}
-    out["agents"] = [{k: v for k, v in a.items() if "_ms" not in k} for a in metrics["agents"]]
-    return out
-
-
-def _sum(metrics: dict, key: str) -> int:
-    return sum(a[key] for a in metrics["agents"])
-
-
 @pytest.mark.slow
 def test_six_drone_swap_with_ideal_radio_arrives_without_collision_and_repeats_exactly(record_property):
     m = _swap()
@@ -48,22 +36,22 @@ def test_six_drone_swap_with_ideal_radio_arrives_without_collision_and_repeats_e
     assert m["min_inter_drone_distance_m"] > 0.4  # planned d̂_min = 0.45 m between references
     hosts = [a for a in m["agents"] if a["compute_unit"] is not None]
     assert [a["drone_id"] for a in hosts] == [0, 1] and all(a["computations"] > 0 for a in hosts)
-    assert _sum(m, "recovery_requests") == 0 and _sum(m, "qp_failures") == 0
+    assert agent_total(m, "recovery_requests") == 0 and agent_total(m, "qp_failures") == 0
     assert max(a["max_reference_jump_m"] for a in m["agents"]) < 1e-6
     assert hosts[0]["qp_solve_ms_median"] > 0
-    assert _without_wall_clock(_swap()) == _without_wall_clock(m)
+    assert without_wall_clock(_swap()) == without_wall_clock(m)
 
 
 @pytest.mark.slow
 def test_six_drone_swap_with_twenty_percent_loss_recovers_and_arrives_without_collision(record_property):
     m = _swap(loss=0.2, seed=1)
     record_property("min_distance_m", m["min_inter_drone_distance_m"])
-    record_property("recovery_requests", _sum(m, "recovery_requests"))
+    record_property("recovery_requests", agent_total(m, "recovery_requests"))
     assert m["radio"]["lost"]["loss"] > 0
     assert m["arrived"] == 6 and m["collisions"] == 0
     assert m["min_inter_drone_distance_m"] > 0.4
-    assert _sum(m, "recovery_requests") > 0 and _sum(m, "recovery_replies") > 0
-    assert _sum(m, "deprecated_trackers") > 0 and _sum(m, "rounds_with_mlr") > 0
+    assert agent_total(m, "recovery_requests") > 0 and agent_total(m, "recovery_replies") > 0
+    assert agent_total(m, "deprecated_trackers") > 0 and agent_total(m, "rounds_with_mlr") > 0
     assert max(a["max_reference_jump_m"] for a in m["agents"]) < 1e-6  # MLR-DMPC never jumps a reference
 
 
