@@ -110,7 +110,7 @@ import numpy as np
 
 from mpcde.agent import AgentCounters
 from mpcde.agent_admm_config import AdmmAgentConfig
-from mpcde.agent_dmpc import PlanSampler
+from mpcde.agent_dmpc import PlanSampler, sample_or_hover
 from planners.dmpc.admm_formation import AdmmFormationAgent
 from planners.dmpc.admm_local_qp import AdmmLocalQpError
 from planners.dmpc.admm_ocp import shift_trajectory
@@ -447,10 +447,7 @@ class AdmmAgent:
     # ------------------------------------------------------------------ reference
     def reference_state(self, time_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position [m], velocity [m/s], acceleration [m/s^2] (3,) of the reference at ``time_s`` [s]."""
-        if self._sampler is None:
-            pos = self.start_world if self.start_world is not None else np.zeros(3)
-            return np.array(pos, float), np.zeros(3), np.zeros(3)
-        return self._sampler.sample(time_s)
+        return sample_or_hover(self._sampler, self.start_world, time_s)
 
     def reference(self, time_s: float) -> FlatOutputReference:
         """Controller reference at ``time_s`` [s]: the current plan (a hover at the start before the first)."""

@@ -66,7 +66,7 @@ from sim.obstacles import ObstacleSpec
 from sim.rotations import rotation_from_quat_xyzw, yaw_from_rotation
 from sim.types import FlatOutputReference, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
 
-__all__ = ["DmpcAgent", "DmpcAgentConfig", "DmpcRoundStats", "PlanSampler", "obstacle_half_spaces"]
+__all__ = ["DmpcAgent", "DmpcAgentConfig", "DmpcRoundStats", "PlanSampler", "obstacle_half_spaces", "sample_or_hover"]
 
 
 @dataclass(frozen=True)
@@ -272,6 +272,19 @@ class PlanSampler:
         return pos, vel, acc
 
 
+def sample_or_hover(
+    sampler: PlanSampler | None, start_world: np.ndarray | None, time_s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position [m], velocity [m/s], acceleration [m/s^2] (3,) of ``sampler``'s plan at ``time_s`` [s].
+
+    Before the first plan (``sampler`` None): a hover at ``start_world`` (the origin before any estimate).
+    """
+    if sampler is None:
+        pos = start_world if start_world is not None else np.zeros(3)
+        return np.array(pos, float), np.zeros(3), np.zeros(3)
+    return sampler.sample(time_s)
+
+
 class DmpcAgent:
     """One drone's DMPC agent (implements :class:`mpcde.agent.OnboardAgent`).
 
@@ -469,10 +482,7 @@ class DmpcAgent:
 
     def reference_state(self, time_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position [m], velocity [m/s], acceleration [m/s^2] (3,) each of the reference at ``time_s`` [s]."""
-        if self._sampler is None:
-            pos = self.start_world if self.start_world is not None else np.zeros(3)
-            return np.array(pos, float), np.zeros(3), np.zeros(3)
-        return self._sampler.sample(time_s)
+        return sample_or_hover(self._sampler, self.start_world, time_s)
 
     def reference(self, time_s: float) -> FlatOutputReference:
         """Controller reference at ``time_s`` [s]: the current plan (hover at the start before it)."""
