@@ -203,10 +203,11 @@ class DeniedAgent:
         if self.perception is not None and detections is not None:
             self.perception.update(frame, detections)
         t0 = time.perf_counter()
-        # where it believes its neighbours are: their depth hits are not obstacles (MapConfig.neighbour_exclusion_m)
-        t = np.array([frame.time_s])
-        near = [nb.position(t)[0] for nb in self.neighbours(frame.time_s, count=False)]
-        self.map.update(frame, detections or (), np.array(near).reshape(-1, 3))
+        near = None  # where it believes its neighbours are: their depth hits are not obstacles (when on)
+        if self.config.map.neighbour_exclusion_m > 0.0:
+            t = np.array([frame.time_s])
+            near = np.array([nb.position(t)[0] for nb in self.neighbours(frame.time_s, count=False)]).reshape(-1, 3)
+        self.map.update(frame, detections or (), near)
         snap = self.map.snapshot()
         self.stats.map_ms.append(1e3 * (time.perf_counter() - t0))
         return snap
