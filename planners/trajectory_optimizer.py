@@ -11,7 +11,7 @@ with ``J`` the jerk energy of :mod:`planners.minco`, the penalties ``F`` of
 otherwise (GCOPTER's C^1 map of R onto T > 0). Build, then solve:
 ``problem = build_trajectory_problem(...)``, ``result = solve(problem)``.
 
-Solver: our own L-BFGS (memory 16, two-loop recursion, Lewis-Overton weak-Wolfe
+Solver: our own L-BFGS (:mod:`planners.lbfgs`: memory 16, two-loop recursion, Lewis-Overton weak-Wolfe
 line search as in GCOPTER's ``lbfgs.hpp``); ``solver="scipy"`` runs
 ``scipy.optimize.minimize(method="L-BFGS-B")`` on the same cost instead.
 ``benchmarks/bench_minco.py`` measures both. With an ``OccupancySnapshot`` (or no
@@ -31,6 +31,7 @@ from numba import njit
 from scipy.optimize import minimize
 
 from perception.types import DistanceField, NeighborPrediction
+from planners.lbfgs import delta_test, first_step, lbfgs_direction, lbfgs_loop, lbfgs_store, line_search_step
 from planners.minco import MincoTrajectory, _energy, _energy_grad, _propagate_grad, _set_parameters
 from planners.trajectory_cost import (
     PenaltyParameters,
@@ -348,126 +349,8 @@ def build_trajectory_problem(
 
 
 @njit(cache=True)
-def _two_loop(g, S, Y, rho, count, newest):
-    """L-BFGS direction d = -H g by the two-loop recursion over ``count`` pairs in ring buffers S, Y (mem, n)."""
-    mem = S.shape[0]
-    d = -g
-    alpha = np.empty(mem)
-    j = newest
-    for _ in range(count):
-        alpha[j] = rho[j] * (S[j] @ d)
-        d -= alpha[j] * Y[j]
-        j = (j - 1) % mem
-    if count > 0:
-        d *= 1.0 / (rho[newest] * (Y[newest] @ Y[newest]))  # H0 = s'y / y'y
-    j = (newest - count + 1) % mem
-    for _ in range(count):
-        beta = rho[j] * (Y[j] @ d)
-        d += (alpha[j] - beta) * S[j]
-        j = (j + 1) % mem
-    return d
-
-
-@njit(cache=True)
-def _lbfgs_direction(g, x, S, Y, rho, count, newest, g_tol):
-    """Convergence test ||g||_inf <= g_tol max(1, ||x||_inf), then the search direction d and g.d
-    (steepest descent and count = 0 when the quasi-Newton direction is not a descent direction)."""
-    if np.max(np.abs(g)) <= g_tol * max(1.0, np.max(np.abs(x))):
-        return True, g, 0.0, count
-    d = _two_loop(g, S, Y, rho, count, newest)
-    dg0 = g @ d
-    if not dg0 < 0.0:
-        return False, -g, -(g @ g), 0
-    return False, d, dg0, count
-
-
-@njit(cache=True)
-def _lbfgs_store(x, xn, g, gn, S, Y, rho, count, newest):
-    """Push the pair s = xn - x, y = gn - g into the ring buffers if s.y > 0; returns (count, newest)."""
-    mem = S.shape[0]
-    s = xn - x
-    y = gn - g
-    sy = s @ y
-    if sy > 1e-12 * (y @ y):
-        newest = (newest + 1) % mem
-        S[newest] = s
-        Y[newest] = y
-        rho[newest] = 1.0 / sy
-        count = min(count + 1, mem)
-    return count, newest
-
-
-@njit(cache=True)
-def _line_search_step(fn, gn, d, f, dg0, step, lo, hi):
-    """Lewis-Overton weak-Wolfe bracketing (c1 = 1e-4, c2 = 0.9): (accepted, give_up, next step, lo, hi)."""
-    if not fn <= f + 1e-4 * step * dg0:  # sufficient decrease fails (or NaN)
-        hi = step
-    elif gn @ d < 0.9 * dg0:  # curvature condition fails
-        lo = step
-    else:
-        return True, False, step, lo, hi
-    step = 0.5 * (lo + hi) if hi < np.inf else 2.0 * step
-    return False, hi - lo < 1e-16 * max(1.0, hi), step, lo, hi
-
-
-@njit(cache=True)
-def _first_step(g, count):
-    """Initial trial step: 1 with curvature pairs, else 1 / ||g|| (at most 1)."""
-    return 1.0 if count > 0 else min(1.0, 1.0 / max(np.sqrt(g @ g), 1e-12))
-
-
-@njit(cache=True)
-def _delta_test(past, it, f, rel_tol):
-    """Record f and test whether the cost fell by at most rel_tol max(1, |f|) over the last 3 iterations."""
-    past[it % 4] = f
-    return it >= 3 and past[(it - 3) % 4] - f <= rel_tol * max(1.0, abs(f))
-
-
-def _lbfgs_loop(fun, args, x0, mem, max_iterations, g_tol, rel_tol):
-    """L-BFGS (GCOPTER ``lbfgs.hpp`` style) calling ``fun(x, args) -> (f, g)`` from Python (any DistanceField).
-
-    Stops when ||g||_inf <= g_tol max(1, ||x||_inf) or by the delta test (:func:`_delta_test`).
-    Returns (x, f, iterations, code, evaluations), code 0 converged, 1 iteration limit,
-    2 line search stalled, 3 non-finite initial cost. :func:`_lbfgs_compiled` is the same
-    driver with the compiled cost called directly (numba cannot cache a function argument).
-    """
-    x = x0.copy()
-    f, g = fun(x, args)
-    if not (np.isfinite(f) and np.all(np.isfinite(g))):
-        return x, f, 0, 3, 1
-    S, Y, rho, past = np.zeros((mem, x.size)), np.zeros((mem, x.size)), np.zeros(mem), np.full(4, np.inf)
-    past[0] = f
-    count, newest, code, k, evals = 0, mem - 1, 1, 0, 1
-    for it in range(1, max_iterations + 1):
-        k = it
-        done, d, dg0, count = _lbfgs_direction(g, x, S, Y, rho, count, newest, g_tol)
-        if done:
-            code, k = 0, it - 1
-            break
-        step, lo, hi = _first_step(g, count), 0.0, np.inf
-        accepted, give_up = False, False
-        xn, fn, gn = x, f, g
-        for _ in range(40):
-            xn = x + step * d
-            fn, gn = fun(xn, args)
-            evals += 1
-            accepted, give_up, step, lo, hi = _line_search_step(fn, gn, d, f, dg0, step, lo, hi)
-            if accepted or give_up:
-                break
-        if not accepted:
-            code = 2
-            break
-        count, newest = _lbfgs_store(x, xn, g, gn, S, Y, rho, count, newest)
-        x, f, g = xn, fn, gn
-        if _delta_test(past, it, f, rel_tol):
-            code = 0
-            break
-    return x, f, k, code, evals
-
-
-@njit(cache=True)
 def _lbfgs_compiled(args, x0, mem, max_iterations, g_tol, rel_tol):
-    """:func:`_lbfgs_loop` with :func:`_compiled_cost`, compiled end to end."""
+    """:func:`lbfgs_loop` with :func:`_compiled_cost`, compiled end to end."""
     x = x0.copy()
     f, g = _compiled_cost(x, args)
     if not (np.isfinite(f) and np.all(np.isfinite(g))):
@@ -477,26 +360,26 @@ def _lbfgs_compiled(args, x0, mem, max_iterations, g_tol, rel_tol):
     count, newest, code, k, evals = 0, mem - 1, 1, 0, 1
     for it in range(1, max_iterations + 1):
         k = it
-        done, d, dg0, count = _lbfgs_direction(g, x, S, Y, rho, count, newest, g_tol)
+        done, d, dg0, count = lbfgs_direction(g, x, S, Y, rho, count, newest, g_tol)
         if done:
             code, k = 0, it - 1
             break
-        step, lo, hi = _first_step(g, count), 0.0, np.inf
+        step, lo, hi = first_step(g, count), 0.0, np.inf
         accepted, give_up = False, False
         xn, fn, gn = x, f, g
         for _ in range(40):
             xn = x + step * d
             fn, gn = _compiled_cost(xn, args)
             evals += 1
-            accepted, give_up, step, lo, hi = _line_search_step(fn, gn, d, f, dg0, step, lo, hi)
+            accepted, give_up, step, lo, hi = line_search_step(fn, gn, d, f, dg0, step, lo, hi)
             if accepted or give_up:
                 break
         if not accepted:
             code = 2
             break
-        count, newest = _lbfgs_store(x, xn, g, gn, S, Y, rho, count, newest)
+        count, newest = lbfgs_store(x, xn, g, gn, S, Y, rho, count, newest)
         x, f, g = xn, fn, gn
-        if _delta_test(past, it, f, rel_tol):
+        if delta_test(past, it, f, rel_tol):
             code = 0
             break
     return x, f, k, code, evals
@@ -538,7 +421,7 @@ def _lbfgs(problem: TrajectoryProblem) -> tuple[np.ndarray, float, int, str]:
         x, f, k, code, evals = _lbfgs_compiled(args, problem.x0, *opts)
         problem.evaluations += int(evals)
     else:
-        x, f, k, code, _ = _lbfgs_loop(lambda x_, p: p.cost_and_gradient(x_), problem, problem.x0, *opts)
+        x, f, k, code, _ = lbfgs_loop(lambda x_, p: p.cost_and_gradient(x_), problem, problem.x0, *opts)
     if code == 3:
         raise TrajectoryOptimizationError(f"non-finite initial cost {f!r}", problem)
     return x, float(f), int(k), _STATUS[code]
