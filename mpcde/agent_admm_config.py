@@ -28,6 +28,9 @@ EXCHANGES_PER_ITERATION = 2  # Algorithm 2: copies (Step 4), then means (Step 6)
 GraphKind = Literal["complete", "ring"]
 
 
+_PLANNER = AdmmFormationConfig()  # the planner's defaults, which this section mirrors
+
+
 @dataclass(frozen=True)
 class AdmmAgentConfig:
     """ADMM formation DMPC settings of a scenario (the ``admm:`` mapping of a scenario file).
@@ -77,22 +80,22 @@ class AdmmAgentConfig:
         state_tolerance_mps: the same bound on the velocity [m/s].
     """
 
-    horizon_steps: int = 15
-    step_s: float = 0.2
-    l_max: int = 5
-    rho: float = 1.0
-    weight_formation: float = 10.0
-    weight_tracking: float = 1.0
-    weight_input: float = 0.1
-    weight_terminal_formation: float = 10.0
-    weight_terminal_tracking: float = 1.0
-    weight_slack: float = 1.0e4
-    v_max: float = 2.0
-    a_max: float = 4.0
+    horizon_steps: int = _PLANNER.horizon_steps
+    step_s: float = _PLANNER.step_s
+    l_max: int = _PLANNER.l_max
+    rho: float = _PLANNER.rho
+    weight_formation: float = _PLANNER.weight_formation
+    weight_tracking: float = _PLANNER.weight_tracking
+    weight_input: float = _PLANNER.weight_input
+    weight_terminal_formation: float = _PLANNER.weight_terminal_formation
+    weight_terminal_tracking: float = _PLANNER.weight_terminal_tracking
+    weight_slack: float = _PLANNER.weight_slack
+    v_max: float = _PLANNER.v_max
+    a_max: float = _PLANNER.a_max
     altitude_range_m: tuple[float, float] = (0.3, 3.0)
     arena_margin_m: float = 0.3
     graph: GraphKind = "complete"
-    warm_start: bool = True
+    warm_start: bool = _PLANNER.warm_start
     radio_rate_from_step: bool = True
     max_start_offset_m: float = 0.5
     state_tolerance_m: float = 0.1

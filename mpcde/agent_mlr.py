@@ -78,6 +78,9 @@ __all__ = ["MlrAgent", "MlrAgentConfig"]
 TriggerKind = Literal["rr", "db", "ht"]
 
 
+_PLANNER = MlrConfig()  # the planner's defaults, which this section mirrors
+
+
 @dataclass(frozen=True)
 class MlrAgentConfig:
     """MLR-DMPC settings of a scenario (the ``mlr:`` mapping of a scenario file).
@@ -111,14 +114,14 @@ class MlrAgentConfig:
     """
 
     num_compute_units: int = 2
-    round_s: float = 0.2
-    trigger: TriggerKind = "ht"
-    horizon_rounds: int = 15
-    d_hat_min_m: float = 0.45
-    downwash: float = 1.5
-    v_max: float = 1.0
-    a_max: float = 3.0
-    j_max: float = 10.0
+    round_s: float = _PLANNER.round_s
+    trigger: TriggerKind = _PLANNER.trigger
+    horizon_rounds: int = _PLANNER.horizon_rounds
+    d_hat_min_m: float = _PLANNER.d_hat_min_m
+    downwash: float = _PLANNER.downwash
+    v_max: float = _PLANNER.v_max
+    a_max: float = _PLANNER.a_max
+    j_max: float = _PLANNER.j_max
     altitude_range_m: tuple[float, float] = (0.3, 3.0)
     arena_margin_m: float = 0.3
     ignore_message_loss: bool = False
