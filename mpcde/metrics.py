@@ -5,6 +5,9 @@ Accumulated every physics tick from :class:`sim.ground_truth.TrueState`:
 * collisions: drone-drone events (a pair's centre distance falls below
   2 r_robot; counted once per entry) plus drone-obstacle events (a drone
   starts touching an obstacle or the ground, from PyBullet's contacts);
+  ``collision_events`` lists each one in order (time [s], kind ``"drone"``
+  with the pair and its centre distance [m] at entry, or ``"obstacle"`` with
+  the drone), so a run's collisions can be found in its log and video;
 * minimum inter-drone centre distance and minimum obstacle clearance (exact
   distance from the drone centre to the nearest obstacle surface, minus r_robot);
 * arrival: the first time each drone is within the goal tolerance;
@@ -59,7 +62,9 @@ def formation_metrics(pos_world: np.ndarray, goals_world: np.ndarray) -> dict[st
 class MetricsAccumulator:
     """Collects metrics tick by tick; :meth:`update`, then :meth:`result`."""
 
-    def __init__(self, goals_world: np.ndarray, obstacles: Sequence[ObstacleSpec], robot_radius_m: float, goal_tolerance_m: float) -> None:
+    def __init__(
+        self, goals_world: np.ndarray, obstacles: Sequence[ObstacleSpec], robot_radius_m: float, goal_tolerance_m: float
+    ) -> None:
         self.goals = np.asarray(goals_world, float)
         n = self.goals.shape[0]
         self.obstacles = tuple(obstacles)
@@ -72,6 +77,7 @@ class MetricsAccumulator:
         self.in_contact = np.zeros(n, bool)
         self.drone_drone_collisions = 0
         self.drone_obstacle_collisions = 0
+        self.events: list[dict[str, Any]] = []
         self.arrival_time = np.full(n, np.nan)
         self.path_length = np.zeros(n)
         self.prev_pos: np.ndarray | None = None
@@ -93,6 +99,9 @@ class MetricsAccumulator:
             close = d < 2 * self.r
             iu = np.triu(close & ~self.in_collision, 1)
             self.drone_drone_collisions += int(iu.sum())
+            for i, j in np.argwhere(iu):
+                event = {"time_s": float(s.time_s), "kind": "drone", "drones": [int(i), int(j)]}
+                self.events.append({**event, "distance_m": float(d[i, j])})
             self.in_collision = close
             self.min_pair_series.append((s.time_s, m))
         if self.obstacles:
@@ -100,6 +109,8 @@ class MetricsAccumulator:
             self.min_obstacle = min(self.min_obstacle, float(clearance.min()))
         new_contact = s.obstacle_contact & ~self.in_contact
         self.drone_obstacle_collisions += int(new_contact.sum())
+        for i in np.flatnonzero(new_contact):
+            self.events.append({"time_s": float(s.time_s), "kind": "obstacle", "drones": [int(i)]})
         self.in_contact = s.obstacle_contact.copy()
         arrived = (np.linalg.norm(s.pos_world - self.goals, axis=1) <= self.tol) & np.isnan(self.arrival_time)
         self.arrival_time[arrived] = s.time_s
@@ -129,6 +140,7 @@ class MetricsAccumulator:
             "collisions": int(collisions),
             "drone_drone_collisions": int(self.drone_drone_collisions),
             "drone_obstacle_collisions": int(self.drone_obstacle_collisions),
+            "collision_events": list(self.events),
             "min_inter_drone_distance_m": finite(self.min_pair),
             "min_obstacle_distance_m": finite(self.min_obstacle),
             "mission_time_s": float(np.max(self.arrival_time)) if arrived else None,
