@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import types
 import typing
 from pathlib import Path
 from typing import Any, get_args, get_origin
@@ -20,6 +21,8 @@ import yaml
 from mpcde.errors import ConfigError
 
 __all__ = ["from_dict", "load_yaml", "to_dict"]
+
+_UNIONS = (typing.Union, types.UnionType)  # Optional[X] / Union[X, Y] and the PEP 604 spelling X | None
 
 
 def _type_name(tp: Any) -> str:
@@ -31,7 +34,7 @@ def _type_name(tp: Any) -> str:
         if len(args) == 2 and args[1] is Ellipsis:
             return f"a list of {_type_name(args[0])}"
         return f"a list of {len(args)} ({', '.join(_type_name(a) for a in args)})"
-    if origin is typing.Union:
+    if origin in _UNIONS:
         return " or ".join(_type_name(a) for a in get_args(tp))
     if dataclasses.is_dataclass(tp):
         return "a mapping"
@@ -40,7 +43,7 @@ def _type_name(tp: Any) -> str:
 
 def _convert(value: Any, tp: Any, path: str) -> Any:
     origin = get_origin(tp)
-    if origin is typing.Union:
+    if origin in _UNIONS:
         for arg in get_args(tp):
             try:
                 return _convert(value, arg, path)
