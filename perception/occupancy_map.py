@@ -26,7 +26,10 @@ section 4, perception: "Map"):
 The window (``window_size_m``, aligned to a global grid of ``voxel_m``) is
 recentred on the camera at every update; voxels that scroll in are unknown.
 A voxel is unknown until a ray touches it, then occupied if
-``l > log_odds_occupied``, else free. :meth:`OccupancyMap.snapshot` hands out an
+``l > log_odds_occupied``, else free; the frame time of the last ray that
+touched it is kept too (``seen_s`` of the snapshot), so a planner can tell
+free space seen just now from free space seen long ago (MP-CDE Eq. 1's
+"temporally validated" segment, :mod:`planners.yaw.safety`). :meth:`OccupancyMap.snapshot` hands out an
 immutable :class:`perception.types.OccupancySnapshot` with the ESDF
 recomputed (see :mod:`perception.esdf`) when the map changed since the last one.
 
@@ -66,6 +69,7 @@ class OccupancyMap:
         self._shape = np.asarray(config.window_shape, np.int64)
         self._log_odds = np.zeros(config.window_shape, np.float32)
         self._observed = np.zeros(config.window_shape, np.bool_)
+        self._seen_s = np.full(config.window_shape, -np.inf, np.float32)  # time a ray last touched each voxel [s]
         self._mark = np.zeros(config.window_shape, np.int8)  # per-frame scratch, always zero between calls
         self._origin_index: np.ndarray | None = None  # global index of voxel (0, 0, 0)
         self._time_s = -np.inf
@@ -96,6 +100,7 @@ class OccupancyMap:
             shift = new_origin - self._origin_index  # old index = new index + shift
             self._log_odds = _shifted(self._log_odds, shift, 0.0)
             self._observed = _shifted(self._observed, shift, False)
+            self._seen_s = _shifted(self._seen_s, shift, -np.inf)
         self._origin_index = new_origin
         self._snapshot = None
 
@@ -130,6 +135,8 @@ class OccupancyMap:
             is_hit,
             self._log_odds,
             self._observed,
+            self._seen_s,
+            np.float32(frame.time_s),
             self._mark,
             cfg.log_odds_hit,
             cfg.log_odds_miss,
@@ -152,10 +159,12 @@ class OccupancyMap:
             state.flags.writeable = False
             distance_m.flags.writeable = False
             free_distance_m.flags.writeable = False
+            seen_s = self._seen_s.copy()
+            seen_s.flags.writeable = False
             origin = self.origin_world
             origin.flags.writeable = False
             self._snapshot = OccupancySnapshot(
-                self._time_s, origin, self.config.voxel_m, state, distance_m, free_distance_m
+                self._time_s, origin, self.config.voxel_m, state, distance_m, free_distance_m, seen_s
             )
         return self._snapshot
 
@@ -219,8 +228,12 @@ def _axis_setup(o, dv, i):
 
 
 @njit(cache=True)
-def _integrate_rays(origin_vox, ends_vox, is_hit, log_odds, observed, mark, l_hit, l_miss, l_min, l_max):
+def _integrate_rays(
+    origin_vox, ends_vox, is_hit, log_odds, observed, seen_s, time_s, mark, l_hit, l_miss, l_min, l_max
+):
     """Cast rays from ``origin_vox`` (3,) to ``ends_vox`` (n, 3) (window voxel units) and update log-odds.
+
+    Every voxel a ray touches is marked observed and stamped ``seen_s = time_s`` (the frame time [s]).
 
     Amanatides-Woo traversal on the flattened window. ``mark`` (nx, ny, nz)
     int8 must be zero on entry and is zero on return; within the call
@@ -229,6 +242,7 @@ def _integrate_rays(origin_vox, ends_vox, is_hit, log_odds, observed, mark, l_hi
     nx, ny, nz = log_odds.shape
     lo_flat = log_odds.reshape(-1)
     obs_flat = observed.reshape(-1)
+    seen_flat = seen_s.reshape(-1)
     mk = mark.reshape(-1)
     touched = np.empty(4096, np.int64)
     n_touched = 0
@@ -310,4 +324,5 @@ def _integrate_rays(origin_vox, ends_vox, is_hit, log_odds, observed, mark, l_hi
         l_new = lo_flat[lin] + (l_hit if mk[lin] == 2 else l_miss)  # l <- l + l_hit / l_miss
         lo_flat[lin] = min(max(l_new, l_min), l_max)  # clamp to [l_min, l_max]
         obs_flat[lin] = True
+        seen_flat[lin] = time_s
         mk[lin] = 0

@@ -15,6 +15,7 @@ so the same planners run on either.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar, Protocol, runtime_checkable
 
@@ -165,6 +166,10 @@ class OccupancySnapshot:
             to the nearest voxel that is *not verified free* (unknown or
             occupied), 0 outside verified free space; MP-CDE Eq. 1's
             ``d_free`` for the yaw planner's safety margin.
+        seen_s: (nx, ny, nz) float32 frame time [s] at which a ray last touched
+            each voxel (``-inf``: never), or None when the map did not record it
+            (then observed free space never ages); read by
+            :meth:`is_verified_free` with ``max_age_s``.
 
     How unknown space counts: for ``distance_m`` (the ESDF the trajectory
     optimiser reads through :class:`DistanceField`) unknown counts as free.
@@ -188,6 +193,7 @@ class OccupancySnapshot:
     state: np.ndarray
     distance_m: np.ndarray
     free_distance_m: np.ndarray
+    seen_s: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if np.shape(self.origin_world) != (3,):
@@ -197,8 +203,8 @@ class OccupancySnapshot:
         shape = np.shape(self.state)
         if len(shape) != 3 or min(shape) < 2:
             raise ValueError(f"OccupancySnapshot.state shape={shape}: allowed (nx, ny, nz) with every n >= 2")
-        for name in ("distance_m", "free_distance_m"):
-            if np.shape(getattr(self, name)) != shape:
+        for name in ("distance_m", "free_distance_m", "seen_s"):
+            if getattr(self, name) is not None and np.shape(getattr(self, name)) != shape:
                 raise ValueError(f"OccupancySnapshot.{name} shape={np.shape(getattr(self, name))}: allowed {shape}")
 
     @property
@@ -235,9 +241,20 @@ class OccupancySnapshot:
         out[inside] = self.state[i[:, 0], i[:, 1], i[:, 2]]
         return out
 
-    def is_verified_free(self, points_world: np.ndarray) -> np.ndarray:
-        """(n,) bool: the voxel holding each of ``points_world`` (n, 3) [m] was observed free."""
-        return self.state_at(points_world) == self.FREE
+    def is_verified_free(self, points_world: np.ndarray, max_age_s: float = math.inf) -> np.ndarray:
+        """(n,) bool: the voxel holding each of ``points_world`` (n, 3) [m] was observed free.
+
+        With a finite ``max_age_s`` [s] it must also have been seen (touched by
+        a ray) at most that long before the snapshot's ``time_s`` (needs ``seen_s``).
+        """
+        free = self.state_at(points_world) == self.FREE
+        if not math.isfinite(max_age_s) or self.seen_s is None:
+            return free
+        idx = self.world_to_index(points_world)[free]  # free voxels lie inside the window
+        fresh = self.seen_s[idx[:, 0], idx[:, 1], idx[:, 2]] >= self.time_s - max_age_s
+        out = np.zeros_like(free)
+        out[free] = fresh
+        return out
 
     def distance_and_gradient(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed ESDF (n,) [m] and its gradient (n, 3) at ``points_world`` (n, 3) [m].

@@ -95,6 +95,18 @@ class YawPlannerConfig:
             tau_s is at most this [s]. It must exceed tau_thr + hysteresis_s,
             else the exploring regime could never be entered; beyond that it
             does not change the mode (chosen: 4.0 s).
+        free_max_age_s: the safe point P_s of Eq. 1 ends at the first trajectory
+            sample whose voxel is not verified free OR was last seen by the
+            camera longer than this before the map's latest frame [s]: MP-CDE's
+            "the segment ahead has been temporally validated by the perception
+            pipeline". ``inf`` (the default): verified free space never ages.
+            It ages only tau_s, not d_free (the braking distance to unobserved
+            space): d_free measured on fresh space alone would be about zero at
+            the drone (only the camera's wedge is fresh) and forbid every mode
+            but tracking. A drone that observes a neighbour while it flies
+            sideways into space it saw seconds ago therefore loses the
+            exploring/observing regime and looks where it goes (MP-CDE Fig. 3,
+            for neighbours that now fly where the camera saw free space).
         free_distance: how Eq. 1's d_free is measured: ``"horizontal"`` (in the
             plane of the drone's altitude slab; default) or ``"voxel"`` (the
             map's 3-D verified-free distance); see :mod:`planners.yaw.safety`.
@@ -135,6 +147,7 @@ class YawPlannerConfig:
     window_s: float = 1.0
     safety_sample_s: float = 0.05
     safety_horizon_s: float = 4.0
+    free_max_age_s: float = math.inf
     free_distance: str = "horizontal"
     free_slab_half_height_m: float = 0.3
     distance_eps_m: float = 0.2
@@ -162,6 +175,9 @@ class YawPlannerConfig:
             _check_non_negative(name, getattr(self, name))
         if self.alpha + self.beta <= 0.0:
             raise ValueError(f"beta={self.beta!r}: allowed alpha + beta > 0 (alpha={self.alpha!r})")
+        age = self.free_max_age_s
+        if isinstance(age, bool) or not (isinstance(age, (int, float)) and age > 0):  # NaN fails too
+            raise ValueError(f"free_max_age_s={age!r}: allowed a number > 0 [s] (inf: free space never ages)")
         if self.free_distance not in ("horizontal", "voxel"):
             raise ValueError(f"free_distance={self.free_distance!r}: allowed 'horizontal' or 'voxel'")
         _check_int("n_steps", self.n_steps, 1)

@@ -1,8 +1,10 @@
 """Safety metric, switching threshold and replanning trigger of MP-CDE Sec. IV-A (Eq. 1-2, Alg. 1).
 
 The safe point P_s is the furthest sample of the current trajectory such that
-it and every earlier sample lie in voxels the camera verified free; the safe
-time tau_s is its look-ahead offset. For tau in [0, tau_s] the safety margin is
+it and every earlier sample lie in voxels the camera verified free (and, with
+a finite :attr:`YawPlannerConfig.free_max_age_s`, saw within that time: the
+"temporally validated" segment); the safe time tau_s is its look-ahead offset.
+For tau in [0, tau_s] the safety margin is
 
     S(tau) = min(d_free(P(tau)) / v_max, tau_s - tau)                 (Eq. 1)
 
@@ -110,7 +112,7 @@ def safety_margin(
     k = int(math.floor(config.safety_horizon_s / dt + 1e-9)) + 1
     taus = np.arange(k) * dt
     points = trajectory.positions(time_s + taus)
-    free = snapshot.is_verified_free(points)
+    free = snapshot.is_verified_free(points, config.free_max_age_s)
     n_free = k if bool(np.all(free)) else int(np.argmin(free))  # samples up to (excluding) the first not-free one
     if n_free == 0:  # the drone's own voxel is not verified free: no safe look-ahead at all
         return SafetyMargin(float(time_s), taus[:1], np.zeros(1), 0.0, points[0].copy(), False)

@@ -240,6 +240,29 @@ def test_window_rolls_with_the_drone_and_keeps_what_it_saw(wall_scene) -> None:
     assert snap.state_at(new_strip)[0] == -1
 
 
+def test_each_voxel_keeps_the_time_a_ray_last_touched_it(wall_scene) -> None:
+    K, T, depth = wall_scene
+    fwd = np.array([np.cos(CAM_YAW), np.sin(CAM_YAW), 0.0])
+    front, behind = CAM_POS + 1.5 * fwd, CAM_POS - 1.5 * fwd
+    pos2 = CAM_POS + np.array([-0.6, 0.45, 0.0])  # moved (the window rolls) and looking away from the wall
+    T2 = camera_pose(pos2, CAM_YAW + np.pi)
+    nothing = np.full((H_PX, W_PX), np.nan, np.float32)  # no valid depth: rays clear up to clear_invalid_m
+
+    m = OccupancyMap()
+    m.update(make_frame(K, T, depth, time_s=1.0))
+    snap1 = m.snapshot()
+    seen = lambda snap, p: float(snap.seen_s[tuple(snap.world_to_index(p[None])[0])])  # noqa: E731
+    assert seen(snap1, front) == 1.0 and seen(snap1, behind) == -np.inf
+    m.update(make_frame(K, T2, nothing, time_s=3.5))
+    snap = m.snapshot()
+    assert seen(snap, front) == 1.0 and seen(snap, behind) == 3.5  # kept across the roll; restamped when seen
+    assert snap.is_verified_free(front[None])[0]  # no age limit: free stays free
+    assert snap.is_verified_free(front[None], max_age_s=2.6)[0]
+    assert not snap.is_verified_free(front[None], max_age_s=2.4)[0]  # seen 2.5 s before the map's latest frame
+    assert snap.is_verified_free(behind[None], max_age_s=0.1)[0]
+    assert snap.seen_s.dtype == np.float32 and not snap.seen_s.flags.writeable
+
+
 def test_snapshot_is_cached_and_read_only(wall_scene) -> None:
     K, T, depth = wall_scene
     m = OccupancyMap()

@@ -147,3 +147,28 @@ def test_the_default_free_distance_lets_a_level_drone_leave_tracking_where_the_3
 def test_free_distance_mode_is_validated():
     with pytest.raises(ValueError, match="^free_distance="):
         YawPlannerConfig(free_distance="3d")
+
+
+def test_free_space_seen_too_long_ago_ends_the_safe_segment_but_not_d_free():
+    """free_max_age_s: tau_s stops where the trajectory enters free space last seen before now - age (Eq. 1)."""
+    base = corridor_snapshot()
+    seen = np.full(base.shape, 10.0, np.float32)  # the map's latest frame is at 10 s; x < 0.2 m seen then
+    seen[16:20] = 7.0  # 0.2 <= x < 1.0 m: verified free, but seen 3 s ago
+    snap = OccupancySnapshot(10.0, base.origin_world, VOXEL_M, base.state, base.distance_m, base.free_distance_m, seen)
+    traj = line(np.array([-1.9, 0.1, 1.1]), np.array([0.5, 0.0, 0.0]), t0=10.0, end=30.0)
+    plain = YawPlannerConfig(free_distance="voxel", safety_horizon_s=8.0)
+    aged = YawPlannerConfig(free_distance="voxel", safety_horizon_s=8.0, free_max_age_s=2.0)
+    s0, s1 = safety_margin(snap, traj, 10.0, plain), safety_margin(snap, traj, 10.0, aged)
+    assert 2.1 / 0.5 - plain.safety_sample_s - 1e-9 <= s1.safe_time_s <= 2.1 / 0.5  # reaches x = 0.2 after 4.2 s
+    assert 2.9 / 0.5 - plain.safety_sample_s - 1e-9 <= s0.safe_time_s <= 2.9 / 0.5  # no ageing: x = 1.0, 5.8 s
+    x = -1.9 + 0.5 * s1.taus_s
+    d_free = 1.1 - x  # to the first unknown voxel centre, as without ageing (not to the stale space)
+    np.testing.assert_allclose(s1.margins_s, np.minimum(d_free / aged.v_max_mps, s1.safe_time_s - s1.taus_s), atol=1e-5)
+    assert safety_margin(snap, traj, 10.0, YawPlannerConfig(free_distance="voxel", safety_horizon_s=8.0,
+                                                             free_max_age_s=3.5)).safe_time_s == s0.safe_time_s
+
+
+@pytest.mark.parametrize("age", [0.0, -1.0, float("nan"), True])
+def test_free_max_age_is_validated(age):
+    with pytest.raises(ValueError, match="^free_max_age_s="):
+        YawPlannerConfig(free_max_age_s=age)
