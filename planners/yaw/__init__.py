@@ -22,7 +22,7 @@ from planners.yaw.coverage import (
 from planners.yaw.lattice import LatticePath, edge_costs, shortest_path
 from planners.yaw.planner import YawPlanner
 from planners.yaw.safety import needs_replan, safe_regime, safety_margin
-from planners.yaw.steering import mean_bearing, observe_targets, rate_limited, track_targets
+from planners.yaw.steering import mean_bearing, observe_targets, rate_limited, sweep_offsets, track_targets
 from planners.yaw.types import MODES, SafetyMargin, TrajectoryView, YawPlan
 from planners.yaw.visibility import layer_weights, visibility_rewards, wrap_angle
 
@@ -49,6 +49,7 @@ __all__ = [
     "safe_regime",
     "safety_margin",
     "shortest_path",
+    "sweep_offsets",
     "track_targets",
     "visibility_rewards",
     "visible_cells_xy",

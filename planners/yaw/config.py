@@ -122,6 +122,18 @@ class YawPlannerConfig:
             deviation [m], so a stale track (inflated covariance) matters more
             (chosen: 0.5 m).
         visibility_weight_max: cap on that weight [-] (chosen: 3).
+        tracking_sweep_deg: in tracking mode the camera swings about the
+            direction of travel by up to this much [deg], a triangle wave of
+            period ``tracking_sweep_period_s`` in absolute time (0, the
+            default: straight along travel, the paper's tracking mode). Not in
+            MP-CDE. Why: a neighbour on a converging course at the same speed
+            keeps a constant bearing of 90 deg minus half the crossing angle,
+            outside a forward camera's +-fov_h/2 for crossings shallower than
+            180 - fov_h = 95 deg, so in tracking mode it is never seen; the
+            swing widens the watched arc to +-(fov_h/2 + sweep) while the
+            direction of travel stays in view (allowed below fov_h / 2).
+        tracking_sweep_period_s: period of that swing [s] (chosen 1.4 s: a
+            35 deg swing then turns at 100 deg/s, within the 2 rad/s limit).
         still_speed_mps: in tracking mode, below this horizontal speed the
             direction of travel is undefined and the yaw is held [m/s]
             (chosen: 0.1 m/s).
@@ -154,6 +166,8 @@ class YawPlannerConfig:
     visibility_sigma_ref_m: float = 0.5
     visibility_weight_max: float = 3.0
     still_speed_mps: float = 0.1
+    tracking_sweep_deg: float = 0.0
+    tracking_sweep_period_s: float = 1.4
 
     def __post_init__(self) -> None:
         for name in (
@@ -196,6 +210,10 @@ class YawPlannerConfig:
                 f"fov_h_deg={self.fov_h_deg!r}: allowed < 360 - yaw_rate_max * t_y = "
                 f"{360.0 - math.degrees(self.max_step_rad):.1f} deg (a turn must not wrap the sector onto itself)"
             )
+        _check_positive("tracking_sweep_period_s", self.tracking_sweep_period_s)
+        _check_non_negative("tracking_sweep_deg", self.tracking_sweep_deg)
+        if not self.tracking_sweep_deg < self.fov_h_deg / 2:
+            raise ValueError(f"tracking_sweep_deg={self.tracking_sweep_deg!r}: allowed 0 <= sweep < fov_h_deg / 2")
         _check_positive("visibility_weight_max", self.visibility_weight_max)
         if self.visibility_weight_max < 1.0:
             raise ValueError(f"visibility_weight_max={self.visibility_weight_max!r}: allowed >= 1")

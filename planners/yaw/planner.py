@@ -16,7 +16,8 @@ predictions, and gets a :class:`YawPlan` of n + 1 yaws over the next n t_y:
    otherwise *exploring* (A empty, or some neighbour not recently seen):
    Dijkstra on the yaw lattice with E (Eq. 3) and V (Eq. 4) for the
    neighbours in A minus V (Alg. 1 line 8).
-5. Otherwise *tracking*: yaw along the direction of travel.
+5. Otherwise *tracking*: yaw along the direction of travel (swinging about it by
+   ``tracking_sweep_deg`` when that is set; not in the paper).
 
 Every mode's output starts at the current yaw, is unwrapped and changes by
 at most yaw_rate_max t_y per step. The planner also remembers the sectors of
@@ -38,7 +39,7 @@ from planners.yaw.config import YawPlannerConfig
 from planners.yaw.coverage import FanGeometry, cast_fans, edge_gains, past_coverage, ray_gains, visible_cells_xy
 from planners.yaw.lattice import LatticePath, edge_costs, shortest_path
 from planners.yaw.safety import safe_regime, safety_margin
-from planners.yaw.steering import observe_targets, rate_limited, track_targets
+from planners.yaw.steering import observe_targets, rate_limited, sweep_offsets, track_targets
 from planners.yaw.types import TrajectoryView, YawPlan
 from planners.yaw.visibility import visibility_rewards
 
@@ -106,6 +107,8 @@ class YawPlanner:
         if not self._in_safe_regime:
             mode = "tracking"
             targets = track_targets(trajectory.velocities(times[1:]), cfg.still_speed_mps, yaw)
+            swing = math.radians(cfg.tracking_sweep_deg)
+            targets = targets + sweep_offsets(times[1:], swing, cfg.tracking_sweep_period_s)
             yaws = rate_limited(yaw, targets, cfg.max_step_rad)
         elif active and len(recent) == len(active):
             mode = "observing"

@@ -24,7 +24,7 @@ import numpy as np
 from perception.types import NeighborPrediction
 from planners.yaw.visibility import wrap_angle
 
-__all__ = ["mean_bearing", "observe_targets", "rate_limited", "track_targets"]
+__all__ = ["mean_bearing", "observe_targets", "rate_limited", "sweep_offsets", "track_targets"]
 
 
 def mean_bearing(observer_world: np.ndarray, targets_world: np.ndarray, distance_eps_m: float) -> float | None:
@@ -88,6 +88,18 @@ def track_targets(velocities_world: np.ndarray, still_speed_mps: float, fallback
         prev = float(heading[i]) if moving[i] else prev
         out[i] = prev
     return out
+
+
+def sweep_offsets(times_s: np.ndarray, amplitude_rad: float, period_s: float) -> np.ndarray:
+    """(n,) yaw offsets [rad] of the tracking-mode swing at absolute ``times_s`` (n,) [s].
+
+    A triangle wave of amplitude ``amplitude_rad`` and period ``period_s``:
+    ``A (2 / pi) asin(sin(2 pi t / P))``, zero at t = 0 and rising (all zero when A = 0).
+    """
+    t = np.asarray(times_s, float)
+    if amplitude_rad == 0.0:
+        return np.zeros(t.shape)
+    return amplitude_rad * (2.0 / np.pi) * np.arcsin(np.sin(2.0 * np.pi * t / period_s))
 
 
 def rate_limited(yaw0: float, targets: np.ndarray, max_step_rad: float) -> np.ndarray:

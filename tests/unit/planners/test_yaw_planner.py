@@ -271,3 +271,36 @@ def test_plan_reports_the_nearest_neighbour_distance_for_the_replan_trigger():
 def test_non_finite_inputs_are_refused():
     with pytest.raises(ValueError, match="yaw"):
         YawPlanner(YawPlannerConfig(free_distance="voxel")).plan(0.0, float("nan"), HOVER, uniform_snapshot(3.0))
+
+
+def test_sweep_offsets_are_a_triangle_wave():
+    from planners.yaw import sweep_offsets
+
+    a, period = math.radians(30.0), 1.2
+    t = np.array([0.0, 0.15, 0.3, 0.45, 0.6, 0.9, 1.2, 1.5])
+    expected = a * np.array([0.0, 0.5, 1.0, 0.5, 0.0, -1.0, 0.0, 1.0])
+    np.testing.assert_allclose(sweep_offsets(t, a, period), expected, atol=1e-12)
+    np.testing.assert_array_equal(sweep_offsets(t, 0.0, period), 0.0)
+
+
+def test_tracking_sweep_swings_about_the_travel_direction_and_keeps_it_in_view():
+    from planners.yaw import sweep_offsets
+
+    cfg = YawPlannerConfig(free_distance="voxel", tracking_sweep_deg=35.0, tracking_sweep_period_s=1.4)
+    heading = 0.7
+    vel = np.array([math.cos(heading), math.sin(heading), 0.0])
+    plain = YawPlanner(YawPlannerConfig(free_distance="voxel")).plan(0.0, heading, line(vel), uniform_snapshot(1.0))
+    np.testing.assert_allclose(plain.yaws, heading)  # no sweep: straight along travel
+    p = YawPlanner(cfg).plan(0.0, heading, line(vel), uniform_snapshot(1.0))
+    assert p.mode == "tracking"
+    # the swing turns at 4 * 35 deg / 1.4 s = 100 deg/s < 2 rad/s: the yaws follow it exactly
+    np.testing.assert_allclose(p.yaws[1:] - heading, sweep_offsets(p.times_s[1:], math.radians(35.0), 1.4), atol=1e-12)
+    assert np.ptp(p.yaws) > math.radians(50.0)
+    assert np.all(np.abs(p.yaws - heading) < math.radians(cfg.fov_h_deg / 2))  # the direction of travel stays in view
+    assert_rate_limited(p, heading, cfg)
+
+
+@pytest.mark.parametrize("value", [-1.0, 42.5, 60.0])
+def test_tracking_sweep_is_validated(value):
+    with pytest.raises(ValueError, match="^tracking_sweep_deg="):
+        YawPlannerConfig(tracking_sweep_deg=value)
