@@ -30,8 +30,14 @@ Along travel, two drones converging side by side never enter each other's
 85 deg view. With active yaw the remaining contact is MP-CDE's Fig. 3 hazard: a
 drone observing a tracked neighbour sidesteps it into space verified free
 seconds earlier, where a drone neither had tracked now flies. The safety
-margin (Eq. 1) does not age verified-free space, so it cannot see that risk;
-a freshness limit on "temporally validated" space is not modelled.
+margin (Eq. 1) does not age verified-free space by default, so it cannot see
+that risk (``YawPlannerConfig.free_max_age_s`` ages it; measured there).
+
+On radio_outage (seeds 0-5) every contact of the denied stack was between two
+drones with no track of each other, most of them converging side by side at
+78-94 deg bearings, which a forward camera in tracking mode never sees;
+``YawPlannerConfig.tracking_sweep_deg`` (off by default; measured there: 5
+collisions -> 1) swings the tracking-mode camera about the direction of travel.
 """
 
 from __future__ import annotations
