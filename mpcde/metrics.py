@@ -100,8 +100,10 @@ class MetricsAccumulator:
             iu = np.triu(close & ~self.in_collision, 1)
             self.drone_drone_collisions += int(iu.sum())
             for i, j in np.argwhere(iu):
-                event = {"time_s": float(s.time_s), "kind": "drone", "drones": [int(i), int(j)]}
-                self.events.append({**event, "distance_m": float(d[i, j])})
+                pair = [int(i), int(j)]
+                self.events.append(
+                    {"time_s": float(s.time_s), "kind": "drone", "drones": pair, "distance_m": float(d[i, j])}
+                )
             self.in_collision = close
             self.min_pair_series.append((s.time_s, m))
         if self.obstacles:
