@@ -97,8 +97,6 @@ def sweep_offsets(times_s: np.ndarray, amplitude_rad: float, period_s: float) ->
     ``A (2 / pi) asin(sin(2 pi t / P))``, zero at t = 0 and rising (all zero when A = 0).
     """
     t = np.asarray(times_s, float)
-    if amplitude_rad == 0.0:
-        return np.zeros(t.shape)
     return amplitude_rad * (2.0 / np.pi) * np.arcsin(np.sin(2.0 * np.pi * t / period_s))
 
 
