@@ -17,9 +17,12 @@ from dataclasses import dataclass
 __all__ = ["YawPlannerConfig"]
 
 
-def _check_positive(name: str, value: object) -> None:
-    if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise ValueError(f"{name}={value!r}: allowed finite number > 0")
+def _check_positive(name: str, value: object, inf_means: str = "") -> None:
+    """A finite number > 0; with ``inf_means`` (what inf stands for) inf is allowed too."""
+    finite = isinstance(value, (int, float)) and (math.isfinite(value) or (inf_means and value == math.inf))
+    if isinstance(value, bool) or not (finite and value > 0):
+        allowed = f"number > 0 (inf: {inf_means})" if inf_means else "finite number > 0"
+        raise ValueError(f"{name}={value!r}: allowed {allowed}")
 
 
 def _check_non_negative(name: str, value: object) -> None:
@@ -142,8 +145,6 @@ class YawPlannerConfig:
             180 - fov_h = 95 deg, so in tracking mode it is never seen; the
             swing widens the watched arc to +-(fov_h/2 + sweep) while the
             direction of travel stays in view (allowed below fov_h / 2).
-        tracking_sweep_period_s: period of that swing [s] (chosen 1.4 s: a
-            35 deg swing then turns at 100 deg/s, within the 2 rad/s limit).
             Measured, denied stack on radio_outage seeds 0-5 (full physics and
             rendering), 35 deg against 0: drone-drone collisions 0, 0, 0, 0, 0, 1
             against 1, 0, 1, 1, 1, 1 (1 against 5), success 5 of 6 against 0,
@@ -153,6 +154,8 @@ class YawPlannerConfig:
             ahead at 1-1.5 m for a second and not tracked. Left at 0 by default
             because the ``auto`` stack (whose denied half plans its heading
             here too) has not been measured with it yet.
+        tracking_sweep_period_s: period of that swing [s] (chosen 1.4 s: a
+            35 deg swing then turns at 100 deg/s, within the 2 rad/s limit).
         still_speed_mps: in tracking mode, below this horizontal speed the
             direction of travel is undefined and the yaw is held [m/s]
             (chosen: 0.1 m/s).
@@ -208,9 +211,7 @@ class YawPlannerConfig:
             _check_non_negative(name, getattr(self, name))
         if self.alpha + self.beta <= 0.0:
             raise ValueError(f"beta={self.beta!r}: allowed alpha + beta > 0 (alpha={self.alpha!r})")
-        age = self.free_max_age_s
-        if isinstance(age, bool) or not (isinstance(age, (int, float)) and age > 0):  # NaN fails too
-            raise ValueError(f"free_max_age_s={age!r}: allowed a number > 0 [s] (inf: free space never ages)")
+        _check_positive("free_max_age_s", self.free_max_age_s, inf_means="free space never ages")
         if self.free_distance not in ("horizontal", "voxel"):
             raise ValueError(f"free_distance={self.free_distance!r}: allowed 'horizontal' or 'voxel'")
         _check_int("n_steps", self.n_steps, 1)
