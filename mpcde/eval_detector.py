@@ -41,6 +41,7 @@ import numpy as np
 
 from mpcde.detector_dataset import SPLIT_SEED_BASE, SPLIT_SIZE, DatasetConfig, LabelledFrame, iter_scenes, split_seeds
 from mpcde.errors import ConfigError
+from mpcde.run_folder import staged_output
 from perception.backprojection import backproject, box_depth_m
 from perception.detector.decode import box_iou_xyxy
 from perception.types import Detection
@@ -286,7 +287,7 @@ def run_eval_detector(
     """Render held-out frames, detect, score, back-project; write the results (see the module docstring).
 
     Args:
-        out_dir: output folder.
+        out_dir: output folder (written all-or-nothing, :func:`mpcde.run_folder.staged_output`).
         weights: checkpoint path; default the shipped ``data/detector/drone_detector.pt``.
         n_frames: frames to evaluate.
         seeds: scene seeds (must lie in the test split's range); default the
@@ -311,8 +312,6 @@ def run_eval_detector(
     if bad:
         raise ConfigError("seeds", bad[0], f"held-out test scene seeds in [{lo}, {lo + SPLIT_SIZE})")
     detector = DroneDetector.load(weights)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
 
     frames: list[LabelledFrame] = []
     bar = tqdm(total=n_frames, disable=not progress, desc="render test")
@@ -354,8 +353,6 @@ def run_eval_detector(
         "weights": str(weights) if weights is not None else "data/detector/drone_detector.pt",
     }
     bp = _backprojection_table(frames, detections, data, detector.score_threshold)
-    (out_dir / "results.json").write_text(json.dumps(json_safe(results), indent=2))
-    (out_dir / "backprojection.json").write_text(json.dumps(json_safe(bp), indent=2))
     w5, w8 = extra["within_5m"], extra["within_8m"]
     text = format_table(results, bp) + (
         f"\nwithin 5 m: precision {_fmt(w5['precision'], 0)} recall {_fmt(w5['recall'], 0)} AP@0.5 {_fmt(w5['ap50'], 0)} (n {w5['n']})"
@@ -363,5 +360,8 @@ def run_eval_detector(
         f"\nframes {extra['n_frames']}, test scene seeds {extra['scene_seeds']}, score threshold {extra['score_threshold']}, "
         f"weights {extra['weights']}\n"
     )
-    (out_dir / "results.txt").write_text(text)
+    with staged_output(Path(out_dir)) as stage:  # all-or-nothing: moved into out_dir when complete
+        (stage / "results.json").write_text(json.dumps(json_safe(results), indent=2))
+        (stage / "backprojection.json").write_text(json.dumps(json_safe(bp), indent=2))
+        (stage / "results.txt").write_text(text)
     return results

@@ -49,6 +49,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from mpcde.loop import prepare_run, run_scenario
+from mpcde.run_folder import staged_output
 from mpcde.scenario import load_scenario
 from mpcde.text_table import cell
 
@@ -243,7 +244,8 @@ def run_eval_dmpc(
     """Fly every (scenario, variant, seed) with DMPC and write the Table 1 comparison.
 
     Args:
-        out_dir: output folder (created); gets ``results.json``
+        out_dir: output folder (created; written all-or-nothing, see
+            :func:`mpcde.run_folder.staged_output`); gets ``results.json``
             (``{"rows": [{method, obstacles, scenario, collisions,
             min_distance_m, min_obstacle_clearance_m, qp_ms_median, qp_ms_p95, qp_ms_mean,
             mission_time_s, path_length_m, mean_speed_mps, mean_accel_mps2}]}``),
@@ -279,8 +281,6 @@ def run_eval_dmpc(
     for scen in scenarios:
         prepared = prepare_run(load_scenario(scen, {"duration_s": duration_s} if duration_s is not None else None))
         has_obstacles[scen] = bool(prepared.obstacles)
-    out_dir = pathlib.Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
 
     from tqdm import tqdm
 
@@ -302,9 +302,7 @@ def run_eval_dmpc(
                 bar.update(1)
     bar.close()
     results = {"rows": [_row(m, o, s, runs[(s, m, o)]) for s in scenarios for m, o in variants[s]]}
-    (out_dir / "results.json").write_text(json.dumps(results, indent=2) + "\n")
     details = [f["detail"] for key in runs for f in runs[key]]
-    (out_dir / "details.json").write_text(json.dumps(details, indent=2) + "\n")
     paper = "\n".join(
         f"  {m:<10} QP {p[0]:.2f} ms, mission {p[1]:.2f} s, path {p[2]:.1f} m, speed {p[3]:.2f} m/s, acc {p[4]:.2f} m/s^2"
         for m, p in _PAPER.items()
@@ -323,6 +321,9 @@ def run_eval_dmpc(
         + "per flight:\n" + notes
         + "\n\non-demand DMPC paper, Table 1 (MATLAB, N = 4 square formation):\n" + paper + "\n"
     )
-    (out_dir / "results.txt").write_text(text)
-    _plot(out_dir, results, flights)
+    with staged_output(pathlib.Path(out_dir)) as stage:  # all-or-nothing: moved into out_dir when complete
+        (stage / "results.json").write_text(json.dumps(results, indent=2) + "\n")
+        (stage / "details.json").write_text(json.dumps(details, indent=2) + "\n")
+        (stage / "results.txt").write_text(text)
+        _plot(stage, results, flights)
     return results

@@ -43,6 +43,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from mpcde.mlr_swarm import MlrSwarmConfig, run_mlr_swarm
+from mpcde.run_folder import staged_output
 from mpcde.text_table import cell
 from planners.dmpc.collision import ellipsoidal_distance
 from planners.dmpc.mlr.config import MlrConfig
@@ -128,7 +129,8 @@ def run_eval_mlr(
     """Run the experiments, write ``results.json`` and ``table.md`` under ``out_dir``, print the table.
 
     Args:
-        out_dir: output folder (created).
+        out_dir: output folder (created; written all-or-nothing,
+            :func:`mpcde.run_folder.staged_output`).
         seeds: seeds 0..seeds-1 per experiment and variant.
         experiments: a subset of ``fig4_swap``, ``fig3b_cus``, ``fig3c_triggers``.
         formation_duration_s: longest simulated time of a formation sequence [s].
@@ -143,8 +145,6 @@ def run_eval_mlr(
             raise ValueError(f"experiments={experiments!r}: each one of {', '.join(known)}")
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise ValueError(f"seeds={seeds!r}: an integer >= 1")
-    out_dir = pathlib.Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = []
     cache: dict[tuple, dict[str, Any]] = {}
 
@@ -179,9 +179,10 @@ def run_eval_mlr(
                                      duration_s=formation_duration_s)
                 fly("fig3c_triggers", trig, seed, cfg, start, goals)
     results = {"rows": rows, "formations": list(FORMATIONS)}
-    (out_dir / "results.json").write_text(json.dumps(results, indent=1, default=float))
     table = format_table(results)
-    (out_dir / "table.md").write_text(table + "\n")
+    with staged_output(pathlib.Path(out_dir)) as stage:  # all-or-nothing: moved into out_dir when complete
+        (stage / "results.json").write_text(json.dumps(results, indent=1, default=float))
+        (stage / "table.md").write_text(table + "\n")
     print(table)
     return results
 

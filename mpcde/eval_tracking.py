@@ -41,6 +41,7 @@ from typing import Protocol, Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from mpcde.run_folder import staged_output
 from mpcde.tracking_scenario import RATE_HZ, TrackingScenario, camera_pose, hover_truth, in_camera_view, make_scenario
 from perception.backprojection import pose_noise_cov, ray_covariance
 from perception.tracker import COASTING, CONFIRMED, Measurement, MultiTargetTracker
@@ -358,7 +359,8 @@ def run_eval_tracking(
     """Score the trackers on every (speed, filter, measurement source); write results, table and plots.
 
     Args:
-        out_dir: output folder (created); gets ``results.json``
+        out_dir: output folder (created; written all-or-nothing,
+            :func:`mpcde.run_folder.staged_output`); gets ``results.json``
             (``{"rows": [{speed_mps, filter, measurements, pos_rmse_m,
             vel_rmse_mps, id_switches, nees}]}``), ``results.txt`` and
             ``tracking_<speed>mps.png`` per speed.
@@ -389,13 +391,11 @@ def run_eval_tracking(
         raise ValueError(f"duration_s={duration_s!r}: > 0")
     if not seeds:
         raise ValueError("seeds=(): at least one seed")
-    out_dir = pathlib.Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
 
     from tqdm import tqdm
 
     bar = tqdm(total=len(speeds_mps) * len(sources) * len(seeds) * len(filters), disable=not progress, desc="eval-tracking")
-    rows, extra = [], []
+    rows, extra, plots = [], [], []
     for speed in speeds_mps:
         for source in sources:
             scores = {f: _RunScore() for f in filters}
@@ -413,10 +413,9 @@ def run_eval_tracking(
                 rows.append(_row(float(speed), f, source.name, scores[f]))
                 extra.append(scores[f])
             if plot_scenario is not None:
-                _plot(out_dir, float(speed), plot_scenario, plot_estimates)
+                plots.append((float(speed), plot_scenario, plot_estimates))
     bar.close()
     results = {"rows": rows}
-    (out_dir / "results.json").write_text(json.dumps(results, indent=2))
     notes = [
         f"  {r['speed_mps']:>5.2f} m/s {r['filter']:<4} {100 * s.count / max(s.truth_samples, 1):6.1f} %   "
         f"{np.sqrt(s.sq_pos_seen / max(s.count_seen, 1)):.3f} m   {np.sqrt(s.sq_vel_seen / max(s.count_seen, 1)):.3f} m/s"
@@ -432,5 +431,9 @@ def run_eval_tracking(
         + PAPER_REFERENCE
         + "\n"
     )
-    (out_dir / "results.txt").write_text(text)
+    with staged_output(pathlib.Path(out_dir)) as stage:  # all-or-nothing: moved into out_dir when complete
+        (stage / "results.json").write_text(json.dumps(results, indent=2))
+        (stage / "results.txt").write_text(text)
+        for speed, scenario, estimates in plots:
+            _plot(stage, speed, scenario, estimates)
     return results

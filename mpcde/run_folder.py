@@ -13,6 +13,8 @@ from __future__ import annotations
 import json
 import os
 import shutil
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +25,7 @@ from mpcde.errors import ConfigError
 from mpcde.loop import RunResult
 from mpcde.plots import plot_min_distance, plot_top_down, plot_yaw
 
-__all__ = ["RunFolder"]
+__all__ = ["RunFolder", "staged_output"]
 
 
 class RunFolder:
@@ -74,3 +76,48 @@ class RunFolder:
     def discard(self) -> None:
         """Remove the staging folder (on failure)."""
         shutil.rmtree(self.staging, ignore_errors=True)
+
+
+@contextmanager
+def staged_output(out: Path) -> Iterator[Path]:
+    """Stage an evaluation's files and move them into ``out`` only when every one is written.
+
+    The evaluations (``eval-dmpc``, ``eval-tracking``, ``eval-detector``,
+    ``eval-mlr``) write into the yielded hidden sibling folder
+    ``.<name>.partial-<pid>``. When the block ends normally, an absent or empty
+    ``out`` is replaced by it in one rename; into an existing non-empty ``out``
+    each staged entry is moved in turn (same names replaced, other files left),
+    which those commands have always allowed. When the block raises (a failed
+    flight, Ctrl-C), the staging folder is removed and ``out`` is not touched:
+    nothing half-written.
+
+    Args:
+        out: the output folder (created if absent; its parent too).
+
+    Yields:
+        The staging folder to write into.
+    """
+    out = Path(out)
+    parent = out.resolve().parent
+    parent.mkdir(parents=True, exist_ok=True)
+    staging = parent / f".{out.name}.partial-{os.getpid()}"
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir()
+    try:
+        yield staging
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    if not out.exists() or (out.is_dir() and not any(out.iterdir())):
+        if out.exists():
+            out.rmdir()
+        os.replace(staging, out)
+        return
+    for entry in sorted(staging.iterdir()):
+        target = out / entry.name
+        if target.is_dir() and not target.is_symlink():
+            shutil.rmtree(target)
+        elif target.exists() or target.is_symlink():
+            target.unlink()
+        os.replace(entry, target)
+    staging.rmdir()
