@@ -37,7 +37,8 @@ On radio_outage (seeds 0-5) every contact of the denied stack was between two
 drones with no track of each other, most of them converging side by side at
 78-94 deg bearings, which a forward camera in tracking mode never sees;
 ``YawPlannerConfig.tracking_sweep_deg`` (off by default; measured there: 5
-collisions -> 1) swings the tracking-mode camera about the direction of travel.
+collisions -> 1 at 35 deg, but ``auto`` 1 -> 3) swings the tracking-mode camera
+about the direction of travel.
 """
 
 from __future__ import annotations

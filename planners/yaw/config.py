@@ -151,9 +151,17 @@ class YawPlannerConfig:
             minimum distance 0.48, 0.33, 0.57, 0.23, 0.49, 0.17 m, mission
             26.7, 28.6, 27.0, 24.9, 23.4, 25.9 s (mean 26.1 against 24.6 s).
             The one left (seed 5, 14 s) is another kind: the drone was in view
-            ahead at 1-1.5 m for a second and not tracked. Left at 0 by default
-            because the ``auto`` stack (whose denied half plans its heading
-            here too) has not been measured with it yet.
+            ahead at 1-1.5 m for a second and not tracked. 20 deg: 1, 0, 1, 0,
+            1, 0 (3), success 3 of 6, mean mission 24.9 s. The ``auto`` stack
+            (whose denied half plans its heading here too) on the same seeds:
+            35 deg 1, 0, 0, 0, 1, 1 (3 against 1 without the swing; worst
+            minimum distance 0.094 m), success 3 of 6 against 5; 20 deg 0, 0,
+            0, 0, 0, 1 (the same seed-5 contact as without), success 5 of 6,
+            mean mission 19.7 s against 19.4. Left at 0 by default: it helps
+            the camera-only stack and hurts (35 deg) or does not change
+            (20 deg) the fallback one. Why it hurts ``auto`` is not
+            diagnosed; its two new contacts came about 2 and 4 s after the switch to
+            the denied stack, at and after the end of its radio memory.
         tracking_sweep_period_s: period of that swing [s] (chosen 1.4 s: a
             35 deg swing then turns at 100 deg/s, within the 2 rad/s limit).
         still_speed_mps: in tracking mode, below this horizontal speed the
