@@ -1,0 +1,45 @@
+"""The denied agent's fallback stop: committed until a replan succeeds, not restarted at every frame (no flight)."""
+
+import numpy as np
+
+from mpcde.agent_denied import DeniedAgent, DeniedAgentConfig
+from planners.minco import minco_s3
+
+GOAL = np.array([6.0, 0.0, 1.5])
+
+
+def _line(start: np.ndarray, velocity: np.ndarray, duration_s: float = 1.0, t0_s: float = 0.0):
+    """A single MINCO piece at constant ``velocity`` [m/s] from ``start`` [m]."""
+    head = np.stack([start, velocity, np.zeros(3)])
+    tail = np.stack([start + velocity * duration_s, velocity, np.zeros(3)])
+    return minco_s3(head, tail, np.zeros((0, 3)), np.array([duration_s]), t0_s=t0_s)
+
+
+def test_a_stop_under_way_is_kept_not_restarted_at_every_failed_replan():
+    agent = DeniedAgent(0, GOAL, DeniedAgentConfig())
+    agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([2.0, 0.0, 0.0]), 3.0)
+    agent._brake(0.0)
+    committed = agent.trajectory
+    for k in range(1, 13):  # a failed replan at every 25 Hz frame for half a second
+        agent._brake(0.04 * k)
+    assert agent.trajectory is committed and agent.stats.brakes == 1
+    v_kept = np.linalg.norm(agent.state_at(0.5)[1])
+
+    restarted = DeniedAgent(0, GOAL, DeniedAgentConfig())  # what restarting at every frame would give
+    restarted.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([2.0, 0.0, 0.0]), 3.0)
+    for k in range(13):
+        restarted.trajectory = restarted._stopping_piece(0.04 * k, restarted.state_at(0.04 * k))
+    v_restarted = np.linalg.norm(restarted.state_at(0.5)[1])
+    start = np.stack([[0.0, 0.0, 1.5], [2.0, 0.0, 0.0], np.zeros(3)])
+    once = DeniedAgent(0, GOAL, DeniedAgentConfig())._stopping_piece(0.0, start)
+    np.testing.assert_allclose(agent.state_at(0.5), np.stack([once.pos(0.5), once.vel(0.5), once.acc(0.5)]), atol=1e-12)
+    assert v_restarted > v_kept + 0.2  # restarted: 1.62 m/s after 0.5 s against 1.37 committed
+
+
+def test_a_successful_replan_ends_the_stop_and_the_next_brake_starts_a_new_one():
+    agent = DeniedAgent(0, GOAL, DeniedAgentConfig())
+    agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([2.0, 0.0, 0.0]), 3.0)
+    agent._brake(0.0)
+    agent.trajectory, agent.braking = _line(np.array([1.0, 0.0, 1.5]), np.array([1.0, 0.0, 0.0]), 3.0, 1.0), False
+    agent._brake(1.2)
+    assert agent.stats.brakes == 2 and agent.trajectory.t0_s == 1.2
