@@ -6,6 +6,22 @@ sky are then drawn analytically into the pixels nothing covered (ray-plane
 intersection per pixel). This is exact: every surface lies above z = 0, so it
 always occludes the ground behind it. A render client never steps physics; it
 only receives poses.
+
+A render depends only on its inputs, never on what the client rendered before,
+so a flight does not depend on how cameras are spread over render workers
+(``run.render_workers``). Two PyBullet behaviours had to be worked around:
+
+- TinyRenderer's output depends on the parity of the number of
+  ``getCameraImage`` calls the client has made: one colour channel of about one
+  pixel in a thousand renders comes out 1 lower or higher on odd calls. That was
+  enough to make ``radio_outage`` seed 3 (denied) end 0.5 s later with 1
+  worker than with 2. Each render is therefore followed by a 1x1 call
+  (0.77 ms against 4.5 ms for the 320 x 240 render, measured), so every real
+  render is an even call.
+- ``getBasePositionAndOrientation`` does not round-trip exactly through
+  ``resetBasePositionAndOrientation`` (the base pose passes through the
+  centre-of-mass frame; ~1e-16 m), so the drone hidden during its own camera's
+  render is put back from the pose it was given, not from the one read back.
 """
 
 from __future__ import annotations
@@ -28,6 +44,7 @@ from sim.scene import RenderStyle, SceneSpec, build_obstacles, load_drones
 __all__ = ["RawRender", "SceneRenderer"]
 
 PARKED_POS = [0.0, 0.0, -100.0]  # where a camera's own drone waits during its render
+_PARITY_PX = 1  # size of the call that keeps every real render an even getCameraImage call (module docstring)
 
 
 @dataclass(frozen=True)
@@ -69,6 +86,8 @@ class SceneRenderer:
         # x depends on the column only, y on the row only
         self.ray_x = ((np.arange(W) - self.K[0, 2]) / self.K[0, 0]).astype(np.float32)[None, :]
         self.ray_y = ((np.arange(H) - self.K[1, 2]) / self.K[1, 1]).astype(np.float32)[:, None]
+        # the poses last set, as given (a hidden drone is put back from here; module docstring)
+        self._poses = [(list(PARKED_POS), [0.0, 0.0, 0.0, 1.0]) for _ in self.drone_ids]
 
     def close(self) -> None:
         """Disconnect the client."""
@@ -78,8 +97,9 @@ class SceneRenderer:
 
     def set_drone_poses(self, pos_world: np.ndarray, quat_xyzw: np.ndarray) -> None:
         """Place all drones: (N, 3) positions [m], (N, 4) quaternions."""
-        for i, b in enumerate(self.drone_ids):
-            pb.resetBasePositionAndOrientation(b, pos_world[i].tolist(), quat_xyzw[i].tolist(), physicsClientId=self.client)
+        self._poses = [(np.asarray(pos_world[i], float).tolist(), np.asarray(quat_xyzw[i], float).tolist()) for i in range(len(self.drone_ids))]
+        for b, (pos, quat) in zip(self.drone_ids, self._poses):
+            pb.resetBasePositionAndOrientation(b, pos, quat, physicsClientId=self.client)
 
     def render(self, transform_camera_to_world: np.ndarray, own_drone: int | None, style: RenderStyle | None = None) -> RawRender:
         """Render one camera at its *true* pose.
@@ -93,9 +113,7 @@ class SceneRenderer:
         style = style or self.spec.style
         cam = self.camera
         W, H = cam.width_px, cam.height_px
-        own_pose = None
         if own_drone is not None:
-            own_pose = pb.getBasePositionAndOrientation(self.drone_ids[own_drone], physicsClientId=self.client)
             pb.resetBasePositionAndOrientation(self.drone_ids[own_drone], PARKED_POS, [0, 0, 0, 1], physicsClientId=self.client)
         light = np.asarray(style.light_direction, float)
         light = light / np.linalg.norm(light)
@@ -112,8 +130,10 @@ class SceneRenderer:
             shadow=0,
             physicsClientId=self.client,
         )
-        if own_pose is not None:
-            pb.resetBasePositionAndOrientation(self.drone_ids[own_drone], own_pose[0], own_pose[1], physicsClientId=self.client)
+        pb.getCameraImage(_PARITY_PX, _PARITY_PX, renderer=pb.ER_TINY_RENDERER, physicsClientId=self.client)
+        if own_drone is not None:
+            pos, quat = self._poses[own_drone]
+            pb.resetBasePositionAndOrientation(self.drone_ids[own_drone], pos, quat, physicsClientId=self.client)
         rgb = np.asarray(rgba, np.uint8).reshape(H, W, 4)[:, :, :3]
         depth = depth_buffer_to_depth_m(np.asarray(zbuf).reshape(H, W), cam.render_near_m, cam.render_far_m)
         seg = np.asarray(seg).reshape(H, W)

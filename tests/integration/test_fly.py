@@ -61,6 +61,50 @@ def test_rendering_in_worker_processes_gives_the_same_frames_as_in_process():
         assert np.array_equal(x.depth_true_m, y.depth_true_m)
 
 
+def test_a_render_does_not_depend_on_what_the_client_rendered_before():
+    """A pose where PyBullet's TinyRenderer gave one pixel 1 off on odd getCameraImage calls.
+
+    Found in ``radio_outage`` (seed 0 layout; drones near their starts): camera 2 rendered
+    right after camera 0 differed from camera 2 rendered first (sim/renderer.py docstring).
+    """
+    from sim.camera_rig import CameraRig
+    from sim.renderer import SceneRenderer
+    from sim.rotations import rotation_from_quat_xyzw
+    from sim.scene import SceneSpec
+
+    cfg = load_scenario("radio_outage")
+    prepared = prepare_run(cfg)
+    pos = np.array(
+        [
+            [-6.297904816371964, -2.6578973448463445, 1.522282873526646],
+            [-6.197937560549335, -1.7202237589690403, 1.507501163703177],
+            [-6.248767087462863, -0.49964738058758285, 1.4118236608050734],
+            [-6.324094247246924, 0.6089741316015447, 1.5822892634924985],
+            [-6.334447237922741, 1.6397886191243165, 1.4282252394578723],
+            [-6.308068419874316, 2.762657917000822, 1.5850838540339418],
+        ]
+    )
+    sin_half = [0.9975144561422545, -0.358522156384527, 0.8994577777311555, 0.2827946040166374, 0.011529860614640343, 0.2692162196911634]
+    cos_half = [0.07046211597179174, 0.9335212174243223, 0.43700767279183006, 0.9591804897614803, 0.9999335289479031, 0.9630797615230003]
+    quat = np.array([[0.0, 0.0, s, c] for s, c in zip(sin_half, cos_half)])
+    rig = CameraRig(cfg.camera, seed=0)
+    T = [rig.transform_camera_to_world(pos[i], rotation_from_quat_xyzw(quat[i])) for i in range(6)]
+    renders = []
+    for history in ([], [0], [0, 1], [0, 1, 3], [2]):
+        renderer = SceneRenderer(SceneSpec(obstacles=prepared.obstacles, n_drones=6), cfg.camera)
+        try:
+            renderer.set_drone_poses(pos, quat)
+            for j in history:
+                renderer.render(T[j], own_drone=j)
+            renders.append(renderer.render(T[2], own_drone=2))
+        finally:
+            renderer.close()
+    for r in renders[1:]:
+        assert np.array_equal(r.rgb, renders[0].rgb)
+        assert np.array_equal(r.depth_true_m, renders[0].depth_true_m)
+        assert np.array_equal(r.drone_index_mask, renders[0].drone_index_mask)
+
+
 @pytest.mark.slow
 def test_fly_writes_metrics_plots_log_and_an_h264_video(tmp_path):
     out = tmp_path / "run"
