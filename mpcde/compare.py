@@ -284,7 +284,8 @@ def run_compare(
         overwrite: replace a non-empty ``out_dir`` when done.
         jobs: flights run at once, each in its own process (1: one after the
             other in this process). A flight's metrics do not depend on it
-            (everything is seeded and stepped in simulated time) except the
+            (everything is seeded and stepped in simulated time, and a render
+            does not depend on which worker made it: sim/renderer.py) except the
             wall-clock ones (``real_time_factor``, compute times). With more
             than one job, a flight whose ``run.render_workers`` is automatic
             (-1) renders with ``max(1, cpu_count // jobs)`` workers (at most 16), so the
