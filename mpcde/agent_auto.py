@@ -40,21 +40,29 @@ obstacles), the denied half its own camera map. ``denied.perceive_neighbours:
 false`` turns the perception off for both halves (the blind-fallback ablation).
 
 Measured on radio_outage (forest_swarm, every receiver deaf from 3 s to
-15 s; full physics and rendering), seeds 0-5: seeds 0-2 with ``mpcde compare
-radio_outage --seeds 3``, seeds 3-5 flown one by one with the same code
-(runs are deterministic: seeds 0-2 of comm and denied repeat an earlier run's
-metrics exactly). Drone-drone and obstacle collision events per seed:
+15 s; full physics and rendering), seeds 0-5, with ``mpcde compare
+radio_outage --seeds 6 --jobs 2`` (commit 0f41624; a flight's metrics do not
+depend on the job count or ``run.render_workers``: ``mpcde fly radio_outage
+--mode denied --seed 3`` with 2 render workers gives the same metrics as the
+compare run, timings aside). Drone-drone and obstacle collision events per
+seed:
 
 =======  ==================  =====  ========  ===============  =============
 mode     per seed 0-5        total  success   worst min dist   mean mission
 =======  ==================  =====  ========  ===============  =============
-comm     10, 8, 4, 8, 9, 5   44     0 of 6    0.091 m          11.7 s
-denied   1, 0, 1, 1, 1, 1    5      0 of 6    0.139 m          24.6 s (5)
-auto     0, 0, 0, 0, 0, 1    1      5 of 6    0.185 m          19.4 s
+comm     10, 8, 4, 8, 9, 4   43     0 of 6    0.091 m          11.7 s
+denied   3, 0, 1, 0, 0, 1    5      3 of 6    0.146 m          25.2 s (5)
+auto     0, 0, 1, 0, 0, 1    2      4 of 6    0.085 m          20.1 s
 =======  ==================  =====  ========  ===============  =============
 
-(denied seed 1: one drone never arrived.) Without the radio memory
-(``plan_memory_s: 0``, the behaviour before it) auto had 0, 3, 2 collisions on seeds 0-2:
+(denied seed 5: one drone never arrived.) Earlier tables (before the denied
+agent's committed stop, f802920, and the history-free renderer, 0f41624)
+read denied 1, 0, 1, 1, 1, 1 and auto 0, 0, 0, 0, 0, 1: a flight is chaotic
+in its collision count (a 1e-4 px change in one detection changed denied
+seed 3's mission time by 0.5 s), so per-seed counts move by one or two
+between commits that change any arithmetic. Without the radio memory
+(``plan_memory_s: 0``, the behaviour before it; measured when it was added)
+auto had 0, 3, 2 collisions on seeds 0-2:
 its collisions came 1-2 s after the switch, sideways dodges into a neighbour
 flying beside the drone that its camera had never seen. 2.0 s is the only
 memory tried; a shorter ``radio_silence_s`` (0.4 s) without memory gave 5
