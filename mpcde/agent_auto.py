@@ -41,25 +41,29 @@ false`` turns the perception off for both halves (the blind-fallback ablation).
 
 Measured on radio_outage (forest_swarm, every receiver deaf from 3 s to
 15 s; full physics and rendering), seeds 0-5, with ``mpcde compare
-radio_outage --seeds 6 --jobs 2`` (commit 0f41624; a flight's metrics do not
-depend on the job count or ``run.render_workers``: ``mpcde fly radio_outage
---mode denied --seed 3`` with 2 render workers gives the same metrics as the
-compare run, timings aside). Drone-drone and obstacle collision events per
-seed:
+radio_outage --seeds 6 --jobs 2`` (a flight's metrics do not depend on the
+job count or ``run.render_workers``: ``mpcde fly radio_outage --mode denied
+--seed 3`` with 2 render workers gives the same metrics as the compare run,
+timings aside). Drone-drone and obstacle collision events per seed, with the
+default tracking-mode camera swing (``YawPlannerConfig.tracking_sweep_deg``,
+35 deg) and without it (0, MP-CDE's tracking mode; comm does not use it):
 
-=======  ==================  =====  ========  ===============  =============
-mode     per seed 0-5        total  success   worst min dist   mean mission
-=======  ==================  =====  ========  ===============  =============
-comm     10, 8, 4, 8, 9, 4   43     0 of 6    0.091 m          11.7 s
-denied   3, 0, 1, 0, 0, 1    5      3 of 6    0.146 m          25.2 s (5)
-auto     0, 0, 1, 0, 0, 1    2      4 of 6    0.085 m          20.1 s
-=======  ==================  =====  ========  ===============  =============
+=========  ==================  =====  ========  ===============  =============
+mode       per seed 0-5        total  success   worst min dist   mean mission
+=========  ==================  =====  ========  ===============  =============
+comm       10, 8, 4, 8, 9, 4   43     0 of 6    0.091 m          11.7 s
+denied     0, 0, 0, 0, 0, 0    0      5 of 6    0.278 m          25.4 s (5)
+auto       0, 0, 0, 0, 0, 0    0      6 of 6    0.208 m          19.6 s
+denied 0   3, 0, 1, 0, 0, 1    5      3 of 6    0.146 m          25.2 s (5)
+auto 0     0, 0, 1, 0, 0, 1    2      4 of 6    0.085 m          20.1 s
+=========  ==================  =====  ========  ===============  =============
 
-(denied seed 5: one drone never arrived.) Earlier tables (before the denied
-agent's committed stop, f802920, and the history-free renderer, 0f41624)
-read denied 1, 0, 1, 1, 1, 1 and auto 0, 0, 0, 0, 0, 1: a flight is chaotic
-in its collision count (a 1e-4 px change in one detection changed denied
-seed 3's mission time by 0.5 s), so per-seed counts move by one or two
+("(5)": one drone never arrived in one seed.) Seeds 6-11 are in
+``planners/yaw/config.py``. Earlier tables without the swing (before the
+denied agent's committed stop, f802920, and the history-free renderer,
+0f41624) read denied 1, 0, 1, 1, 1, 1 and auto 0, 0, 0, 0, 0, 1: a flight is
+chaotic in its collision count (a 1e-4 px change in one detection changed
+denied seed 3's mission time by 0.5 s), so per-seed counts move by one or two
 between commits that change any arithmetic. Without the radio memory
 (``plan_memory_s: 0``, the behaviour before it; measured when it was added)
 auto had 0, 3, 2 collisions on seeds 0-2:

@@ -19,6 +19,11 @@ CENTRES = ORIGIN + VOXEL_M * (np.indices(SHAPE).transpose(1, 2, 3, 0) + 0.5)  # 
 FREE, UNKNOWN, OCCUPIED = OccupancySnapshot.FREE, OccupancySnapshot.UNKNOWN, OccupancySnapshot.OCCUPIED
 
 
+def paper_config() -> YawPlannerConfig:
+    """MP-CDE's planner as in the paper: 3-D d_free, tracking mode straight along travel (no swing)."""
+    return YawPlannerConfig(free_distance="voxel", tracking_sweep_deg=0.0)
+
+
 def make_snapshot(state: np.ndarray) -> OccupancySnapshot:
     """Snapshot of ``state`` with exact EDT layers (free distance: to the nearest not-free voxel centre)."""
     occupied = state == OCCUPIED
@@ -66,7 +71,7 @@ HOVER = TrajectoryView.hover(DRONE)
 
 
 def test_small_margin_tracks_and_large_margin_explores():
-    cfg = YawPlannerConfig(free_distance="voxel")
+    cfg = paper_config()
     planner = YawPlanner(cfg)
     assert planner.plan(0.0, 0.0, HOVER, uniform_snapshot(1.0)).mode == "tracking"
     plan = planner.plan(0.1, 0.0, HOVER, uniform_snapshot(2.5))
@@ -76,7 +81,7 @@ def test_small_margin_tracks_and_large_margin_explores():
 
 
 def test_hysteresis_keeps_the_mode_inside_the_band():
-    planner = YawPlanner(YawPlannerConfig(free_distance="voxel"))
+    planner = YawPlanner(paper_config())
     band = uniform_snapshot(1.95)  # tau_thr = 1.885 s < S(0) = 1.95 s < tau_thr + 0.1 s
     assert planner.plan(0.0, 0.0, HOVER, band).mode == "tracking"  # starts in tracking, stays
     assert planner.plan(0.1, 0.0, HOVER, uniform_snapshot(2.5)).mode == "exploring"
@@ -88,7 +93,7 @@ def test_hysteresis_keeps_the_mode_inside_the_band():
 
 
 def test_observing_needs_every_neighbour_recently_seen():
-    planner = YawPlanner(YawPlannerConfig(free_distance="voxel"))
+    planner = YawPlanner(paper_config())
     snap = uniform_snapshot(3.0)
     seen = neighbour((2.0, 1.0, 1.1), stamp_s=0.9, nid=0)
     unseen = neighbour((-2.0, 1.0, 1.1), stamp_s=0.0, nid=1)  # 1.0 s > t_hold = 0.6 s
@@ -111,7 +116,7 @@ def half_known_state(unknown_side: float) -> np.ndarray:
 
 @pytest.mark.parametrize("unknown_side", [-1.0, 1.0])
 def test_exploring_turns_the_camera_towards_the_unknown_side(unknown_side):
-    cfg = YawPlannerConfig(free_distance="voxel")
+    cfg = paper_config()
     plan = YawPlanner(cfg).plan(0.0, 0.0, HOVER, make_snapshot(half_known_state(unknown_side)))
     assert plan.mode == "exploring"
     assert np.sign(plan.yaws[-1]) == np.sign(unknown_side)  # right (y < 0) is negative yaw
@@ -133,7 +138,7 @@ def occlusion_state(wall: bool) -> np.ndarray:
 
 
 def test_an_obstacle_occludes_the_unknown_space_behind_it():
-    cfg = YawPlannerConfig(free_distance="voxel")
+    cfg = paper_config()
     open_plan = YawPlanner(cfg).plan(0.0, 0.0, HOVER, make_snapshot(occlusion_state(wall=False)))
     walled = YawPlanner(cfg).plan(0.0, 0.0, HOVER, make_snapshot(occlusion_state(wall=True)))
     assert open_plan.mode == walled.mode == "exploring"
@@ -144,7 +149,7 @@ def test_an_obstacle_occludes_the_unknown_space_behind_it():
 @pytest.mark.parametrize("looked_from", [-1.0, 1.0])
 def test_the_coverage_window_turns_the_camera_away_from_what_it_just_saw(looked_from):
     """Unknown all around: the map alone cannot tell left from right; the window W of recent yaws does."""
-    cfg = YawPlannerConfig(free_distance="voxel")
+    cfg = paper_config()
     planner = YawPlanner(cfg)
     snap = make_snapshot(np.where(disc_free(2.6), FREE, UNKNOWN).astype(np.int8))
     for k in range(5):  # 0.5 s looking 0.7 rad to one side of the current yaw
@@ -155,7 +160,7 @@ def test_the_coverage_window_turns_the_camera_away_from_what_it_just_saw(looked_
 
 
 def test_a_neighbour_not_seen_for_t_hold_attracts_the_yaw():
-    cfg = YawPlannerConfig(free_distance="voxel")
+    cfg = paper_config()
     snap = uniform_snapshot(3.0)  # nothing unknown: only the visibility term
     for side in (1.0, -1.0):
         lost = neighbour((0.1, 0.1 + 3.0 * side, 1.1), stamp_s=-1.0)
@@ -170,13 +175,13 @@ def test_visibility_counts_only_the_neighbours_not_recently_seen():
     snap = uniform_snapshot(3.0)
     seen = neighbour((0.1, 3.1, 1.1), stamp_s=-0.1, nid=0)  # left, seen 0.1 s ago
     lost = neighbour((0.1, -2.9, 1.1), stamp_s=-1.0, nid=1)  # right, lost
-    plan = YawPlanner(YawPlannerConfig(free_distance="voxel")).plan(0.0, 0.0, HOVER, snap, [seen, lost])
+    plan = YawPlanner(paper_config()).plan(0.0, 0.0, HOVER, snap, [seen, lost])
     assert plan.mode == "exploring"
     assert plan.yaws[-1] < -1.0
 
 
 def test_with_nothing_to_gain_exploring_holds_the_yaw():
-    plan = YawPlanner(YawPlannerConfig(free_distance="voxel")).plan(0.0, 0.7, HOVER, uniform_snapshot(3.0))
+    plan = YawPlanner(paper_config()).plan(0.0, 0.7, HOVER, uniform_snapshot(3.0))
     assert plan.mode == "exploring"
     np.testing.assert_allclose(plan.yaws, 0.7)
 
@@ -185,7 +190,7 @@ def test_with_nothing_to_gain_exploring_holds_the_yaw():
 
 
 def test_observing_points_closer_to_the_near_neighbour():
-    cfg = YawPlannerConfig(free_distance="voxel")
+    cfg = paper_config()
     b_near, b_far = math.radians(60), math.radians(-60)
     near = neighbour(DRONE + 1.5 * np.array([math.cos(b_near), math.sin(b_near), 0.0]), stamp_s=0.0, nid=0)
     far = neighbour(DRONE + 6.0 * np.array([math.cos(b_far), math.sin(b_far), 0.0]), stamp_s=0.0, nid=1)
@@ -206,7 +211,7 @@ def test_circular_mean_of_bearings_near_pi_does_not_flip_to_zero():
     mean = mean_bearing(DRONE, targets, 0.2)
     assert abs(abs(mean) - math.pi) < 1e-9  # the arithmetic mean of +170 and -170 deg would be 0
     preds = [neighbour(targets[0], 0.0, nid=0), neighbour(targets[1], 0.0, nid=1)]
-    plan = YawPlanner(YawPlannerConfig(free_distance="voxel")).plan(0.0, 3.0, HOVER, uniform_snapshot(3.0), preds)
+    plan = YawPlanner(paper_config()).plan(0.0, 3.0, HOVER, uniform_snapshot(3.0), preds)
     assert plan.mode == "observing"
     assert plan.yaws[-1] == pytest.approx(math.pi, abs=1e-9)  # continuous from 3.0, not towards 0
     assert mean_bearing(DRONE, np.array([DRONE + (1, 0, 0), DRONE - (1, 0, 0)]), 0.2) is None
@@ -216,7 +221,7 @@ def test_circular_mean_of_bearings_near_pi_does_not_flip_to_zero():
 
 
 def test_tracking_follows_the_direction_of_travel_at_the_rate_limit():
-    cfg = YawPlannerConfig(free_distance="voxel")
+    cfg = paper_config()
     plan = YawPlanner(cfg).plan(0.0, 0.0, line(np.array([0.0, 1.0, 0.0])), uniform_snapshot(1.0))
     assert plan.mode == "tracking"
     steps = np.round(plan.yaws[:8] / cfg.max_step_rad, 9)
@@ -226,7 +231,7 @@ def test_tracking_follows_the_direction_of_travel_at_the_rate_limit():
 
 
 def test_tracking_turns_the_short_way_across_pi_and_holds_when_still():
-    cfg = YawPlannerConfig(free_distance="voxel")
+    cfg = paper_config()
     heading = -3.0  # = 3.283 rad: 0.283 rad from yaw 3.0 the short way, across +pi
     vel = np.array([math.cos(heading), math.sin(heading), 0.0])
     plan = YawPlanner(cfg).plan(0.0, 3.0, line(vel), uniform_snapshot(1.0))
@@ -243,10 +248,10 @@ def test_tracking_uses_the_velocity_along_the_future_trajectory():
         return np.where(t < 0.55, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
 
     traj = TrajectoryView(lambda t: DRONE + np.zeros((np.size(t), 3)), vel, 10.0)
-    plan = YawPlanner(YawPlannerConfig(free_distance="voxel")).plan(0.0, 0.0, traj, uniform_snapshot(1.0))
+    plan = YawPlanner(paper_config()).plan(0.0, 0.0, traj, uniform_snapshot(1.0))
     np.testing.assert_allclose(plan.yaws[:6], 0.0)  # layers at 0.1 .. 0.5 s head +x
     np.testing.assert_allclose(plan.yaws[6:], 0.2 * np.arange(1, 8))  # then +y: 0.2 rad per step
-    ended = YawPlanner(YawPlannerConfig(free_distance="voxel")).plan(0.0, 0.0, line(np.array([0.0, 1.0, 0.0]), end=0.35), uniform_snapshot(1.0))
+    ended = YawPlanner(paper_config()).plan(0.0, 0.0, line(np.array([0.0, 1.0, 0.0]), end=0.35), uniform_snapshot(1.0))
     assert ended.yaws[-1] == pytest.approx(math.pi / 2)  # after the end: the last heading of travel is kept
 
 
@@ -254,7 +259,8 @@ def test_tracking_uses_the_velocity_along_the_future_trajectory():
 
 
 def test_yaw_at_is_piecewise_linear_and_holds_after_the_end():
-    plan = YawPlanner(YawPlannerConfig(free_distance="voxel")).plan(2.0, 0.0, line(np.array([0.0, 1.0, 0.0]), t0=2.0, end=12.0), uniform_snapshot(1.0))
+    traj = line(np.array([0.0, 1.0, 0.0]), t0=2.0, end=12.0)
+    plan = YawPlanner(paper_config()).plan(2.0, 0.0, traj, uniform_snapshot(1.0))
     yaw, rate = plan.yaw_at(2.05)
     assert yaw == pytest.approx(0.1) and rate == pytest.approx(2.0)
     assert plan.yaw_at(2.0 + 0.1 * 12 + 1.0) == (pytest.approx(plan.yaws[-1]), 0.0)
@@ -263,14 +269,14 @@ def test_yaw_at_is_piecewise_linear_and_holds_after_the_end():
 
 def test_plan_reports_the_nearest_neighbour_distance_for_the_replan_trigger():
     preds = [neighbour(DRONE + (0.5, 0, 0), 0.0, nid=0), neighbour(DRONE + (3, 0, 0), 0.0, nid=1)]
-    plan = YawPlanner(YawPlannerConfig(free_distance="voxel")).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), preds)
+    plan = YawPlanner(paper_config()).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), preds)
     assert plan.min_neighbour_distance_m == pytest.approx(0.5)
-    assert YawPlanner(YawPlannerConfig(free_distance="voxel")).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0)).min_neighbour_distance_m == math.inf
+    assert YawPlanner(paper_config()).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0)).min_neighbour_distance_m == math.inf
 
 
 def test_non_finite_inputs_are_refused():
     with pytest.raises(ValueError, match="yaw"):
-        YawPlanner(YawPlannerConfig(free_distance="voxel")).plan(0.0, float("nan"), HOVER, uniform_snapshot(3.0))
+        YawPlanner(paper_config()).plan(0.0, float("nan"), HOVER, uniform_snapshot(3.0))
 
 
 def test_sweep_offsets_are_a_triangle_wave():
@@ -289,8 +295,9 @@ def test_tracking_sweep_swings_about_the_travel_direction_and_keeps_it_in_view()
     cfg = YawPlannerConfig(free_distance="voxel", tracking_sweep_deg=35.0, tracking_sweep_period_s=1.4)
     heading = 0.7
     vel = np.array([math.cos(heading), math.sin(heading), 0.0])
-    plain = YawPlanner(YawPlannerConfig(free_distance="voxel")).plan(0.0, heading, line(vel), uniform_snapshot(1.0))
+    plain = YawPlanner(paper_config()).plan(0.0, heading, line(vel), uniform_snapshot(1.0))
     np.testing.assert_allclose(plain.yaws, heading)  # no sweep: straight along travel
+    assert YawPlannerConfig().tracking_sweep_deg == 35.0  # the package's default (measured in its docs)
     p = YawPlanner(cfg).plan(0.0, heading, line(vel), uniform_snapshot(1.0))
     assert p.mode == "tracking"
     # the swing turns at 4 * 35 deg / 1.4 s = 100 deg/s < 2 rad/s: the yaws follow it exactly
