@@ -123,14 +123,14 @@ def main() -> None:
             f"{'rounds':>6} {'min d m':>7}")  # fmt: skip
     print(head)
     print("-" * len(head))
-    med = {}
+    med, mean = {}, {}
     for scen in scenarios:
         for v in variants:
             rs = runs[(scen, v)]
             wall = np.concatenate([r["wall"] for r in rs]) * 1e3
             iters = np.concatenate([r["iters"] for r in rs])
             obs_rows = np.concatenate([r["obs_rows"] for r in rs])
-            med[(scen, v)] = np.median(wall)
+            med[(scen, v)], mean[(scen, v)] = np.median(wall), wall.mean()
             print(
                 f"{scen:<17} {v[0] + '/' + v[1]:<20} {wall.size:>6} {np.median(wall):>7.3f} "
                 f"{np.percentile(wall, 95):>7.3f} {wall.mean():>7.3f} "
@@ -146,12 +146,16 @@ def main() -> None:
     print("obs rows: mean obstacle rows per round; obs rnds: fraction of rounds with any obstacle row")
     print()
     for scen in scenarios:
-        bvc = med[(scen, variants[1])]
+        bvc, bvc_mean = med[(scen, variants[1])], mean[(scen, variants[1])]
         for v in (variants[0], variants[2]):
-            od = med[(scen, v)]
-            goal = f" (goal >= 3x: {'met' if bvc / od >= 3 else 'NOT met'}; median <= 0.3 ms: {'met' if od <= 0.3 else 'NOT met'})"
-            print(f"{scen}: median BVC / {v[0]}/{v[1]} = {bvc / od:.2f}x, on-demand median {od:.3f} ms"
-                  + (goal if v == variants[0] else ""))  # fmt: skip
+            od, od_mean = med[(scen, v)], mean[(scen, v)]
+            line = (f"{scen}: BVC / {v[0]}/{v[1]}: median {bvc / od:.2f}x, mean {bvc_mean / od_mean:.2f}x; "
+                    f"on-demand median {od:.3f} ms")  # fmt: skip
+            if v == variants[0]:  # the goals: >= 3x (the paper's statistic is the mean), median <= 0.3 ms
+                line += (f" (goal >= 3x on the mean: {'met' if bvc_mean / od_mean >= 3 else 'NOT met'}, "
+                         f"on the median: {'met' if bvc / od >= 3 else 'NOT met'}; "
+                         f"median <= 0.3 ms: {'met' if od <= 0.3 else 'NOT met'})")  # fmt: skip
+            print(line)
     print("paper, Table 1 (MATLAB): mean 12.91 / 3.94 ms = 3.28x")
 
 

@@ -48,6 +48,18 @@ the QPs recorded in ``mpcde eval-dmpc``, OMP_NUM_THREADS=1, shared 2-core box):
   on-demand slot (neighbour or obstacle) keeps its last coefficients with
   bounds (-inf, inf), so the round in which a conflict ends needs no
   refactorisation either.
+* P's pattern holds only its structural nonzeros. The cost is separable by
+  axis (goal, formation and smoothness weigh x, y and z alike and apart),
+  so the U block of P has no cross-axis entry: 360 entries of the dense
+  triangle's 1035 at K = 15. Explicit zeros would enter qdldl's symbolic
+  factorisation and its fill. Measured against the dense triangle
+  (``mpcde eval-dmpc --seeds 6``, same machine, one after the other):
+  formation_square on demand median 0.179 -> 0.136 ms, mean 0.209 -> 0.160
+  ms; BVC median 0.346 -> 0.318 ms, mean 0.571 -> 0.520 ms; antipodal on
+  demand mean 0.592 -> 0.447 ms, BVC 2.040 -> 1.900 ms. (Why on-demand
+  gains more, a reading not measured apart: without BVC's K x M rows, which
+  couple the axes at every step, its KKT system is nearly three independent
+  axis blocks once the zeros are gone.)
 * One slack per on-demand row, as in the paper (on-demand DMPC Sec. 3.4,
   alpha_ij per neighbour). An UNUSED slot's slack is pinned at 0 with price 0:
   the same optimum, but without it the bound s >= 0 carried the multiplier
@@ -59,7 +71,7 @@ the QPs recorded in ``mpcde eval-dmpc``, OMP_NUM_THREADS=1, shared 2-core box):
   cheaper refactorisation (0.12 vs 0.28 ms with 4 obstacles), but each
   on-demand slot's row would need either a step-local pattern per step
   (K x slots rows, the size of BVC) or a dense row across all states; neither
-  gains enough to reach the 0.3 ms floor (below), so the condensed form stays.
+  gained enough to pay for the change, so the condensed form stays.
 * Obstacle rows that the velocity and input limits already imply are culled
   (:meth:`DmpcProblem._fill_obstacles`; exactly the same feasible set) for
   both methods; in formation_square this leaves about two thirds of them.
@@ -73,17 +85,20 @@ the QPs recorded in ``mpcde eval-dmpc``, OMP_NUM_THREADS=1, shared 2-core box):
   sigma (1, 0.01 / 1e-4 no better), no polishing.
 
 Floor: a round with no collision or obstacle row (nothing to refactorise,
-box constraints only) costs about 0.12-0.16 ms. With every-step obstacle rows,
-formation_square's obstacle planes change every round (a new tangent plane
-per step), so each of its rounds pays a refactorisation plus about 25
-iterations: about 0.4 ms median for either method. With on-demand obstacle
-rows (the paper's mechanism) only rounds with a predicted obstacle conflict
-refactorise: about half of formation_square's rounds (the obstacles lie on
-the drones' straight lines; the unconstrained optimum of every round while
-passing one goes through it, so its row is needed every round), and those
-rounds take about 40 iterations (median 0.38 ms against 0.13 ms without):
-overall median 0.25 ms, BVC / on-demand 2.1x in ``mpcde eval-dmpc`` (2.3x in
-the kinematic bench), not the 3x goal; see :mod:`planners.dmpc.obstacle`.
+box constraints only) costs about 0.06 ms (``benchmarks/bench_dmpc.py``).
+With every-step obstacle rows, formation_square's obstacle planes change
+every round (a new tangent plane per step), so each of its rounds pays a
+refactorisation plus about 30 iterations: 0.24 ms median on demand, 0.32 ms
+BVC. With on-demand obstacle rows (the paper's mechanism) only rounds with
+a predicted obstacle conflict refactorise: about half of formation_square's
+rounds (the obstacles lie on the drones' straight lines; the unconstrained
+optimum of every round while passing one goes through it, so its row is
+needed every round), and those rounds take about 50 iterations (median
+0.19 ms against 0.06 ms without; kinematic bench); see
+:mod:`planners.dmpc.obstacle`. ``mpcde eval-dmpc --seeds 6`` (full physics):
+formation_square on demand median 0.136 ms, mean 0.160 ms; BVC 0.318 /
+0.520 ms: 2.33x on the median, 3.25x on the mean (the paper's "Average QP
+Solve Time", 12.91 / 3.94 ms = 3.28x); antipodal 3.36x / 4.25x.
 """
 
 from __future__ import annotations
@@ -196,7 +211,11 @@ class DmpcProblem:
         self._D = D
         self._H_base = 2.0 * cfg.weight_goal * L_goal.T @ L_goal + 2.0 * cfg.weight_smoothness * D.T @ D
         self._H_form = 2.0 * cfg.weight_formation * mats.Lambda_pos.T @ mats.Lambda_pos
-        iu = np.triu_indices(self._n_u)
+        # The cost is separable by axis (goal, formation and smoothness act on x, y, z alike and alone), so
+        # P's U block has no cross-axis entries: its pattern holds only the structural nonzeros, not the
+        # dense triangle (explicit zeros would enter the KKT factorisation's fill).
+        structural = np.triu((self._H_base != 0.0) | (self._H_form != 0.0))
+        iu = np.nonzero(structural)
         self._P_triu = iu
         n_s = self._n_slack
         P_pat = SparsePattern()  # dense U block (upper triangle) + slack diagonal; values set in _assemble_P

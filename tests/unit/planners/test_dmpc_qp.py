@@ -113,6 +113,45 @@ def test_formation_term_pulls_towards_the_desired_offset() -> None:
     assert_kkt(problem.snapshot())
 
 
+@pytest.mark.parametrize("model", ["double", "triple"])
+def test_qp_objective_equals_the_cost_rolled_out_step_by_step(model: str) -> None:
+    """1/2 U^T P U + q^T U is J(U) up to a constant, J evaluated on a step-by-step rollout.
+
+    Guards the sparse P: its pattern keeps only the structural nonzeros (no
+    cross-axis entries), so a cost term that coupled the axes, or an entry
+    dropped from the pattern, would show here. Random U have cross-axis terms.
+    """
+    cfg = DmpcConfig(model=model, weight_formation=7.0, weight_smoothness=3.0)
+    problem = DmpcProblem(cfg)
+    x0 = _x0(cfg, vel=(0.4, -0.2, 0.1))
+    goal = np.array([3.0, -1.0, 2.0])
+    neighbours = [_hover_neighbour([2.0, 2.0, 1.5], 4, cfg), _hover_neighbour([-2.0, 1.0, 1.0], 5, cfg)]
+    offsets = {4: np.array([2.0, 1.0, 0.0]), 5: np.array([-1.0, 1.5, -0.5])}
+    problem.solve(x0, goal, neighbours, None, offsets, t_now_s=0.0)
+    snap = problem.snapshot()
+    n_u, K = 3 * cfg.horizon_steps, cfg.horizon_steps
+    P = snap.P.toarray()
+    P = np.triu(P) + np.triu(P, 1).T  # OSQP holds the upper triangle
+    targets = [np.array([2.0, 2.0, 1.5]) - offsets[4], np.array([-2.0, 1.0, 1.0]) - offsets[5]]  # p_j - d_ij
+
+    def J(U: np.ndarray) -> float:
+        u = U.reshape(K, 3)
+        p = rollout(model, cfg.step_s, x0, u)[1:, :3]
+        cost = cfg.weight_goal * np.sum((p[K - cfg.goal_steps :] - goal) ** 2)
+        cost += cfg.weight_formation * sum(np.sum((p - t) ** 2) for t in targets)
+        du = np.diff(np.vstack([np.zeros(3), u]), axis=0)  # u[-1] = 0 without a previous plan
+        return float(cost + cfg.weight_smoothness * np.sum(du**2))
+
+    def f(U: np.ndarray) -> float:
+        return float(0.5 * U @ P[:n_u, :n_u] @ U + snap.q[:n_u] @ U)
+
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        U = rng.normal(0.0, 2.0, n_u)
+        np.testing.assert_allclose(f(U) - f(np.zeros(n_u)), J(U) - J(np.zeros(n_u)), rtol=1e-9, atol=1e-6)
+    assert snap.P[:n_u, :n_u].nnz == 3 * K * (K + 1) // 2  # three dense axis blocks, no cross-axis entries
+
+
 def test_sparsity_pattern_is_fixed_across_rounds() -> None:
     for mode in ("on_demand", "bvc"):
         cfg = DmpcConfig(collision_mode=mode, max_neighbours=3)
