@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets up a fresh Debian/Ubuntu machine for mpcde: system packages, a virtual
-# environment in .venv, the CPU build of torch first, then the package itself.
+# environment in .venv, the CPU build of torch first, then the package itself with
+# every dependency at the version in requirements-lock.txt.
 # Idempotent: a second run only checks.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,12 +23,22 @@ if [ ! -x "$VENV/bin/python" ]; then
     "$PYTHON" -m venv "$VENV"
 fi
 PIP="$VENV/bin/python -m pip"
+pip_install() {  # quiet pip install; on failure print pip's output and stop
+    local out
+    if ! out=$($PIP install -q "$@" 2>&1); then
+        echo "$out" >&2
+        echo "[setup] pip install $* failed" >&2
+        exit 1
+    fi
+    echo "$out" | grep -v -e '^WARNING: Location' -e '^$' || true
+}
 stamp="$VENV/.mpcde-installed"
-if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
-    $PIP install -q --upgrade pip setuptools wheel 2>&1 | grep -v '^WARNING: Location' || true
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || [ requirements-lock.txt -nt "$stamp" ]; then
+    pip_install --upgrade pip setuptools wheel
     # CPU build of torch first so that no dependency pulls a multi-GB CUDA build.
-    $PIP install -q "torch==2.13.0" 2>&1 | grep -v '^WARNING: Location' || true
-    $PIP install -q -e ".[dev]" 2>&1 | grep -v '^WARNING: Location' || true
+    pip_install "torch==2.13.0"
+    # Every other dependency at the version in requirements-lock.txt (why: that file's header).
+    pip_install -c requirements-lock.txt -e ".[dev]"
     "$VENV/bin/python" -c "import torch, pybullet, open3d, osqp, filterpy, cv2, imageio_ffmpeg; print('[setup] torch', torch.__version__, '| pybullet ok | open3d', open3d.__version__)"
     touch "$stamp"
 fi
