@@ -41,30 +41,44 @@ false`` turns the perception off for both halves (the blind-fallback ablation).
 
 Measured on radio_outage (forest_swarm, every receiver deaf from 3 s to
 15 s; full physics and rendering), seeds 0-5, with ``mpcde compare
-radio_outage --seeds 6 --jobs 2`` (a flight's metrics do not depend on the
-job count or ``run.render_workers``: ``mpcde fly radio_outage --mode denied
---seed 3`` with 2 render workers gives the same metrics as the compare run,
-timings aside). Drone-drone and obstacle collision events per seed, with the
-default tracking-mode camera swing (``YawPlannerConfig.tracking_sweep_deg``,
-35 deg) and without it (0, MP-CDE's tracking mode; comm does not use it):
+radio_outage --seeds 6 --jobs 2`` at dec0191, dependencies as in
+``requirements-lock.txt`` (a flight's metrics do not depend on the job count
+or ``run.render_workers``: ``mpcde fly radio_outage --mode denied --seed 0``
+with 2 render workers gives the same metrics as the compare run, timings
+aside). Drone-drone and obstacle collision events per seed, with the default
+tracking-mode camera swing (``YawPlannerConfig.tracking_sweep_deg``, 35 deg)
+and without it (0, MP-CDE's tracking mode, by ``mpcde fly``; comm does not
+use it):
 
 =========  ==================  =====  ========  ===============  =============
 mode       per seed 0-5        total  success   worst min dist   mean mission
 =========  ==================  =====  ========  ===============  =============
-comm       10, 8, 4, 8, 9, 4   43     0 of 6    0.091 m          11.7 s
-denied     0, 0, 0, 0, 0, 0    0      5 of 6    0.278 m          25.4 s (5)
-auto       0, 0, 0, 0, 0, 0    0      6 of 6    0.208 m          19.6 s
-denied 0   3, 0, 1, 0, 0, 1    5      3 of 6    0.146 m          25.2 s (5)
-auto 0     0, 0, 1, 0, 0, 1    2      4 of 6    0.085 m          20.1 s
+comm       10, 8, 4, 8, 9, 4   43     0 of 6    0.092 m          11.7 s
+denied     0, 0, 0, 1, 0, 0    1      5 of 6    0.188 m          25.4 s
+auto       0, 1, 0, 0, 0, 1    2      4 of 6    0.190 m          20.0 s
+denied 0   1, 0, 1, 1, 2, 1    6      1 of 6    0.174 m          24.7 s
+auto 0     0, 0, 0, 0, 1, 1    2      4 of 6    0.130 m          20.5 s
 =========  ==================  =====  ========  ===============  =============
 
-("(5)": one drone never arrived in one seed.) Seeds 6-11 are in
-``planners/yaw/config.py``. Earlier tables without the swing (before the
-denied agent's committed stop, f802920, and the history-free renderer,
-0f41624) read denied 1, 0, 1, 1, 1, 1 and auto 0, 0, 0, 0, 0, 1: a flight is
-chaotic in its collision count (a 1e-4 px change in one detection changed
-denied seed 3's mission time by 0.5 s), so per-seed counts move by one or two
-between commits that change any arithmetic. Without the radio memory
+Every drone arrived in every run. Seeds 6-11 are in
+``planners/yaw/config.py``. auto seed 1's event is an obstacle graze
+(clearance -0.006 m) by drone 1 at 15.9 s, 0.7 s after it switched back to
+DMPC at 15.2 s; its DMPC half reports 3 primal-infeasible rounds (flown
+on the fallback) in the flight. Whether they fall in those 0.7 s (hard
+obstacle rows unmeetable from where the denied half left the drone would
+do it) was not diagnosed.
+A flight is chaotic in its collision count (a 1e-4 px change in one
+detection changed denied seed 3's mission time by 0.5 s), so per-seed
+counts move by one or two between commits that change any arithmetic, and
+between installs: this table's first three rows, measured at a353109 in
+the environment of 2026-11-22, read comm 43 (the same), denied
+0, 0, 0, 0, 0, 0 (5 of 6 successes) and auto 0, 0, 0, 0, 0, 0 (6 of 6);
+the same commit in a venv rebuilt on 2026-11-25 flies denied seed 0 to a
+different outcome (hence the pinned versions). Before the denied agent's
+committed stop (f802920) and the history-free renderer (0f41624), without
+the swing, they read denied 1, 0, 1, 1, 1, 1 and auto 0, 0, 0, 0, 0, 1.
+
+Without the radio memory
 (``plan_memory_s: 0``, the behaviour before it; measured when it was added)
 auto had 0, 3, 2 collisions on seeds 0-2:
 its collisions came 1-2 s after the switch, sideways dodges into a neighbour

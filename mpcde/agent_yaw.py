@@ -37,7 +37,7 @@ On radio_outage (seeds 0-5) every contact of the denied stack was between two
 drones with no track of each other, most of them converging side by side at
 78-94 deg bearings, which a forward camera in tracking mode never sees;
 ``YawPlannerConfig.tracking_sweep_deg`` (35 deg by default; measured there on
-seeds 0-11: denied 17 collisions -> 2, ``auto`` 3 -> 0) swings the
+seeds 0-11: denied 15 collisions -> 1, ``auto`` 2 -> 2) swings the
 tracking-mode camera about the direction of travel.
 """
 

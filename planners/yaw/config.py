@@ -148,20 +148,27 @@ class YawPlannerConfig:
             +-(fov_h/2 + sweep) while the direction of travel stays in view
             (allowed below fov_h / 2). Chosen: 35 deg, the default since it
             was measured on radio_outage seeds 0-11 (full physics and
-            rendering, commit 1aa8a08; seeds 0-5 by ``mpcde compare``, 6-11
-            by ``mpcde fly``), 35 deg against 0, drone-drone and obstacle
-            collision events per seed:
-            denied 0,0,0,0,0,0, 0,1,0,1,0,0 (2) against
-            3,0,1,0,0,1, 1,2,0,2,3,4 (17), success 9 of 12 against 4, worst
-            minimum distance 0.181 against 0.116 m, mean mission 25.9 against
-            24.9 s (of the runs in which every drone arrived);
-            auto 0 in all 12 against 0,0,1,0,0,1, 0,0,1,0,0,0 (3), success
-            12 of 12 against 9, worst minimum distance 0.208 against 0.085 m,
-            mean mission 19.7 against 19.8 s. (Before the denied agent's
-            committed stop, f802920, and the history-free renderer, 0f41624,
-            seeds 0-5 had read auto 3 collisions with the swing against 1
-            without, and it was left off; the counts are chaotic, a few per
-            seed set either way, so the 12-seed totals decided.)
+            rendering, commit 1aa8a08, the environment of 2026-11-22),
+            35 deg against 0: denied 2 collision events against 17, auto 0
+            against 3. Re-measured at dec0191 with the versions of
+            ``requirements-lock.txt`` (seeds 0-5 by ``mpcde compare``, the
+            rest by ``mpcde fly``), drone-drone and obstacle collision
+            events per seed, 35 deg against 0:
+            denied 0,0,0,1,0,0, 0,0,0,0,0,0 (1) against
+            1,0,1,1,2,1, 0,1,1,1,4,2 (15), success 11 of 12 against 2,
+            worst minimum distance 0.188 against 0.106 m, mean mission
+            25.5 s (12 runs) against 24.5 s (10 runs in which every drone
+            arrived; seeds 10 and 11 lost 2 and 1);
+            auto 0,1,0,0,0,1, 0,0,0,0,0,0 (2) against
+            0,0,0,0,1,1, 0,0,0,0,0,0 (2), success 10 of 12 both, worst
+            minimum distance 0.190 against 0.130 m, mean mission 19.8
+            against 20.2 s (seed 1's event with the swing is an obstacle
+            graze after the switch back to DMPC, ``mpcde/agent_auto.py``).
+            The counts are chaotic, a few per seed set either way (before
+            the denied agent's committed stop, f802920, and the
+            history-free renderer, 0f41624, seeds 0-5 had read auto 3
+            collisions with the swing against 1 without), so the 12-seed
+            totals decide: the swing for the denied stack, a tie for auto.
         tracking_sweep_period_s: period of that swing [s] (chosen 1.4 s: a
             35 deg swing then turns at 100 deg/s, within the 2 rad/s limit).
         still_speed_mps: in tracking mode, below this horizontal speed the
