@@ -63,10 +63,15 @@ auto 0     0, 0, 0, 0, 1, 1    2      4 of 6    0.130 m          20.5 s
 Every drone arrived in every run. Seeds 6-11 are in
 ``planners/yaw/config.py``. auto seed 1's event is an obstacle graze
 (clearance -0.006 m) by drone 1 at 15.9 s, 0.7 s after it switched back to
-DMPC at 15.2 s; its DMPC half reports 3 primal-infeasible rounds (flown
-on the fallback) in the flight. Whether they fall in those 0.7 s (hard
-obstacle rows unmeetable from where the denied half left the drone would
-do it) was not diagnosed.
+DMPC at 15.2 s: its QP was primal infeasible in the rounds at 15.6, 15.8
+and 16.0 s (each with one on-demand obstacle row and no collision row; the
+drone at about (2.0 to 2.5, -1.7, 3.1) m, where the denied half had taken
+it), so it flew the 15.4 s plan shifted (the fallback), whose unconstrained
+steps cut the obstacle's disc. The hard obstacle row cannot be met from
+where the denied half left the drone. Not fixed: a fallback that brakes
+away from the obstacle, or rows relaxed to what the input limits can reach,
+would change every flight that has a fallback (in the compare run above:
+auto seeds 1 and 5, 3 and 4 rounds, and comm seed 2, 1 round).
 A flight is chaotic in its collision count (a 1e-4 px change in one
 detection changed denied seed 3's mission time by 0.5 s), so per-seed
 counts move by one or two between commits that change any arithmetic, and
