@@ -2,7 +2,8 @@
 
 Measured (seed 0): ideal radio, min inter-drone distance 0.482 m, all 8 arrive
 in 6.4 s; 20 % Bernoulli loss, seeds 0-3: min 0.532 / 0.416 / 0.457 / 0.469 m,
-no collision, all arrive (re-measured after the QP's sparse P, 5bcd47c). One drone through formation_square's obstacles:
+no collision, all arrive (re-measured after the QP's sparse P, 5bcd47c). One
+drone through formation_square's obstacles:
 min obstacle clearance (beyond the robot radius) 0.233 m with on-demand
 obstacle rows (rows in 28 of 64 rounds), 0.239 m with every-step rows.
 """

@@ -125,14 +125,15 @@ def test_qp_objective_equals_the_cost_rolled_out_step_by_step(model: str) -> Non
     problem = DmpcProblem(cfg)
     x0 = _x0(cfg, vel=(0.4, -0.2, 0.1))
     goal = np.array([3.0, -1.0, 2.0])
-    neighbours = [_hover_neighbour([2.0, 2.0, 1.5], 4, cfg), _hover_neighbour([-2.0, 1.0, 1.0], 5, cfg)]
+    hover = {4: np.array([2.0, 2.0, 1.5]), 5: np.array([-2.0, 1.0, 1.0])}  # neighbour id -> position [m]
+    neighbours = [_hover_neighbour(pos, j, cfg) for j, pos in hover.items()]
     offsets = {4: np.array([2.0, 1.0, 0.0]), 5: np.array([-1.0, 1.5, -0.5])}
     problem.solve(x0, goal, neighbours, None, offsets, t_now_s=0.0)
     snap = problem.snapshot()
     n_u, K = 3 * cfg.horizon_steps, cfg.horizon_steps
     P = snap.P.toarray()
     P = np.triu(P) + np.triu(P, 1).T  # OSQP holds the upper triangle
-    targets = [np.array([2.0, 2.0, 1.5]) - offsets[4], np.array([-2.0, 1.0, 1.0]) - offsets[5]]  # p_j - d_ij
+    targets = [hover[j] - offsets[j] for j in hover]  # p_j - d_ij
 
     def J(U: np.ndarray) -> float:
         u = U.reshape(K, 3)
