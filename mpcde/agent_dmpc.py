@@ -57,6 +57,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from mpcde.agent import AgentCounters
+from mpcde.compute_budget import ComputeBudget
 from mpcde.errors import ConfigError
 from mpcde.neighbour_fusion import FusionConfig, fuse_neighbours
 from mpcde.neighbour_perception import NeighbourPerception, PerceptionConfig, onboard_perception
@@ -302,6 +303,7 @@ class DmpcAgent:
         perception: a perception to share (the ``auto`` agent's); None: its own.
         fusion: plan against camera tracks where a neighbour's plan is stale
             (:func:`mpcde.neighbour_fusion.fuse_neighbours`); None: radio plans only.
+        budget: where the compute time of tracking and of the DMPC round is booked (the run's).
     """
 
     def __init__(
@@ -316,8 +318,10 @@ class DmpcAgent:
         perception_config: PerceptionConfig | None = None,
         perception: NeighbourPerception | None = None,
         fusion: FusionConfig | None = None,
+        budget: ComputeBudget | None = None,
     ) -> None:
         self.drone_id = int(drone_id)
+        self.budget = budget if budget is not None else ComputeBudget()
         self.perception, self.detector_request = onboard_perception(config.perceive_neighbours, perception_config, perception)
         self.fusion = fusion if self.perception is not None else None
         self.goal_world = np.asarray(goal_world, float).reshape(3)
@@ -352,7 +356,8 @@ class DmpcAgent:
         """Take one camera frame: track the neighbours its detector found (when it perceives)."""
         self.counters.frames += 1
         if self.perception is not None and detections is not None:
-            self.perception.update(frame, detections)
+            with self.budget.measure("track"):
+                self.perception.update(frame, detections)
 
     def on_radio(self, messages: list[RadioMessage]) -> None:
         """Take this round's inbox: keep each neighbour's newest plan."""
@@ -432,9 +437,14 @@ class DmpcAgent:
         self.yaw = float(yaw)
 
     def outgoing(self, time_s: float) -> PlanMessage | None:
-        """Run this round's DMPC solve at ``time_s`` [s] and return the plan to broadcast."""
+        """Run this round's DMPC solve at ``time_s`` [s] and return the plan to broadcast (booked as ``dmpc_qp``)."""
         if self.latest_estimate is None:
             return None
+        with self.budget.measure("dmpc_qp"):
+            return self._round(time_s)
+
+    def _round(self, time_s: float) -> PlanMessage:
+        """The DMPC round: obstacle half-spaces, the QP (or the fallback plan), the message."""
         cfg = self.qp_config
         x0 = self._state(time_s)
         goal = self.goal_world if time_s >= self.start_delay_s - 1e-9 else self.start_world

@@ -16,6 +16,7 @@ from mpcde.agent_auto import AutoAgent
 from mpcde.agent_denied import DeniedAgent
 from mpcde.agent_dmpc import DmpcAgent, DmpcAgentConfig
 from mpcde.agent_mlr import MlrAgent
+from mpcde.compute_budget import ComputeBudget
 from mpcde.neighbour_fusion import FusionConfig
 from mpcde.neighbour_perception import NeighbourPerception, PerceptionConfig
 from mpcde.scenario import ScenarioConfig
@@ -24,7 +25,10 @@ from sim.obstacles import ObstacleSpec
 __all__ = ["make_agent"]
 
 
-def make_agent(cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obstacles: tuple[ObstacleSpec, ...]) -> OnboardAgent:
+def make_agent(
+    cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obstacles: tuple[ObstacleSpec, ...],
+    budget: ComputeBudget | None = None,
+) -> OnboardAgent:
     """The onboard agent of drone ``drone_id``.
 
     Args:
@@ -33,6 +37,7 @@ def make_agent(cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obst
         obstacles: the static obstacles, given only to the DMPC agent as its
             prior map (the on-demand DMPC paper assumes known obstacles); the
             other stacks map with their cameras.
+        budget: the run's per-component compute time (the perceiving and DMPC agents book into it).
     """
     goal_world = np.asarray(goals_world[drone_id], float)
     kind = cfg.planner.kind
@@ -50,14 +55,14 @@ def make_agent(cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obst
     perception = replace(pc, backprojection=bp)
     fov = (cfg.camera.hfov_deg, cfg.camera.vfov_deg)
     if kind == "mpcde":
-        return DeniedAgent(drone_id, goal_world, cfg.denied, fov, perception)
+        return DeniedAgent(drone_id, goal_world, cfg.denied, fov, perception, budget=budget)
     if kind == "dmpc":
-        return _dmpc_agent(cfg, drone_id, goals_world, obstacles, perception, cfg.dmpc)
+        return _dmpc_agent(cfg, drone_id, goals_world, obstacles, perception, cfg.dmpc, budget=budget)
     if kind == "auto":
-        denied = DeniedAgent(drone_id, goal_world, cfg.denied, fov, perception)
+        denied = DeniedAgent(drone_id, goal_world, cfg.denied, fov, perception, budget=budget)
         # one perception for both halves; denied.perceive_neighbours: false turns it off for both
         dmpc = replace(cfg.dmpc, perceive_neighbours=denied.perception is not None)
-        comm = _dmpc_agent(cfg, drone_id, goals_world, obstacles, perception, dmpc, denied.perception, cfg.auto.fusion)
+        comm = _dmpc_agent(cfg, drone_id, goals_world, obstacles, perception, dmpc, denied.perception, cfg.auto.fusion, budget)
         return AutoAgent(cfg.auto, comm, denied)
     raise AssertionError(f"planner.kind={kind!r} has no agent")  # unreachable: PlannerConfig validates kind
 
@@ -65,7 +70,7 @@ def make_agent(cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obst
 def _dmpc_agent(
     cfg: ScenarioConfig, drone_id: int, goals_world: np.ndarray, obstacles: tuple[ObstacleSpec, ...],
     perception_config: PerceptionConfig, dmpc: DmpcAgentConfig, perception: NeighbourPerception | None = None,
-    fusion: FusionConfig | None = None,
+    fusion: FusionConfig | None = None, budget: ComputeBudget | None = None,
 ) -> DmpcAgent:
     """The DMPC agent of ``drone_id`` (formation offsets from the goals when configured)."""
     goals = np.asarray(goals_world, float)
@@ -74,5 +79,5 @@ def _dmpc_agent(
         offsets = {j: goals[j] - goals[drone_id] for j in range(len(goals)) if j != drone_id}
     return DmpcAgent(
         drone_id, goals[drone_id], dmpc, cfg.planner.start_delay_s, offsets, obstacles, cfg.physics.quadrotor.robot_radius_m,
-        perception_config, perception, fusion,
+        perception_config, perception, fusion, budget,
     )  # fmt: skip

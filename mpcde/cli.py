@@ -19,6 +19,7 @@ import os
 import sys
 from pathlib import Path
 
+from mpcde.compute_budget import ComputeBudget
 from mpcde.errors import ConfigError, MpcdeError
 from mpcde.modes import MODES
 
@@ -185,6 +186,7 @@ def _cmd_fly(args: argparse.Namespace) -> int:
         f"min_inter_drone={m['min_inter_drone_distance_m']} m min_obstacle={m['min_obstacle_distance_m']} m "
         f"mission_time={m['mission_time_s']} s real_time_factor={m['real_time_factor']:.2f} -> {out}"
     )
+    print(f"compute time, largest three: {ComputeBudget.top(m['compute_time'], 3)}")
     return 0
 
 

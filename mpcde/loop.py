@@ -18,6 +18,7 @@ their inbox.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from collections import deque
@@ -27,6 +28,7 @@ from typing import Any, Callable
 import numpy as np
 
 from mpcde.agents import make_agent
+from mpcde.compute_budget import ComputeBudget
 from mpcde.metrics import MetricsAccumulator, formation_metrics
 from mpcde.onboard_detection import BatchedDetector
 from mpcde.scenario import ScenarioConfig, build_layout, check_layout, resolve_obstacles
@@ -114,7 +116,8 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
     n = starts.shape[0]
     d = goals - starts
     start_yaw = np.arctan2(d[:, 1], d[:, 0])
-    agents = [make_agent(cfg, i, goals, prepared.obstacles) for i in range(n)]
+    budget = ComputeBudget()
+    agents = [make_agent(cfg, i, goals, prepared.obstacles, budget) for i in range(n)]
     detector = BatchedDetector.for_agents(agents) if cfg.run.cameras else None
     spec = SceneSpec(obstacles=prepared.obstacles, n_drones=n)
     world = World(spec, starts, start_yaw, cfg.physics)
@@ -146,7 +149,9 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
     arrived_at = None
     eps = 1e-9
     wall0 = time.perf_counter()
+    threads = detector.single_threaded() if detector is not None else contextlib.nullcontext()
     try:
+        threads.__enter__()
         while world.time_s < cfg.duration_s - eps:
             t = world.time_s
             if t >= next_cam - eps:
@@ -155,18 +160,19 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
                     a.on_pose_estimate(e)
                 if pool is not None:
                     if in_flight is not None:
-                        delivery.append(_finish_frames(pool, rig, in_flight, segmentations))
+                        delivery.append(_finish_frames(pool, rig, in_flight, segmentations, budget))
                     cams = [(i, rig.transform_camera_to_world(truth.pos_world[i], truth.rotation_body_to_world[i])) for i in range(n)]
                     pool.submit(truth.pos_world, truth.quat_xyzw, cams, sensor=(cfg.seed, frame_index))
                     in_flight = (t, frame_index, estimates, [c[1] for c in cams])
                     frame_index += 1
                 next_cam += cam_period
             if pool is not None and in_flight is not None and t >= in_flight[0] + cfg.camera.latency_s - eps:
-                delivery.append(_finish_frames(pool, rig, in_flight, segmentations))
+                delivery.append(_finish_frames(pool, rig, in_flight, segmentations, budget))
                 in_flight = None
             while delivery and t >= delivery[0][0] + cfg.camera.latency_s - eps:
                 _, frames = delivery.popleft()
-                detections = _detect(detector, frames, agents, truth.failed)
+                with budget.measure("detect"):
+                    detections = _detect(detector, frames, agents, truth.failed)
                 for f, dets in zip(frames, detections):
                     agents[f.drone_id].on_frame(f, dets)
                     latest_frames[f.drone_id] = f
@@ -195,7 +201,8 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
                     failed=truth.failed,
                 )
                 next_log += log_period
-            truth = world.step(refs)
+            with budget.measure("physics"):
+                truth = world.step(refs)
             metrics.update(truth, world.dt_s)
             if bar is not None and int(world.time_s * 10) != int(t * 10):
                 bar.n = round(world.time_s, 1)
@@ -206,7 +213,9 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
                     break
         wall = time.perf_counter() - wall0
     finally:
+        threads.__exit__(None, None, None)
         if pool is not None:
+            budget.add("render", pool.render_s, pool.renders)
             pool.close()
         world.close()
         if bar is not None:
@@ -217,6 +226,7 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
         "render_workers": workers if pool is not None else None,
         "frames_received": int(sum(a.counters.frames for a in agents)),
     }
+    extra["compute_time"] = budget.result(world.time_s, wall)
     extra.update(track_score.result())
     if _flies_formation(cfg):
         extra.update(formation_metrics(log.arrays["pos_world"], goals))
@@ -250,10 +260,13 @@ def _score_tracks(score: TrackingScore, agents: list, t: float, truth: TrueState
             score.update(a.drone_id, perception.predictions(t), t, truth.pos_world, truth.vel_world, alive)
 
 
-def _finish_frames(pool: RenderPool, rig: CameraRig, in_flight: tuple, segmentations: list) -> tuple[float, list[RgbdFrame]]:
+def _finish_frames(
+    pool: RenderPool, rig: CameraRig, in_flight: tuple, segmentations: list, budget: ComputeBudget
+) -> tuple[float, list[RgbdFrame]]:
     """Collect a render batch and turn it into onboard frames (+ truth labels)."""
     t_capture, index, estimates, true_poses = in_flight
-    raws = pool.collect()
+    with budget.measure("render_wait"):
+        raws = pool.collect()
     frames = []
     for i, raw in enumerate(raws):
         frames.append(rig.frame(i, index, t_capture, raw, estimates[i]))

@@ -8,10 +8,20 @@ forward pass over the batch (DESIGN.md: "Inference is batched across drones";
 3.92 ms one at a time), then gives each agent its own frame's detections with
 its frame. Only agents that ask for detections (a ``detector_request`` that
 is not None) are served; with none, no detector is loaded.
+
+Threads: in flight the detector shares the machine with the render workers,
+so :meth:`BatchedDetector.single_threaded` runs torch on one intra-op thread
+for the flight. With torch's default (one thread per core) its OpenMP team
+spin-waits on the cores the renderers need: measured on forest_swarm, denied,
+10 s, 2 cores, the detector took 214 ms per 6-frame batch and the flight ran
+at real-time factor 0.086; on one thread 45 ms and 0.15 (the renders sped up
+too). See ``docs/results/realtime.md``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -66,6 +76,18 @@ class BatchedDetector:
         if not requests:
             return None
         return cls(requests[0])
+
+    @contextmanager
+    def single_threaded(self) -> Iterator[None]:
+        """Run torch on one intra-op thread inside the ``with`` block (module docstring), then restore."""
+        import torch
+
+        before = torch.get_num_threads()
+        torch.set_num_threads(1)
+        try:
+            yield
+        finally:
+            torch.set_num_threads(before)
 
     def detect(self, frames: Sequence[RgbdFrame], wanted: Sequence[bool]) -> list[list[Detection] | None]:
         """Detections of each frame whose ``wanted`` flag is set (None for the others), one forward pass."""

@@ -18,7 +18,7 @@ def denied(name: str, seconds: float, perceive: bool = True, seed: int = 0):
 
 def _timing_free(m: dict) -> dict:
     """Metrics without wall-clock figures (the only run-to-run differences allowed)."""
-    out = {k: v for k, v in m.items() if k not in ("wall_time_s", "real_time_factor", "agents")}
+    out = {k: v for k, v in m.items() if k not in ("wall_time_s", "real_time_factor", "compute_time", "agents")}
     out["agents"] = [{k: v for k, v in a.items() if not k.endswith("_ms_median")} for a in m["agents"]]
     return out
 

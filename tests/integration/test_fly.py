@@ -14,7 +14,7 @@ from mpcde.loop import prepare_run, run_scenario
 from mpcde.scenario import load_scenario
 from sim.types import PoseEstimate, RadioMessage, RgbdFrame
 
-VOLATILE = {"wall_time_s", "real_time_factor"}
+VOLATILE = {"wall_time_s", "real_time_factor", "compute_time"}
 
 
 def short(name: str, seconds: float, **run) -> "object":
