@@ -52,6 +52,7 @@ import numpy as np
 
 from mpcde.agent import AgentCounters
 from mpcde.agent_yaw import ActiveYaw, yaw_config_for
+from mpcde.compute_budget import ComputeBudget
 from mpcde.errors import require_finite_positive
 from mpcde.neighbour_perception import NeighbourPerception, PerceptionConfig, onboard_perception
 from perception.map_config import MapConfig
@@ -138,18 +139,21 @@ class DeniedAgent:
         perception_config: the scenario's ``perception:`` settings (detector, tracker, back-projection).
         perception: a perception to share (the ``auto`` agent's DMPC half reads the same tracks);
             None: the agent makes its own when ``config.perceive_neighbours``.
+        budget: where the compute time of tracking, mapping, ESDF and planning is booked (the run's).
     """
 
     def __init__(
         self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig, fov_deg: tuple[float, float] = (85.0, 58.0),
         perception_config: PerceptionConfig | None = None, perception: NeighbourPerception | None = None,
+        budget: ComputeBudget | None = None,
     ) -> None:
         self.drone_id = drone_id
+        self.budget = budget if budget is not None else ComputeBudget()
         self.goal_world = np.asarray(goal_world, float)
         self.config = config
         self.counters = AgentCounters()
         self.stats = PlanningStats()
-        self.map = OccupancyMap(config.map)
+        self.map = OccupancyMap(config.map, on_esdf=lambda seconds: self.budget.add("esdf", seconds))
         self.trajectory: MincoTrajectory | None = None
         self.braking = False  # whether self.trajectory is a stopping piece (committed until a replan succeeds)
         self.last_plan_time_s = -np.inf
@@ -202,15 +206,18 @@ class DeniedAgent:
         """
         self.counters.frames += 1
         if self.perception is not None and detections is not None:
-            self.perception.update(frame, detections)
+            with self.budget.measure("track"):
+                self.perception.update(frame, detections)
         t0 = time.perf_counter()
         near = None  # where it believes its neighbours are: their depth hits are not obstacles (when on)
         if self.config.map.neighbour_exclusion_m > 0.0:
             t = np.array([frame.time_s])
             near = np.array([nb.position(t)[0] for nb in self.neighbours(frame.time_s, count=False)]).reshape(-1, 3)
         self.map.update(frame, detections or (), near)
-        snap = self.map.snapshot()
-        self.stats.map_ms.append(1e3 * (time.perf_counter() - t0))
+        snap = self.map.snapshot()  # its ESDF is computed only if a planner reads it
+        seconds = time.perf_counter() - t0
+        self.budget.add("map_insert", seconds)
+        self.stats.map_ms.append(1e3 * seconds)
         return snap
 
     def plan_step(self, t: float, snap: OccupancySnapshot) -> None:
@@ -220,8 +227,10 @@ class DeniedAgent:
         neighbours = self.neighbours(t)
         yaw_trigger = False
         if self.heading.due(t):  # Alg. 1 lines 1-12 every t_y; line 13's trigger is (e)
-            yaw_trigger = self.heading.update(t, snap, self.trajectory, self.hover_world, neighbours)
-        unsafe = self.trajectory is not None and not self._safe(self.trajectory, snap, t)
+            with self.budget.measure("yaw"):
+                yaw_trigger = self.heading.update(t, snap, self.trajectory, self.hover_world, neighbours)
+        # the per-frame check reads the newest ESDF and the voxels occupied since (no transform)
+        unsafe = self.trajectory is not None and not self._safe(self.trajectory, self.map.clearance, t)
         conflict = self.trajectory is not None and self._swarm_conflict(self.trajectory, neighbours, t)
         due = t - self.last_plan_time_s >= self.config.replan_period_s
         if self.trajectory is None or unsafe or conflict or yaw_trigger or due:
@@ -268,8 +277,12 @@ class DeniedAgent:
         tau = t - self.trajectory.t0_s
         return np.stack([self.trajectory.pos(tau), self.trajectory.vel(tau), self.trajectory.acc(tau)])
 
-    def _safe(self, traj: MincoTrajectory, snap, t: float) -> bool:
+    def _safe(self, traj: MincoTrajectory, distance: Callable[[np.ndarray], np.ndarray], t: float) -> bool:
         """Whether ``traj`` keeps 0.75 clearance_m from the map's obstacles from ``t`` [s] on.
+
+        ``distance`` maps (n, 3) points [m] to their obstacle distance (n,) [m]:
+        :meth:`perception.occupancy_map.OccupancyMap.clearance` on the hot
+        path, the fresh snapshot's ESDF for a new plan.
 
         Tried and dropped: the front end's escape rule here (a plan starting
         inside that band, e.g. next to phantom voxels mapped off a neighbour's
@@ -279,7 +292,7 @@ class DeniedAgent:
         from 5 collisions to 7.
         """
         tau = np.linspace(max(t - traj.t0_s, 0.0), traj.total_duration, 40)
-        d, _ = snap.distance_and_gradient(traj.pos(tau))
+        d = distance(traj.pos(tau))
         return bool(np.min(d) >= 0.75 * self.config.clearance_m)
 
     def _swarm_conflict(self, traj: MincoTrajectory, neighbours: list[NeighborPrediction], t: float) -> bool:
@@ -294,25 +307,28 @@ class DeniedAgent:
 
     def _replan(self, snap, neighbours: list[NeighborPrediction], t: float) -> bool:
         start = self.state_at(t)
+        snap.distance_m  # a replan needs this frame's ESDF (booked as "esdf" by the map)
         t0 = time.perf_counter()
         c = self.config
         # the front end sees each track as a capsule (planners.neighbour_field); MINCO sees the predictions
-        front = with_neighbour_capsules(
-            snap, neighbours, t, c.conflict_horizon_s, c.swarm_clearance_m, self.t_hold_s, reach_m=c.front_end_clearance_m + 0.3
-        )
-        path = search_path(front, start[0], self.goal_world, c.front_end_clearance_m, self.search)
+        with self.budget.measure("front_end"):
+            front = with_neighbour_capsules(
+                snap, neighbours, t, c.conflict_horizon_s, c.swarm_clearance_m, self.t_hold_s, reach_m=c.front_end_clearance_m + 0.3
+            )
+            path = search_path(front, start[0], self.goal_world, c.front_end_clearance_m, self.search)
         if not path.found:
             self.stats.failures += 1
             return False
         goal_pva = np.stack([path.goal_used_world, np.zeros(3), np.zeros(3)])
         try:
-            problem = build_trajectory_problem(start, goal_pva, path.waypoints_world, snap, neighbours, t, self.optimizer)
-            result = solve(problem)
+            with self.budget.measure("optimiser"):
+                problem = build_trajectory_problem(start, goal_pva, path.waypoints_world, snap, neighbours, t, self.optimizer)
+                result = solve(problem)
         except (TrajectoryOptimizationError, ValueError):
             self.stats.failures += 1
             return False
         self.stats.solve_ms.append(1e3 * (time.perf_counter() - t0))
-        if not self._safe(result.trajectory, snap, t):
+        if not self._safe(result.trajectory, lambda p: snap.distance_and_gradient(p)[0], t):
             self.stats.failures += 1
             return False
         self.trajectory = result.trajectory

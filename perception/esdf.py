@@ -38,25 +38,42 @@ import numpy as np
 from numba import njit
 from scipy.ndimage import distance_transform_edt
 
-__all__ = ["compute_esdf", "squared_edt", "squared_edt_scipy"]
+__all__ = ["compute_esdf", "signed_distance", "squared_edt", "squared_edt_scipy", "verified_free_distance"]
 
 _BIG = 1e20  # "no feature yet" in squared voxel units
 
 
 @njit(cache=True)
-def _edt_1d(f, d, v, z):
-    """1-D squared distance transform d[q] = min_p (q - p)^2 + f[p] (Felzenszwalb-Huttenlocher Alg. 1)."""
-    n = f.shape[0]
+def _envelope(f, out, n, v, z):  # pragma: no cover - compiled
+    """1-D squared transform out[q] = min_p (q - p)^2 + f[p], p, q < n (Felzenszwalb-Huttenlocher Alg. 1).
+
+    Parabolas of value ``_BIG`` (no feature) are left out of the envelope; a
+    line without any feature stays ``_BIG``.
+    """
+    start = -1
+    for q in range(n):
+        if f[q] < _BIG:
+            start = q
+            break
+    if start < 0:
+        for q in range(n):
+            out[q] = _BIG
+        return
     k = 0
-    v[0] = 0
+    v[0] = start
     z[0] = -np.inf
     z[1] = np.inf
-    for q in range(1, n):
-        # s = ((f[q] + q^2) - (f[v_k] + v_k^2)) / (2 q - 2 v_k): where parabola q overtakes parabola v_k
-        s = ((f[q] + q * q) - (f[v[k]] + v[k] * v[k])) / (2.0 * q - 2.0 * v[k])
+    for q in range(start + 1, n):
+        fq = f[q]
+        if fq >= _BIG:
+            continue
+        vk = v[k]
+        # s: where parabola q overtakes parabola v_k, ((f[q] + q^2) - (f[v_k] + v_k^2)) / (2 q - 2 v_k)
+        s = ((fq + q * q) - (f[vk] + vk * vk)) / (2.0 * (q - vk))
         while s <= z[k]:
             k -= 1
-            s = ((f[q] + q * q) - (f[v[k]] + v[k] * v[k])) / (2.0 * q - 2.0 * v[k])
+            vk = v[k]
+            s = ((fq + q * q) - (f[vk] + vk * vk)) / (2.0 * (q - vk))
         k += 1
         v[k] = q
         z[k] = s
@@ -65,56 +82,73 @@ def _edt_1d(f, d, v, z):
     for q in range(n):
         while z[k + 1] < q:
             k += 1
-        d[q] = (q - v[k]) * (q - v[k]) + f[v[k]]
+        d = q - v[k]
+        out[q] = d * d + f[v[k]]
 
 
 @njit(cache=True)
-def _pass(g, axis, f, d, v, z):
-    """Run the 1-D transform along ``axis`` of ``g`` (nx, ny, nz) in place; lines without features are skipped."""
-    nx, ny, nz = g.shape
-    n = g.shape[axis]
-    if axis == 0:
-        na, nb = ny, nz
-    elif axis == 1:
-        na, nb = nx, nz
-    else:
-        na, nb = nx, ny
-    for a in range(na):
-        for b in range(nb):
-            lowest = _BIG
-            for q in range(n):
-                if axis == 0:
-                    f[q] = g[q, a, b]
-                elif axis == 1:
-                    f[q] = g[a, q, b]
-                else:
-                    f[q] = g[a, b, q]
-                lowest = min(lowest, f[q])
-            if lowest >= _BIG:  # no feature on this line yet: it stays "far"
-                continue
-            _edt_1d(f[:n], d[:n], v, z)
-            for q in range(n):
-                if axis == 0:
-                    g[q, a, b] = d[q]
-                elif axis == 1:
-                    g[a, q, b] = d[q]
-                else:
-                    g[a, b, q] = d[q]
+def _squared_edt_numba(feature):  # pragma: no cover - compiled
+    """Squared distance [voxels^2] from every voxel to the nearest True voxel of ``feature`` (nx, ny, nz).
 
-
-@njit(cache=True)
-def _squared_edt_numba(feature):
-    """Squared distance [voxels^2] from every voxel to the nearest True voxel of ``feature`` (nx, ny, nz)."""
+    Pass 1 along z (contiguous) is two sweeps of the binary line; passes 2 (y)
+    and 3 (x) are the lower envelope of parabolas. A line whose values are all
+    0 (every voxel a feature) or all ``_BIG`` (no feature yet) is its own
+    transform and is skipped. Pass 3 copies one (nx, nz) slab per y so that its
+    lines are contiguous.
+    """
     nx, ny, nz = feature.shape
-    g = np.where(feature, 0.0, _BIG)
+    g = np.empty((nx, ny, nz))
+    for i in range(nx):  # pass 1 along z
+        for j in range(ny):
+            last = -1
+            for k in range(nz):
+                if feature[i, j, k]:
+                    last = k
+                g[i, j, k] = _BIG if last < 0 else float((k - last) * (k - last))
+            last = -1
+            for k in range(nz - 1, -1, -1):
+                if feature[i, j, k]:
+                    last = k
+                if last >= 0:
+                    d = float((last - k) * (last - k))
+                    if d < g[i, j, k]:
+                        g[i, j, k] = d
     m = max(nx, ny, nz)
     f = np.empty(m)
-    d = np.empty(m)
+    out = np.empty(m)
     v = np.empty(m, np.int64)
     z = np.empty(m + 1)
-    _pass(g, 2, f, d, v, z)  # along z (contiguous) first, then y, then x
-    _pass(g, 1, f, d, v, z)
-    _pass(g, 0, f, d, v, z)
+    for i in range(nx):  # pass 2 along y
+        for k in range(nz):
+            lo, hi = _BIG, 0.0
+            for j in range(ny):
+                f[j] = g[i, j, k]
+                lo = min(lo, f[j])
+                hi = max(hi, f[j])
+            if hi == 0.0 or lo >= _BIG:
+                continue
+            _envelope(f, out, ny, v, z)
+            for j in range(ny):
+                g[i, j, k] = out[j]
+    slab = np.empty((nz, nx))
+    for j in range(ny):  # pass 3 along x
+        for i in range(nx):
+            for k in range(nz):
+                slab[k, i] = g[i, j, k]
+        for k in range(nz):
+            line = slab[k]
+            lo, hi = _BIG, 0.0
+            for i in range(nx):
+                lo = min(lo, line[i])
+                hi = max(hi, line[i])
+            if hi == 0.0 or lo >= _BIG:
+                continue
+            _envelope(line, out, nx, v, z)
+            for i in range(nx):
+                line[i] = out[i]
+        for i in range(nx):
+            for k in range(nz):
+                g[i, j, k] = slab[k, i]
     return g
 
 
@@ -134,10 +168,57 @@ def squared_edt_scipy(feature: np.ndarray) -> np.ndarray:
     return distance_transform_edt(~feature) ** 2
 
 
+@njit(cache=True)
+def _signed_field(occupied, sq_out, sq_in, voxel_m, max_m):  # pragma: no cover - compiled
+    """float32 ``-(sqrt(sq_in) v - v/2)`` on occupied voxels, ``sqrt(sq_out) v - v/2`` elsewhere, clipped to +-max_m."""
+    nx, ny, nz = occupied.shape
+    out = np.empty((nx, ny, nz), np.float32)
+    half = 0.5 * voxel_m
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if occupied[i, j, k]:
+                    d = -(np.sqrt(sq_in[i, j, k]) * voxel_m - half)
+                else:
+                    d = np.sqrt(sq_out[i, j, k]) * voxel_m - half
+                out[i, j, k] = min(max(d, -max_m), max_m)
+    return out
+
+
+def signed_distance(occupied: np.ndarray, voxel_m: float, max_distance_m: float, use_scipy: bool = False) -> np.ndarray:
+    """Signed ESDF (nx, ny, nz) float32 [m] of the ``occupied`` voxels (module docstring), clipped to +-``max_distance_m``.
+
+    Args:
+        occupied: (nx, ny, nz) bool.
+        voxel_m: voxel edge [m].
+        max_distance_m: truncation [m].
+        use_scipy: compute the transforms with scipy instead of numba (baseline).
+    """
+    sq = squared_edt_scipy if use_scipy else squared_edt
+    occupied = np.ascontiguousarray(occupied, dtype=np.bool_)
+    sq_out = sq(occupied)  # D_occ^2, 0 on occupied voxels
+    sq_in = sq(~occupied) if occupied.any() else np.zeros(occupied.shape)  # D_free^2
+    return _signed_field(occupied, sq_out, sq_in, float(voxel_m), float(max_distance_m))
+
+
+def verified_free_distance(free: np.ndarray, voxel_m: float, max_distance_m: float, use_scipy: bool = False) -> np.ndarray:
+    """MP-CDE Eq. 1's d_free (nx, ny, nz) float32 [m]: distance to the nearest voxel not observed free, in [0, max].
+
+    Everything not observed free is an obstacle, the outside of the window too;
+    0 on voxels that are not verified free.
+    """
+    sq = squared_edt_scipy if use_scipy else squared_edt
+    free = np.asarray(free, bool)
+    half = 0.5 * voxel_m
+    not_free = np.pad(~free, 1, constant_values=True)
+    d_free = np.sqrt(sq(not_free)[1:-1, 1:-1, 1:-1]) * voxel_m - half
+    return np.clip(np.where(free, d_free, 0.0), 0.0, max_distance_m).astype(np.float32)
+
+
 def compute_esdf(
     occupied: np.ndarray, free: np.ndarray, voxel_m: float, max_distance_m: float, use_scipy: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Signed ESDF and verified-free distance over a window.
+    """Signed ESDF and verified-free distance over a window (:func:`signed_distance`, :func:`verified_free_distance`).
 
     Args:
         occupied: (nx, ny, nz) bool, occupied voxels.
@@ -150,17 +231,7 @@ def compute_esdf(
     Returns:
         ``(distance_m, free_distance_m)``, both (nx, ny, nz) float32 [m].
     """
-    sq = squared_edt_scipy if use_scipy else squared_edt
-    occupied = np.asarray(occupied, bool)
-    half = 0.5 * voxel_m
-    d_out = np.sqrt(sq(occupied)) * voxel_m  # D_occ, 0 on occupied voxels
-    d_in = np.sqrt(sq(~occupied)) * voxel_m if occupied.any() else np.zeros(occupied.shape)  # D_free
-    distance_m = np.where(occupied, -(d_in - half), d_out - half)  # signed, zero on the shared face
-    # verified-free distance: everything not observed free is an obstacle, the outside of the window too
-    not_free = np.pad(~np.asarray(free, bool), 1, constant_values=True)
-    d_free = np.sqrt(sq(not_free)[1:-1, 1:-1, 1:-1]) * voxel_m - half
-    free_distance_m = np.where(free, d_free, 0.0)
     return (
-        np.clip(distance_m, -max_distance_m, max_distance_m).astype(np.float32),
-        np.clip(free_distance_m, 0.0, max_distance_m).astype(np.float32),
+        signed_distance(occupied, voxel_m, max_distance_m, use_scipy),
+        verified_free_distance(free, voxel_m, max_distance_m, use_scipy),
     )

@@ -46,6 +46,20 @@ class MapConfig:
             (1 = full resolution; default 2, i.e. a quarter of the rays; at
             0.15 m voxels and 320 x 240 px the skipped rays are redundant beyond
             about 1.5 m).
+        clear_stride: traverse (clear the voxels along) the rays of every
+            ``clear_stride``-th pixel in u and v whole; the other hit rays of
+            the ``pixel_stride`` grid are traversed over their last
+            ``clear_tail_voxels`` before the surface only (default
+            4; ``pixel_stride`` or less traverses every ray). At 320 x 240 px
+            and 85 deg, neighbouring rays of a stride-4 grid are 1.06 deg
+            apart, 0.13 m at 7 m (the far corner of the 10 m window), less
+            than a 0.15 m voxel, so the traversed rays still sweep every voxel
+            column of the window; a quarter of the traversals costs a quarter
+            of the time (``benchmarks/bench_map.py``). What it changes in the
+            map is measured in ``docs/results/realtime.md``.
+        clear_tail_voxels: length [voxels] of the traversed tail of a hit ray
+            that is not traversed whole (default 2: the space just in front of
+            a surface is cleared by every ray).
         detection_margin_px: margin [px] added on each side of a detection box
             before its pixels are masked out.
         neighbour_exclusion_m: depth hits within this distance [m] of a
@@ -82,6 +96,8 @@ class MapConfig:
     clear_invalid_m: float = 10.0
     invalid_neighborhood_px: int = 3
     pixel_stride: int = 2
+    clear_stride: int = 4
+    clear_tail_voxels: float = 2.0
     detection_margin_px: int = 4
     neighbour_exclusion_m: float = 0.0
     log_odds_hit: float = 0.847
@@ -107,6 +123,10 @@ class MapConfig:
             raise ValueError(f"invalid_neighborhood_px={self.invalid_neighborhood_px!r}: allowed integer >= 0")
         if not (isinstance(self.pixel_stride, (int, np.integer)) and self.pixel_stride >= 1):
             raise ValueError(f"pixel_stride={self.pixel_stride!r}: allowed integer >= 1")
+        if not (isinstance(self.clear_stride, (int, np.integer)) and self.clear_stride >= 1):
+            raise ValueError(f"clear_stride={self.clear_stride!r}: allowed integer >= 1")
+        if not (np.isfinite(self.clear_tail_voxels) and self.clear_tail_voxels >= 0.0):
+            raise ValueError(f"clear_tail_voxels={self.clear_tail_voxels!r}: allowed finite >= 0")
         if not (isinstance(self.detection_margin_px, (int, np.integer)) and self.detection_margin_px >= 0):
             raise ValueError(f"detection_margin_px={self.detection_margin_px!r}: allowed integer >= 0")
         if not (np.isfinite(self.neighbour_exclusion_m) and self.neighbour_exclusion_m >= 0.0):

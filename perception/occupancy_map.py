@@ -30,8 +30,11 @@ A voxel is unknown until a ray touches it, then occupied if
 touched it is kept too (``seen_s`` of the snapshot), so a planner can tell
 free space seen just now from free space seen long ago (MP-CDE Eq. 1's
 "temporally validated" segment, :mod:`planners.yaw.safety`). :meth:`OccupancyMap.snapshot` hands out an
-immutable :class:`perception.types.OccupancySnapshot` with the ESDF
-recomputed (see :mod:`perception.esdf`) when the map changed since the last one.
+immutable :class:`perception.types.OccupancySnapshot` whose ESDF (see
+:mod:`perception.esdf`) is computed only when a planner reads it;
+:meth:`OccupancyMap.clearance` answers the per-frame "is the plan still
+clear?" from the newest ESDF and the voxels occupied since, without a
+transform.
 
 Back-projection is plain numpy: open3d's ``PointCloud.create_from_depth_image``
 was measured (``benchmarks/bench_map.py``) at about the same cost for one
@@ -41,15 +44,17 @@ offers neither the detection mask nor the clearing rays of invalid pixels.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import time
+from collections import deque
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numba import njit
 from scipy.ndimage import minimum_filter
 
-from perception.esdf import compute_esdf
+from perception.esdf import signed_distance, verified_free_distance
 from perception.map_config import MapConfig
-from perception.types import Detection, OccupancySnapshot
+from perception.types import Detection, OccupancySnapshot, trilinear
 from sim.types import RgbdFrame
 
 __all__ = ["OccupancyMap"]
@@ -62,9 +67,14 @@ class OccupancyMap:
         config: map settings.
         center_world: (3,) initial window centre [m]; by default the window is
             placed around the camera of the first frame.
+        on_esdf: called with the wall time [s] of every distance transform
+            (the flight's compute budget).
     """
 
-    def __init__(self, config: MapConfig = MapConfig(), center_world: np.ndarray | None = None) -> None:
+    def __init__(
+        self, config: MapConfig = MapConfig(), center_world: np.ndarray | None = None,
+        on_esdf: Callable[[float], None] | None = None,
+    ) -> None:
         self.config = config
         self._shape = np.asarray(config.window_shape, np.int64)
         self._log_odds = np.zeros(config.window_shape, np.float32)
@@ -74,6 +84,13 @@ class OccupancyMap:
         self._origin_index: np.ndarray | None = None  # global index of voxel (0, 0, 0)
         self._time_s = -np.inf
         self._snapshot: OccupancySnapshot | None = None
+        self._update_seq = 0  # frames integrated
+        # (update number, (k, 3) global voxel indices) of voxels that became occupied, for clearance()
+        self._became_occupied: deque[tuple[int, np.ndarray]] = deque()
+        self._esdf_base: tuple[int, np.ndarray, np.ndarray] | None = None  # (update number, origin, ESDF) of the newest ESDF
+        self.esdf_seconds = 0.0  # wall time [s] spent in distance transforms, and their number
+        self.esdf_count = 0
+        self.on_esdf: Callable[[float], None] | None = on_esdf
         if center_world is not None:
             self.recenter(np.asarray(center_world, float))
 
@@ -118,7 +135,7 @@ class OccupancyMap:
         T_wc = np.asarray(frame.transform_camera_to_world, float)
         cam_world = T_wc[:3, 3]
         self.recenter(cam_world)
-        ends_cam, is_hit = self._rays_camera(frame, detections)
+        ends_cam, is_hit, start = self._rays_camera(frame, detections)
         ends_world = ends_cam @ T_wc[:3, :3].T + cam_world  # p_w = R_wc p_c + t_wc (MP-CDE Eq. 8)
         if neighbours_world is not None and cfg.neighbour_exclusion_m > 0.0 and len(neighbours_world):
             centres = np.asarray(neighbours_world, float).reshape(-1, 3)
@@ -127,12 +144,13 @@ class OccupancyMap:
             for c in centres:
                 on_nb |= np.einsum("ij,ij->i", ends_world - c, ends_world - c) < r2
             keep = ~(is_hit & on_nb)
-            ends_world, is_hit = np.ascontiguousarray(ends_world[keep]), np.ascontiguousarray(is_hit[keep])
+            ends_world, is_hit, start = (np.ascontiguousarray(a[keep]) for a in (ends_world, is_hit, start))
         origin = self.origin_world
-        _integrate_rays(
+        became = _integrate_rays(
             (cam_world - origin) / cfg.voxel_m,
             np.ascontiguousarray((ends_world - origin) / cfg.voxel_m),
             is_hit,
+            start,
             self._log_odds,
             self._observed,
             self._seen_s,
@@ -142,34 +160,84 @@ class OccupancyMap:
             cfg.log_odds_miss,
             cfg.log_odds_min,
             cfg.log_odds_max,
+            cfg.log_odds_occupied,
         )
         self._time_s = float(frame.time_s)
         self._snapshot = None
+        self._update_seq += 1
+        if became.size:
+            idx = np.stack(np.unravel_index(became, self._log_odds.shape), axis=1) + self._origin_index
+            self._became_occupied.append((self._update_seq, idx))
 
     def snapshot(self) -> OccupancySnapshot:
-        """Immutable copy of the window with its ESDF (recomputed only if the map changed)."""
+        """Immutable copy of the window (cached until the next update).
+
+        Its distance layers are deferred: the ESDF is computed the first time a
+        planner reads ``distance_m`` (``free_distance_m`` likewise, on its own),
+        so the frames nobody plans on cost no transform (DESIGN.md section 3:
+        the planners ask for the ESDF at their rates, never per frame).
+        """
         if self._snapshot is None:
+            cfg = self.config
             state = self.state()
-            distance_m, free_distance_m = compute_esdf(
-                state == OccupancySnapshot.OCCUPIED,
-                state == OccupancySnapshot.FREE,
-                self.config.voxel_m,
-                self.config.esdf_max_m,
-            )
             state.flags.writeable = False
-            distance_m.flags.writeable = False
-            free_distance_m.flags.writeable = False
             seen_s = self._seen_s.copy()
             seen_s.flags.writeable = False
             origin = self.origin_world
             origin.flags.writeable = False
-            self._snapshot = OccupancySnapshot(
-                self._time_s, origin, self.config.voxel_m, state, distance_m, free_distance_m, seen_s
-            )
+            seq = self._update_seq
+
+            def esdf() -> np.ndarray:
+                t0 = time.perf_counter()
+                d = signed_distance(state == OccupancySnapshot.OCCUPIED, cfg.voxel_m, cfg.esdf_max_m)
+                self._esdf_done(seq, origin, d, time.perf_counter() - t0)
+                return d
+
+            def free_distance() -> np.ndarray:
+                t0 = time.perf_counter()
+                d = verified_free_distance(state == OccupancySnapshot.FREE, cfg.voxel_m, cfg.esdf_max_m)
+                self._esdf_done(None, origin, None, time.perf_counter() - t0)
+                return d
+
+            self._snapshot = OccupancySnapshot(self._time_s, origin, cfg.voxel_m, state, esdf, free_distance, seen_s)
         return self._snapshot
 
-    def _rays_camera(self, frame: RgbdFrame, detections: Sequence[Detection]) -> tuple[np.ndarray, np.ndarray]:
-        """Ray end points in camera frame (n, 3) [m] and whether each ends on a surface (n,) bool."""
+    def clearance(self, points_world: np.ndarray) -> np.ndarray:
+        """Distance (n,) [m] from ``points_world`` (n, 3) to the mapped obstacles, without a fresh transform.
+
+        The cheap check of the hot path ("is the current trajectory still
+        clear?"): the newest ESDF computed (trilinear, as
+        :meth:`OccupancySnapshot.distance_and_gradient`), lowered to the
+        distance from each point to every voxel that became occupied since
+        that ESDF (centre distance less half a voxel, the ESDF's own
+        convention). Voxels freed since are not credited, so the value errs on
+        the safe side. Before any ESDF exists, one is computed.
+        """
+        p = np.asarray(points_world, float).reshape(-1, 3)
+        if self._esdf_base is None:
+            self.snapshot().distance_m
+        seq, origin, dist = self._esdf_base
+        v = self.config.voxel_m
+        d = trilinear(dist, origin, v, p)[0]
+        while self._became_occupied and self._became_occupied[0][0] <= seq:
+            self._became_occupied.popleft()
+        if self._became_occupied:
+            centres = (np.concatenate([idx for _, idx in self._became_occupied]) + 0.5) * v
+            near = np.sqrt(np.min(np.sum((p[:, None, :] - centres[None, :, :]) ** 2, axis=-1), axis=1)) - 0.5 * v
+            d = np.minimum(d, near)
+        return d
+
+    def _esdf_done(self, seq: int | None, origin: np.ndarray, distance_m: np.ndarray | None, seconds: float) -> None:
+        """Book a finished transform: its time, and (for the ESDF) the newest base of :meth:`clearance`."""
+        self.esdf_seconds += seconds
+        self.esdf_count += 1
+        if self.on_esdf is not None:
+            self.on_esdf(seconds)
+        if seq is not None and (self._esdf_base is None or seq > self._esdf_base[0]):
+            self._esdf_base = (seq, origin, distance_m)
+
+    def _rays_camera(self, frame: RgbdFrame, detections: Sequence[Detection]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Ray end points in camera frame (n, 3) [m], whether each ends on a surface (n,) bool, and where its traversal starts (n,) in [0, 1]."""
         cfg = self.config
         depth_m = np.asarray(frame.depth_m)
         h, w = depth_m.shape
@@ -193,13 +261,21 @@ class OccupancyMap:
             )[np.ix_(v_px, u_px)]
             clear_nan = np.minimum(clear_nan, near - cfg.voxel_m)
         nan_ray = ~finite & (clear_nan > cfg.voxel_m)
-        use = keep & (hit | far | nan_ray)
+        # which rays are traversed whole: every clear_stride-th pixel; the others only their last voxels before a hit
+        c = max(cfg.clear_stride // s, 1)
+        trace = np.zeros(d.shape, bool)
+        trace[::c, ::c] = True
+        use = keep & (hit | ((far | nan_ray) & trace))
         depth_end = np.where(hit, d, np.where(far, cfg.max_range_m, clear_nan))[use]
         K_inv = np.linalg.inv(np.asarray(frame.K, float))
         uu, vv = np.meshgrid(u_px.astype(float), v_px.astype(float))
         pix = np.stack([uu[use], vv[use], np.ones(depth_end.size)], axis=1)
         ends_cam = (pix @ K_inv.T) * depth_end[:, None]  # p_c = d K^-1 [u, v, 1]^T (MP-CDE Eq. 7)
-        return ends_cam, np.ascontiguousarray(hit[use])
+        # an untraversed hit ray still clears its last clear_tail_voxels before the surface
+        length = np.linalg.norm(ends_cam, axis=1)
+        tail = np.clip(1.0 - cfg.clear_tail_voxels * cfg.voxel_m / np.maximum(length, 1e-9), 0.0, 1.0)
+        start = np.where(trace[use], 0.0, tail)
+        return ends_cam, np.ascontiguousarray(hit[use]), np.ascontiguousarray(start)
 
 
 def _shifted(a: np.ndarray, shift: np.ndarray, fill: float | bool) -> np.ndarray:
@@ -229,12 +305,16 @@ def _axis_setup(o, dv, i):
 
 @njit(cache=True)
 def _integrate_rays(
-    origin_vox, ends_vox, is_hit, log_odds, observed, seen_s, time_s, mark, l_hit, l_miss, l_min, l_max
-):
+    origin_vox, ends_vox, is_hit, start, log_odds, observed, seen_s, time_s, mark, l_hit, l_miss, l_min, l_max, l_occupied
+):  # pragma: no cover - compiled
     """Cast rays from ``origin_vox`` (3,) to ``ends_vox`` (n, 3) (window voxel units) and update log-odds.
 
     Every voxel a ray touches is marked observed and stamped ``seen_s = time_s`` (the frame time [s]).
+    Returns the flat indices (k,) int64 of the voxels that became occupied
+    (unknown or free before, log-odds above ``l_occupied`` after).
 
+    Ray ``r`` is traversed from ``origin + start[r] (end - origin)`` (``start``
+    in [0, 1]: 0 for a whole ray, near 1 for the last voxels before a hit).
     Amanatides-Woo traversal on the flattened window. ``mark`` (nx, ny, nz)
     int8 must be zero on entry and is zero on return; within the call
     1 = passed through (miss), 2 = end point (hit wins).
@@ -251,7 +331,7 @@ def _integrate_rays(
         ex_f, ey_f, ez_f = ends_vox[r, 0], ends_vox[r, 1], ends_vox[r, 2]
         dx, dy, dz = ex_f - ox, ey_f - oy, ez_f - oz
         # clip the segment origin + t d, t in [0, 1], to the box [0, n) (slab method)
-        t0 = 0.0
+        t0 = start[r]
         t1 = 1.0
         for o, dv, n in ((ox, dx, nx), (oy, dy, ny), (oz, dz, nz)):
             if dv != 0.0:
@@ -319,10 +399,17 @@ def _integrate_rays(
                 touched[n_touched] = end_lin
                 n_touched += 1
             mk[end_lin] = 2
+    became = np.empty(n_touched, np.int64)
+    n_became = 0
     for k in range(n_touched):
         lin = touched[k]
+        was_occupied = obs_flat[lin] and lo_flat[lin] > l_occupied
         l_new = lo_flat[lin] + (l_hit if mk[lin] == 2 else l_miss)  # l <- l + l_hit / l_miss
         lo_flat[lin] = min(max(l_new, l_min), l_max)  # clamp to [l_min, l_max]
+        if not was_occupied and lo_flat[lin] > l_occupied:
+            became[n_became] = lin
+            n_became += 1
         obs_flat[lin] = True
         seen_flat[lin] = time_s
         mk[lin] = 0
+    return became[:n_became]

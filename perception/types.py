@@ -1,4 +1,4 @@
-"""Types that leave perception/ (frozen dataclasses).
+"""Types that leave perception/ (frozen dataclasses, and the immutable map snapshot).
 
 :class:`NeighborPrediction` is the one type the planners consume about other
 drones (DESIGN.md section 4, planners). It comes from either source:
@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from collections.abc import Callable
 from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Detection", "DistanceField", "NeighborPrediction", "OccupancySnapshot"]
+__all__ = ["Detection", "DistanceField", "NeighborPrediction", "OccupancySnapshot", "trilinear"]
 
 
 @dataclass(frozen=True)
@@ -145,13 +146,19 @@ class NeighborPrediction:
         return n_sigma * np.sqrt(np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0))
 
 
-@dataclass(frozen=True)
 class OccupancySnapshot:
     """What a drone's map hands to the planners: one immutable copy of its local window.
 
     The window is a regular grid of ``(nx, ny, nz)`` cubic voxels of edge
     ``voxel_m``; voxel ``(i, j, k)`` spans ``origin_world + voxel_m * [i, i+1) x ...``
     and its centre is ``origin_world + voxel_m * ([i, j, k] + 0.5)``.
+
+    ``distance_m`` and ``free_distance_m`` may be given as arrays or as
+    zero-argument callables that compute them; a callable runs the first time
+    the layer is read and its result is kept (the map hands out snapshots
+    whose distance transforms are computed only if a planner reads them, so a
+    frame that nobody plans on costs no ESDF). The snapshot is immutable:
+    attributes cannot be set and every array is read-only.
 
     Attributes:
         time_s: time [s] of the last depth frame integrated.
@@ -186,16 +193,26 @@ class OccupancySnapshot:
     UNKNOWN: ClassVar[int] = -1
     FREE: ClassVar[int] = 0
     OCCUPIED: ClassVar[int] = 1
+    __slots__ = ("time_s", "origin_world", "voxel_m", "state", "seen_s", "_distance_m", "_free_distance_m")
 
-    time_s: float
-    origin_world: np.ndarray
-    voxel_m: float
-    state: np.ndarray
-    distance_m: np.ndarray
-    free_distance_m: np.ndarray
-    seen_s: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
+    def __init__(
+        self,
+        time_s: float,
+        origin_world: np.ndarray,
+        voxel_m: float,
+        state: np.ndarray,
+        distance_m: np.ndarray | Callable[[], np.ndarray],
+        free_distance_m: np.ndarray | Callable[[], np.ndarray],
+        seen_s: np.ndarray | None = None,
+    ) -> None:
+        init = object.__setattr__
+        init(self, "time_s", time_s)
+        init(self, "origin_world", origin_world)
+        init(self, "voxel_m", voxel_m)
+        init(self, "state", state)
+        init(self, "seen_s", seen_s)
+        init(self, "_distance_m", distance_m)
+        init(self, "_free_distance_m", free_distance_m)
         if np.shape(self.origin_world) != (3,):
             raise ValueError(f"OccupancySnapshot.origin_world shape={np.shape(self.origin_world)}: allowed (3,)")
         if not self.voxel_m > 0.0:
@@ -203,9 +220,44 @@ class OccupancySnapshot:
         shape = np.shape(self.state)
         if len(shape) != 3 or min(shape) < 2:
             raise ValueError(f"OccupancySnapshot.state shape={shape}: allowed (nx, ny, nz) with every n >= 2")
-        for name in ("distance_m", "free_distance_m", "seen_s"):
-            if getattr(self, name) is not None and np.shape(getattr(self, name)) != shape:
-                raise ValueError(f"OccupancySnapshot.{name} shape={np.shape(getattr(self, name))}: allowed {shape}")
+        for name in ("_distance_m", "_free_distance_m", "seen_s"):
+            value = getattr(self, name)
+            if value is not None and not callable(value) and np.shape(value) != shape:
+                raise ValueError(f"OccupancySnapshot.{name.lstrip('_')} shape={np.shape(value)}: allowed {shape}")
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError(f"OccupancySnapshot is immutable: cannot set {name!r}")
+
+    def _layer(self, name: str) -> np.ndarray:
+        value = getattr(self, name)
+        if callable(value):
+            value = np.asarray(value())
+            if value.shape != self.state.shape:
+                raise ValueError(f"OccupancySnapshot.{name.lstrip('_')} shape={value.shape}: allowed {self.state.shape}")
+            value.flags.writeable = False
+            object.__setattr__(self, name, value)
+        return value
+
+    @property
+    def distance_m(self) -> np.ndarray:
+        """(nx, ny, nz) float32 signed ESDF [m] (computed on first read when the map deferred it)."""
+        return self._layer("_distance_m")
+
+    @property
+    def free_distance_m(self) -> np.ndarray:
+        """(nx, ny, nz) float32 verified-free distance [m] (computed on first read when deferred)."""
+        return self._layer("_free_distance_m")
+
+    @property
+    def distance_ready(self) -> bool:
+        """Whether :attr:`distance_m` is computed already (reading it costs nothing more)."""
+        return not callable(self._distance_m)
+
+    def with_distance(self, distance_m: np.ndarray) -> "OccupancySnapshot":
+        """The same snapshot with another ESDF layer (nx, ny, nz) [m] (e.g. with neighbours added as obstacles)."""
+        return OccupancySnapshot(
+            self.time_s, self.origin_world, self.voxel_m, self.state, distance_m, self._free_distance_m, self.seen_s
+        )
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -263,14 +315,14 @@ class OccupancySnapshot:
         derivative of that interpolant (zero along an axis where the point is
         clamped to the window).
         """
-        return _trilinear(self.distance_m, self.origin_world, self.voxel_m, points_world)
+        return trilinear(self.distance_m, self.origin_world, self.voxel_m, points_world)
 
     def free_distance(self, points_world: np.ndarray) -> np.ndarray:
         """Distance (n,) [m] to the nearest not-verified-free voxel at ``points_world`` (n, 3), trilinear."""
-        return _trilinear(self.free_distance_m, self.origin_world, self.voxel_m, points_world)[0]
+        return trilinear(self.free_distance_m, self.origin_world, self.voxel_m, points_world)[0]
 
 
-def _trilinear(
+def trilinear(
     field: np.ndarray, origin_world: np.ndarray, voxel_m: float, points_world: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Trilinear value (n,) and gradient (n, 3) of ``field`` (nx, ny, nz) sampled at voxel centres."""

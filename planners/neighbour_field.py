@@ -17,7 +17,6 @@ are unchanged. Distances are Euclidean (the path search's clearance is).
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Sequence
 
 import numpy as np
@@ -87,5 +86,5 @@ def with_neighbour_capsules(
         d[d > reach_m] = np.inf
         block = dist[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]
         np.minimum(block, d.astype(np.float32), out=block)
-    return dataclasses.replace(snapshot, distance_m=dist)
+    return snapshot.with_distance(dist)
 
