@@ -237,45 +237,128 @@ class OccupancyMap:
             self._esdf_base = (seq, origin, distance_m)
 
     def _rays_camera(self, frame: RgbdFrame, detections: Sequence[Detection]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Ray end points in camera frame (n, 3) [m], whether each ends on a surface (n,) bool, and where its traversal starts (n,) in [0, 1]."""
+        """Ray end points in camera frame (n, 3) [m], whether each ends on a surface (n,) bool, and where its traversal starts (n,) in [0, 1].
+
+        Steps 1-2 of the module docstring, in one compiled pass over the
+        ``pixel_stride`` grid (:func:`_camera_rays`; :func:`rays_camera_numpy`
+        is the vectorised reference the tests compare it with).
+        """
         cfg = self.config
-        depth_m = np.asarray(frame.depth_m)
-        h, w = depth_m.shape
-        s = cfg.pixel_stride
-        v_px = np.arange(s // 2, h, s)
-        u_px = np.arange(s // 2, w, s)
-        d = depth_m[np.ix_(v_px, u_px)].astype(np.float64)
-        keep = np.ones(d.shape, bool)
-        m = cfg.detection_margin_px
-        for det in detections:  # mask neighbours: their pixels are neither hits nor misses
-            u0, v0, u1, v1 = np.asarray(det.box_xyxy, float)
-            keep[np.ix_((v_px >= v0 - m) & (v_px <= v1 + m), (u_px >= u0 - m) & (u_px <= u1 + m))] = False
-        finite = np.isfinite(d)
-        hit = finite & (d >= cfg.min_range_m) & (d <= cfg.max_range_m)
-        far = finite & (d > cfg.max_range_m)
-        clear_nan = np.full(d.shape, min(cfg.clear_invalid_m, cfg.max_range_m))
-        if cfg.invalid_neighborhood_px > 0 and not finite.all():
-            # a hole in a surface clears only up to the surface around it, less one voxel
-            near = minimum_filter(
-                np.where(np.isfinite(depth_m), depth_m, np.inf), size=2 * cfg.invalid_neighborhood_px + 1, mode="nearest"
-            )[np.ix_(v_px, u_px)]
-            clear_nan = np.minimum(clear_nan, near - cfg.voxel_m)
-        nan_ray = ~finite & (clear_nan > cfg.voxel_m)
-        # which rays are traversed whole: every clear_stride-th pixel; the others only their last voxels before a hit
-        c = max(cfg.clear_stride // s, 1)
-        trace = np.zeros(d.shape, bool)
-        trace[::c, ::c] = True
-        use = keep & (hit | ((far | nan_ray) & trace))
-        depth_end = np.where(hit, d, np.where(far, cfg.max_range_m, clear_nan))[use]
-        K_inv = np.linalg.inv(np.asarray(frame.K, float))
-        uu, vv = np.meshgrid(u_px.astype(float), v_px.astype(float))
-        pix = np.stack([uu[use], vv[use], np.ones(depth_end.size)], axis=1)
-        ends_cam = (pix @ K_inv.T) * depth_end[:, None]  # p_c = d K^-1 [u, v, 1]^T (MP-CDE Eq. 7)
-        # an untraversed hit ray still clears its last clear_tail_voxels before the surface
-        length = np.linalg.norm(ends_cam, axis=1)
-        tail = np.clip(1.0 - cfg.clear_tail_voxels * cfg.voxel_m / np.maximum(length, 1e-9), 0.0, 1.0)
-        start = np.where(trace[use], 0.0, tail)
-        return ends_cam, np.ascontiguousarray(hit[use]), np.ascontiguousarray(start)
+        depth = np.ascontiguousarray(frame.depth_m)
+        boxes = np.array([np.asarray(d.box_xyxy, float) for d in detections], float).reshape(-1, 4)
+        return _camera_rays(
+            depth, cfg.pixel_stride, boxes, float(cfg.detection_margin_px), cfg.min_range_m, cfg.max_range_m,
+            min(cfg.clear_invalid_m, cfg.max_range_m), cfg.invalid_neighborhood_px, cfg.voxel_m, depth.dtype.type(cfg.voxel_m), depth.dtype.type(np.inf),
+            np.linalg.inv(np.asarray(frame.K, float)), max(cfg.clear_stride // cfg.pixel_stride, 1), cfg.clear_tail_voxels,
+        )
+
+
+def rays_camera_numpy(config: MapConfig, frame: RgbdFrame, detections: Sequence[Detection]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vectorised numpy reference of :meth:`OccupancyMap._rays_camera` (same rays, same order)."""
+    cfg = config
+    depth_m = np.asarray(frame.depth_m)
+    h, w = depth_m.shape
+    s = cfg.pixel_stride
+    v_px = np.arange(s // 2, h, s)
+    u_px = np.arange(s // 2, w, s)
+    d = depth_m[np.ix_(v_px, u_px)].astype(np.float64)
+    keep = np.ones(d.shape, bool)
+    m = cfg.detection_margin_px
+    for det in detections:  # mask neighbours: their pixels are neither hits nor misses
+        u0, v0, u1, v1 = np.asarray(det.box_xyxy, float)
+        keep[np.ix_((v_px >= v0 - m) & (v_px <= v1 + m), (u_px >= u0 - m) & (u_px <= u1 + m))] = False
+    finite = np.isfinite(d)
+    hit = finite & (d >= cfg.min_range_m) & (d <= cfg.max_range_m)
+    far = finite & (d > cfg.max_range_m)
+    clear_nan = np.full(d.shape, min(cfg.clear_invalid_m, cfg.max_range_m))
+    if cfg.invalid_neighborhood_px > 0 and not finite.all():
+        # a hole in a surface clears only up to the surface around it, less one voxel
+        near = minimum_filter(
+            np.where(np.isfinite(depth_m), depth_m, np.inf), size=2 * cfg.invalid_neighborhood_px + 1, mode="nearest"
+        )[np.ix_(v_px, u_px)]
+        clear_nan = np.minimum(clear_nan, near - cfg.voxel_m)
+    nan_ray = ~finite & (clear_nan > cfg.voxel_m)
+    # which rays are traversed whole: every clear_stride-th pixel; the others only their last voxels before a hit
+    c = max(cfg.clear_stride // s, 1)
+    trace = np.zeros(d.shape, bool)
+    trace[::c, ::c] = True
+    use = keep & (hit | ((far | nan_ray) & trace))
+    depth_end = np.where(hit, d, np.where(far, cfg.max_range_m, clear_nan))[use]
+    K_inv = np.linalg.inv(np.asarray(frame.K, float))
+    uu, vv = np.meshgrid(u_px.astype(float), v_px.astype(float))
+    pix = np.stack([uu[use], vv[use], np.ones(depth_end.size)], axis=1)
+    ends_cam = (pix @ K_inv.T) * depth_end[:, None]  # p_c = d K^-1 [u, v, 1]^T (MP-CDE Eq. 7)
+    # an untraversed hit ray still clears its last clear_tail_voxels before the surface
+    length = np.linalg.norm(ends_cam, axis=1)
+    tail = np.clip(1.0 - cfg.clear_tail_voxels * cfg.voxel_m / np.maximum(length, 1e-9), 0.0, 1.0)
+    start = np.where(trace[use], 0.0, tail)
+    return ends_cam, np.ascontiguousarray(hit[use]), np.ascontiguousarray(start)
+
+
+@njit(cache=True)
+def _camera_rays(
+    depth, stride, boxes, margin, min_r, max_r, clear_cap, nbhd, voxel, voxel_depth_dtype, inf_depth_dtype, K_inv, clear_every, tail_voxels
+):  # pragma: no cover - compiled
+    """The rays of one depth frame (see :func:`rays_camera_numpy`, the reference): ends (n, 3), is_hit (n,), start (n,).
+
+    ``voxel_depth_dtype`` is ``voxel`` in the depth image's dtype: the hole
+    bound ``near - voxel`` is computed in that precision, as numpy does.
+    """
+    h, w = depth.shape
+    nv = (h - stride // 2 + stride - 1) // stride
+    nu = (w - stride // 2 + stride - 1) // stride
+    ends = np.empty((nv * nu, 3))
+    is_hit = np.empty(nv * nu, np.bool_)
+    start = np.empty(nv * nu)
+    n = 0
+    for iv in range(nv):
+        v = stride // 2 + iv * stride
+        for iu in range(nu):
+            u = stride // 2 + iu * stride
+            masked = False
+            for b in range(boxes.shape[0]):
+                if boxes[b, 1] - margin <= v <= boxes[b, 3] + margin and boxes[b, 0] - margin <= u <= boxes[b, 2] + margin:
+                    masked = True
+                    break
+            if masked:
+                continue
+            d = float(depth[v, u])
+            trace = iv % clear_every == 0 and iu % clear_every == 0
+            hit = False
+            if np.isfinite(d):
+                if min_r <= d <= max_r:
+                    hit = True
+                    end = d
+                elif d > max_r and trace:
+                    end = max_r
+                else:
+                    continue
+            else:
+                if not trace:
+                    continue
+                end = clear_cap
+                if nbhd > 0:  # a hole clears only up to the nearest valid depth around it, less one voxel
+                    near = inf_depth_dtype
+                    for y in range(max(v - nbhd, 0), min(v + nbhd, h - 1) + 1):
+                        for x in range(max(u - nbhd, 0), min(u + nbhd, w - 1) + 1):
+                            z = depth[y, x]
+                            if np.isfinite(z) and z < near:
+                                near = z
+                    end = min(end, float(near - voxel_depth_dtype))
+                if not end > voxel:
+                    continue
+            x = (K_inv[0, 0] * u + K_inv[0, 1] * v + K_inv[0, 2]) * end  # p_c = d K^-1 [u, v, 1]^T (MP-CDE Eq. 7)
+            y = (K_inv[1, 0] * u + K_inv[1, 1] * v + K_inv[1, 2]) * end
+            z = (K_inv[2, 0] * u + K_inv[2, 1] * v + K_inv[2, 2]) * end
+            ends[n, 0], ends[n, 1], ends[n, 2] = x, y, z
+            is_hit[n] = hit
+            if trace:
+                start[n] = 0.0
+            else:
+                length = max(np.sqrt(x * x + y * y + z * z), 1e-9)
+                start[n] = min(max(1.0 - tail_voxels * voxel / length, 0.0), 1.0)
+            n += 1
+    return ends[:n], is_hit[:n], start[:n]
 
 
 def _shifted(a: np.ndarray, shift: np.ndarray, fill: float | bool) -> np.ndarray:

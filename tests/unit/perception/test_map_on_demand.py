@@ -100,3 +100,26 @@ def test_clear_stride_keeps_every_hit_and_clears_almost_all_free_space(yaw) -> N
 def test_clear_stride_is_validated() -> None:
     with pytest.raises(ValueError, match="^clear_stride="):
         MapConfig(clear_stride=0)
+
+
+@pytest.mark.parametrize("dets", [(), ((100.0, 60.0, 180.0, 120.0),), ((0.0, 0.0, 40.0, 30.0), (250.0, 150.0, 319.0, 239.0))])
+def test_compiled_rays_equal_the_numpy_reference(dets) -> None:
+    from perception.occupancy_map import rays_camera_numpy
+    from perception.types import Detection
+
+    K = intrinsics()
+    T = camera_pose(CAM_POS, 0.3)
+    depth = np.fmin(wall_depth(K, T, X_WALL, 2.5, (0.3, 2.7)), cylinder_depth(K, T, np.array([1.5, 0.3]), 0.25))
+    rng = np.random.default_rng(3)
+    depth[rng.random(depth.shape) < 0.05] = np.nan  # stereo holes
+    depth[:5, :5] = 25.0  # beyond the range
+    depth[200:202, 10:12] = 0.1  # nearer than the minimum
+    frame = make_frame(K, T, depth)
+    detections = [Detection(box_xyxy=np.array(b), score=0.9) for b in dets]
+    m = OccupancyMap()
+    got = m._rays_camera(frame, detections)
+    ref = rays_camera_numpy(m.config, frame, detections)
+    assert got[0].shape == ref[0].shape
+    np.testing.assert_allclose(got[0], ref[0], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(got[1], ref[1])
+    np.testing.assert_allclose(got[2], ref[2], rtol=0, atol=1e-12)
