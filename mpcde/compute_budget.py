@@ -8,11 +8,14 @@ the result under ``compute_time`` and ``mpcde fly`` prints the three
 largest. These are wall-clock figures of this machine, so like
 ``real_time_factor`` they are not part of a run's reproducible metrics.
 
-Components (seconds of wall time spent inside each, summed over drones):
+Components (seconds spent inside each, summed over drones; wall time of the
+main process, so on a loaded machine a figure includes the time the process
+was descheduled):
 
-* ``render``: rendering the cameras (in the render workers when there are
-  any, so it overlaps the main process); ``render_wait``: time the main
-  process blocked waiting for a render batch;
+* ``render``: the CPU time of rendering the cameras and applying the depth
+  sensor model (in the render workers when there are any, so it overlaps
+  the main process); ``render_wait``: wall time the main process blocked
+  waiting for a render batch;
 * ``physics``: PyBullet step, SE(3) controller and motor model at 240 Hz;
 * ``detect``: the batched detector (pre-processing, forward, decoding);
 * ``track``: back-projection and the Kalman tracker;

@@ -66,7 +66,7 @@ def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_s
             if msg[0] == "stop":
                 break
             _, pos, quat, jobs, style, sensor = msg
-            t0 = time.perf_counter()
+            t0 = time.process_time()
             renderer.set_drone_poses(pos, quat)
             for slot, drone, T_cw in jobs:
                 r = _render_one(renderer, drone, T_cw, style, sensor)
@@ -74,7 +74,7 @@ def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_s
                 rgb[:], depth[:], mask[:] = r.rgb, r.depth_true_m, r.drone_index_mask
                 if r.depth_sensor_m is not None:
                     sensor_view[:] = r.depth_sensor_m
-            conn.send(("done", len(jobs), time.perf_counter() - t0))
+            conn.send(("done", len(jobs), time.process_time() - t0))
     finally:
         del views
         renderer.close()
@@ -101,7 +101,7 @@ class RenderPool:
         self._local: SceneRenderer | None = None
         self._local_result: list[RawRender] | None = None
         self._workers, self._conns, self._shms, self._views = [], [], [], []
-        self.render_s = 0.0  # wall time [s] spent rendering (in the workers, or here with none), and renders made
+        self.render_s = 0.0  # CPU time [s] spent rendering (in the workers, or here with none), and renders made
         self.renders = 0
         if n_workers == 0:
             self._local = SceneRenderer(spec, camera)
@@ -137,10 +137,10 @@ class RenderPool:
         if self._pending is not None:
             raise RuntimeError("RenderPool.submit: collect() the previous batch first")
         if self._local is not None:
-            t0 = time.perf_counter()
+            t0 = time.process_time()
             self._local.set_drone_poses(pos_world, quat_xyzw)
             self._local_result = [_render_one(self._local, d, T, style, sensor) for d, T in cameras]
-            self.render_s += time.perf_counter() - t0
+            self.render_s += time.process_time() - t0
             self.renders += len(cameras)
             self._pending = []
             return

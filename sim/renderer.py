@@ -34,7 +34,6 @@ from numba import njit
 
 from sim.camera import (
     CameraConfig,
-    depth_buffer_to_depth_m,
     intrinsics,
     opengl_projection_from_intrinsics,
     opengl_view_from_camera_to_world,
@@ -134,51 +133,49 @@ class SceneRenderer:
         if own_drone is not None:
             pos, quat = self._poses[own_drone]
             pb.resetBasePositionAndOrientation(self.drone_ids[own_drone], pos, quat, physicsClientId=self.client)
-        rgb = np.asarray(rgba, np.uint8).reshape(H, W, 4)[:, :, :3]
-        depth = depth_buffer_to_depth_m(np.asarray(zbuf).reshape(H, W), cam.render_near_m, cam.render_far_m)
-        seg = np.asarray(seg).reshape(H, W)
-        background = seg < 0
-        # segmentation holds PyBullet body ids (-1: nothing); lut[id + 1] is the drone index or -1
-        mask = np.take(self.lut_body_to_drone, seg + 1, mode="clip")
-        rgb, depth = self._draw_ground_and_sky(rgb, depth, background, transform_camera_to_world, style, light)
-        return RawRender(rgb=rgb, depth_true_m=depth, drone_index_mask=mask)
-
-    def _draw_ground_and_sky(
-        self,
-        rgb: np.ndarray,
-        depth: np.ndarray,
-        background: np.ndarray,
-        T_cw: np.ndarray,
-        style: RenderStyle,
-        light: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Composite the z = 0 ground or the sky into background pixels; see :func:`_ground_kernel`."""
         shade = style.ambient + style.diffuse * max(light[2], 0.0)
         light_tile = np.clip(np.asarray(style.ground_rgb) * shade * 255.0 + 0.5, 0, 255).astype(np.uint8)
         dark_tile = np.clip(np.asarray(style.ground_rgb) * shade * (1.0 - style.ground_checker_contrast) * 255.0 + 0.5, 0, 255).astype(np.uint8)
         sky = np.clip(np.asarray(style.sky_rgb) * 255.0 + 0.5, 0, 255).astype(np.uint8)
-        rgb = np.ascontiguousarray(rgb)
-        _ground_kernel(
-            rgb, depth, background, self.ray_x[0], self.ray_y[:, 0], np.ascontiguousarray(T_cw[:3, :3]), np.ascontiguousarray(T_cw[:3, 3]),
-            float(self.camera.render_far_m), light_tile, dark_tile, sky,
+        T_cw = transform_camera_to_world
+        rgb, depth, mask = _compose(
+            np.asarray(rgba, np.uint8).reshape(H, W, 4), np.asarray(zbuf, np.float32).reshape(H, W), np.asarray(seg, np.int32).reshape(H, W),
+            self.lut_body_to_drone, float(cam.render_near_m), float(cam.render_far_m), self.ray_x[0], self.ray_y[:, 0],
+            np.ascontiguousarray(T_cw[:3, :3], dtype=float), np.ascontiguousarray(T_cw[:3, 3], dtype=float), light_tile, dark_tile, sky,
         )
-        return rgb, depth
+        return RawRender(rgb=rgb, depth_true_m=depth, drone_index_mask=mask)
 
 
 @njit(cache=True)
-def _ground_kernel(rgb, depth, background, ray_x, ray_y, R, t, far_m, light_tile, dark_tile, sky):  # pragma: no cover - compiled
-    """In place: for each background pixel, hit the ground z = 0 or show the sky.
+def _compose(rgba, zbuf, seg, lut, near_m, far_m, ray_x, ray_y, R, t, light_tile, dark_tile, sky):  # pragma: no cover - compiled
+    """One pass over TinyRenderer's buffers: rgb (H, W, 3) uint8, depth (H, W) float32 [m], drone mask (H, W) int16.
+
+    Depth along the optical axis from the z-buffer d in [0, 1]:
+    z = f n / (f - (f - n) d) (:func:`sim.camera.depth_buffer_to_depth_m`,
+    same float64 arithmetic). ``seg`` holds PyBullet body ids (-1: nothing);
+    ``lut[id + 1]`` is the drone index or -1. Every background pixel (nothing
+    rasterised) gets the ground z = 0 or the sky:
 
     The pixel ray r_c = K^-1 [u, v, 1] = [ray_x[u], ray_y[v], 1] (unit optical z)
     goes along d_w = R_wc r_c from t_wc and meets z = 0 at
     lambda = -t_z / d_w,z (when d_w,z < 0); lambda is the depth along the
     optical axis. The ground shows a 1 m checker.
     """
-    H, W = depth.shape
+    H, W = zbuf.shape
+    rgb = np.empty((H, W, 3), np.uint8)
+    depth = np.empty((H, W), np.float32)
+    mask = np.empty((H, W), np.int16)
+    n_lut = lut.shape[0]
     for v in range(H):
         for u in range(W):
-            if not background[v, u]:
+            body = seg[v, u]
+            if body >= 0:
+                for c in range(3):
+                    rgb[v, u, c] = rgba[v, u, c]
+                depth[v, u] = np.float32(far_m * near_m / (far_m - (far_m - near_m) * np.float64(zbuf[v, u])))
+                mask[v, u] = lut[min(body + 1, n_lut - 1)]
                 continue
+            mask[v, u] = -1
             dx = R[0, 0] * ray_x[u] + R[0, 1] * ray_y[v] + R[0, 2]
             dy = R[1, 0] * ray_x[u] + R[1, 1] * ray_y[v] + R[1, 2]
             dz = R[2, 0] * ray_x[u] + R[2, 1] * ray_y[v] + R[2, 2]
@@ -196,3 +193,4 @@ def _ground_kernel(rgb, depth, background, ray_x, ray_y, R, t, far_m, light_tile
                 for c in range(3):
                     rgb[v, u, c] = sky[c]
                 depth[v, u] = np.inf
+    return rgb, depth, mask

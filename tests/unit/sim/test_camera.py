@@ -157,3 +157,34 @@ def test_a_render_leaves_every_drone_where_it_was_set_bit_for_bit():
             assert after == placed
     finally:
         renderer.close()
+
+
+def test_compose_equals_the_buffer_conversions_it_fuses():
+    """The renderer's one-pass composition gives what the separate conversions give (depth formula, mask LUT, ground/sky)."""
+    from sim.camera import depth_buffer_to_depth_m
+    from sim.renderer import _compose
+
+    rng = np.random.default_rng(2)
+    H, W = 24, 32
+    rgba = rng.integers(0, 256, (H, W, 4), dtype=np.uint8)
+    zbuf = rng.uniform(0.0, 1.0, (H, W)).astype(np.float32)
+    seg = rng.integers(-1, 5, (H, W)).astype(np.int32)
+    lut = np.array([-1, -1, 0, 1, -1], np.int16)  # body 3 would fall off the end: clipped like np.take(mode="clip")
+    ray_x = np.linspace(-0.9, 0.9, W).astype(np.float32)
+    ray_y = np.linspace(-0.5, 0.5, H).astype(np.float32)
+    R = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]) @ np.array(
+        [[1, 0, 0], [0, np.cos(0.3), -np.sin(0.3)], [0, np.sin(0.3), np.cos(0.3)]]
+    )
+    t = np.array([0.3, -0.2, 1.5])
+    tiles = (np.array([100, 120, 90], np.uint8), np.array([80, 100, 70], np.uint8), np.array([170, 200, 230], np.uint8))
+    rgb, depth, mask = _compose(rgba, zbuf, seg, lut, 0.05, 30.0, ray_x, ray_y, R, t, *tiles)
+    fg = seg >= 0
+    np.testing.assert_array_equal(rgb[fg], rgba[..., :3][fg])
+    np.testing.assert_array_equal(depth[fg], depth_buffer_to_depth_m(zbuf, 0.05, 30.0)[fg])
+    np.testing.assert_array_equal(mask, np.take(lut, seg + 1, mode="clip"))
+    # background: the ground z = 0 where the pixel ray descends within the far plane, else the sky at inf
+    d = (R @ np.stack(np.broadcast_arrays(ray_x[None, :], ray_y[:, None], np.ones((H, W))), 0).reshape(3, -1)).reshape(3, H, W)
+    lam = np.where(d[2] < -1e-9, -t[2] / np.where(d[2] < -1e-9, d[2], -1.0), np.inf)
+    ground = ~fg & (lam <= 30.0)
+    np.testing.assert_allclose(depth[ground], lam[ground], rtol=1e-6)
+    assert np.all(np.isinf(depth[~fg & ~ground])) and np.all(rgb[~fg & ~ground] == tiles[2])
