@@ -7,10 +7,13 @@
 2. Physics + controller step [ms/tick] for 6 drones, against PyBullet's bare
    ``stepSimulation`` of the same bodies (the floor).
 3. Real-time factor of the 6-drone forest flight (forest_swarm, 20 s, cameras
-   at 25 Hz, 320x240) with render workers (one per core) against rendering in
-   the main process.
+   at 25 Hz, 320x240) for every stack side by side (placeholder, comm,
+   denied, auto), each with its per-component compute budget
+   (``metrics.json`` ``compute_time``), against a peer measured in the same
+   run: PyFlyt flying and rendering six camera drones on the same scene
+   (``benchmarks/peer_pyflyt.py``; skipped with a note when PyFlyt is absent).
 
-Usage: python benchmarks/bench_sim.py [--quick]
+Usage: python benchmarks/bench_sim.py [--quick] [--stacks ...] [--no-peer] [--only-rtf]
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import SceneSpec
 from sim.types import FlatOutputReference
 from sim.world import World
+from peer_pyflyt import pyflyt_available, pyflyt_peer_rtf
 from timing import median_ms
 
 
@@ -77,27 +81,61 @@ def physics_bench(repeats: int) -> None:
           f"240 Hz needs {step * 240:.0f} ms per simulated s")
 
 
-def rtf_bench(duration_s: float) -> None:
-    cfg = load_scenario("forest_swarm", {"duration_s": duration_s})
-    cfg = replace(cfg, run=replace(cfg.run, stop_when_arrived=False))
-    rows = []
-    for workers in (os.cpu_count() or 1, 0):
-        c = replace(cfg, run=replace(cfg.run, render_workers=workers))
-        m = run_scenario(prepare_run(c)).metrics
-        rows.append((workers, m["real_time_factor"], m["frames_rendered"]))
-    print(f"forest_swarm, 6 drones, {duration_s:.0f} s, cameras 25 Hz at 320x240:")
-    for workers, rtf, frames in rows:
-        print(f"  render workers {workers}: real-time factor {rtf:.2f} ({frames} frames)")
-    print(f"  speed-up of workers over in-process: x{rows[0][1] / rows[1][1]:.2f}")
+STACKS = ("placeholder", "comm", "denied", "auto")  # planner.kind of each: min_jerk_line, dmpc, mpcde, auto
+_KIND = {"placeholder": "min_jerk_line", "comm": "dmpc", "denied": "mpcde", "auto": "auto"}
+BUDGET_ROWS = ("render", "render_wait", "physics", "detect", "track", "map_insert", "esdf", "yaw", "front_end", "optimiser", "dmpc_qp", "other")
+
+
+def rtf_bench(duration_s: float, stacks: tuple[str, ...] = STACKS, peer: bool = True) -> None:
+    """Real-time factor of forest_swarm (6 drones, cameras 25 Hz at 320 x 240) per stack, with each stack's budget.
+
+    Every stack flies the same seed for ``duration_s`` simulated seconds (no
+    early stop at arrival), render workers one per core, as ``mpcde fly``
+    does. The peer row is PyFlyt on the same scene (benchmarks/peer_pyflyt.py),
+    skipped with a note when PyFlyt does not import; the ratios are against it.
+    """
+    base = load_scenario("forest_swarm", {"duration_s": duration_s})
+    rows = {}
+    for stack in stacks:
+        cfg = load_scenario("forest_swarm", {"duration_s": duration_s, "planner": {"kind": _KIND[stack]}})
+        cfg = replace(cfg, run=replace(cfg.run, stop_when_arrived=False))
+        rows[stack] = run_scenario(prepare_run(cfg)).metrics
+    peer_rtf, note = None, pyflyt_available() if peer else "not asked (--no-peer)"
+    if note is None:
+        prepared = prepare_run(base)
+        obstacles = [(*o.center_xy, o.footprint_radius_m, o.height_m) for o in prepared.obstacles]
+        peer_rtf = pyflyt_peer_rtf(obstacles, prepared.starts, prepared.goals, duration_s)["real_time_factor"]
+    print(f"forest_swarm, 6 drones, {duration_s:.0f} s simulated, cameras 25 Hz at 320x240, render workers {os.cpu_count()}:")
+    print(f"{'stack':>12} {'real-time factor':>17} {'vs PyFlyt':>10}   collisions  frames")
+    for stack, m in rows.items():
+        ratio = f"{m['real_time_factor'] / peer_rtf:9.2f}x" if peer_rtf else f"{'-':>10}"
+        print(f"{stack:>12} {m['real_time_factor']:17.3f} {ratio}   {m['collisions']:10d}  {m['frames_rendered']:6d}")
+    if peer_rtf:
+        print(f"{'PyFlyt peer':>12} {peer_rtf:17.3f} {'1.00x':>10}   (6 QuadX, 320x240 camera each at 24 Hz, renders and flies only)")
+    else:
+        print(f"{'PyFlyt peer':>12} skipped: {note}")
+    print("compute per simulated second [ms] (ms per call); render in the workers, the rest in the main process:")
+    print(f"{'component':>12} " + " ".join(f"{s:>20}" for s in rows))
+    for comp in BUDGET_ROWS:
+        cells = []
+        for m in rows.values():
+            c = m["compute_time"].get(comp)
+            cells.append(f"{c['ms_per_sim_s']:8.0f} ({c['ms_per_call']:7.2f})" if c else f"{'-':>20}")
+        if any(c.strip() != "-" for c in cells):
+            print(f"{comp:>12} " + " ".join(f"{c:>20}" for c in cells))
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="fewer repeats, 5 s flight")
+    ap.add_argument("--quick", action="store_true", help="fewer repeats, 5 s flights")
+    ap.add_argument("--stacks", nargs="+", choices=STACKS, default=list(STACKS), help="stacks of the real-time rows")
+    ap.add_argument("--no-peer", action="store_true", help="skip the PyFlyt row")
+    ap.add_argument("--only-rtf", action="store_true", help="only the real-time rows (no render / physics micro-benchmarks)")
     args = ap.parse_args()
-    render_bench(3 if args.quick else 10)
-    physics_bench(5 if args.quick else 20)
-    rtf_bench(5.0 if args.quick else 20.0)
+    if not args.only_rtf:
+        render_bench(3 if args.quick else 10)
+        physics_bench(5 if args.quick else 20)
+    rtf_bench(5.0 if args.quick else 20.0, tuple(args.stacks), peer=not args.no_peer)
 
 
 if __name__ == "__main__":

@@ -57,7 +57,7 @@ class Benchmark:
 
 
 BENCHMARKS: tuple[Benchmark, ...] = (
-    Benchmark("sim", "physics step, camera render per frame, render pool", ("--quick",)),
+    Benchmark("sim", "physics step, camera render per frame, real-time factor of every stack with its budget, PyFlyt peer", ("--quick",)),
     Benchmark("detector", "batched detector inference vs one frame at a time", ("--repeats", "10")),
     Benchmark("map", "depth insertion, ESDF, A* vs numpy / scipy / open3d baselines"),
     Benchmark("tracker", "tracker update (batched AKF and KF + Hungarian) vs filterpy per track", ("--frames", "300")),
