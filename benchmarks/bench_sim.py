@@ -3,7 +3,8 @@
 1. Render [ms/frame] at 160x120, 320x240, 640x480 with 6 drones and 20
    obstacles in view range, against a baseline measured in the same run: the
    same scene with the ground rasterised as a mesh by TinyRenderer (what a
-   plain PyBullet scene does) instead of drawn analytically.
+   plain PyBullet scene does) instead of drawn analytically; and the
+   analytic ray-casting renderer (``camera.renderer: raycast``) against ours.
 2. Physics + controller step [ms/tick] for 6 drones, against PyBullet's bare
    ``stepSimulation`` of the same bodies (the floor).
 3. Real-time factor of the 6-drone forest flight (forest_swarm, 20 s, cameras
@@ -29,6 +30,7 @@ from mpcde.loop import prepare_run, run_scenario
 from mpcde.scenario import load_scenario
 from sim.camera import CameraConfig
 from sim.camera_rig import CameraRig
+from sim.raycast_renderer import RaycastRenderer
 from sim.renderer import SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import SceneSpec
@@ -45,7 +47,7 @@ def render_bench(repeats: int) -> None:
     pos = np.array([[-3.0, -1.0, 1.5], [-1.0, 0.5, 1.4], [0.5, -0.8, 1.7], [2.0, 1.2, 1.5], [3.5, 0.0, 1.6], [5.0, -1.5, 1.3]])
     quat = np.stack([quat_xyzw_from_yaw(0.2 * i) for i in range(6)])
     print("render, 6 drones, 20 obstacles (ms/frame, median of", repeats, "x 6 cameras)")
-    print(f"{'resolution':>12} {'ours':>8} {'ground mesh':>12} {'speed-up':>9}")
+    print(f"{'resolution':>12} {'ours':>8} {'ground mesh':>12} {'speed-up':>9} {'raycast':>9} {'vs ours':>8}")
     for W, H in ((160, 120), (320, 240), (640, 480)):
         cam = CameraConfig(width_px=W, height_px=H)
         rig = CameraRig(cam, 0)
@@ -66,7 +68,10 @@ def render_bench(repeats: int) -> None:
 
         base = median_ms(lambda: [plain(i) for i in range(6)], repeats) / 6
         r.close()
-        print(f"{W:>5}x{H:<6} {ours:8.2f} {base:12.2f} {base / ours:8.2f}x")
+        ray = RaycastRenderer(spec, cam)
+        ray.set_drone_poses(pos, quat)
+        analytic = median_ms(lambda: [ray.render(poses[i], i) for i in range(6)], repeats) / 6
+        print(f"{W:>5}x{H:<6} {ours:8.2f} {base:12.2f} {base / ours:8.2f}x {analytic:9.2f} {ours / analytic:7.2f}x")
 
 
 def physics_bench(repeats: int) -> None:
@@ -86,7 +91,7 @@ _KIND = {"placeholder": "min_jerk_line", "comm": "dmpc", "denied": "mpcde", "aut
 BUDGET_ROWS = ("render", "render_wait", "physics", "detect", "track", "map_insert", "esdf", "yaw", "front_end", "optimiser", "dmpc_qp", "other")
 
 
-def rtf_bench(duration_s: float, stacks: tuple[str, ...] = STACKS, peer: bool = True) -> None:
+def rtf_bench(duration_s: float, stacks: tuple[str, ...] = STACKS, peer: bool = True, renderer: str = "raycast") -> None:
     """Real-time factor of forest_swarm (6 drones, cameras 25 Hz at 320 x 240) per stack, with each stack's budget.
 
     Every stack flies the same seed for ``duration_s`` simulated seconds (no
@@ -97,7 +102,7 @@ def rtf_bench(duration_s: float, stacks: tuple[str, ...] = STACKS, peer: bool = 
     base = load_scenario("forest_swarm", {"duration_s": duration_s})
     rows = {}
     for stack in stacks:
-        cfg = load_scenario("forest_swarm", {"duration_s": duration_s, "planner": {"kind": _KIND[stack]}})
+        cfg = load_scenario("forest_swarm", {"duration_s": duration_s, "planner": {"kind": _KIND[stack]}, "camera": {"renderer": renderer}})
         cfg = replace(cfg, run=replace(cfg.run, stop_when_arrived=False))
         rows[stack] = run_scenario(prepare_run(cfg)).metrics
     peer_rtf, note = None, pyflyt_available() if peer else "not asked (--no-peer)"
@@ -105,7 +110,7 @@ def rtf_bench(duration_s: float, stacks: tuple[str, ...] = STACKS, peer: bool = 
         prepared = prepare_run(base)
         obstacles = [(*o.center_xy, o.footprint_radius_m, o.height_m) for o in prepared.obstacles]
         peer_rtf = pyflyt_peer_rtf(obstacles, prepared.starts, prepared.goals, duration_s)["real_time_factor"]
-    print(f"forest_swarm, 6 drones, {duration_s:.0f} s simulated, cameras 25 Hz at 320x240, render workers {os.cpu_count()}:")
+    print(f"forest_swarm, 6 drones, {duration_s:.0f} s simulated, cameras 25 Hz at 320x240 ({renderer} renderer), render workers {os.cpu_count()}:")
     print(f"{'stack':>12} {'real-time factor':>17} {'vs PyFlyt':>10}   collisions  frames")
     for stack, m in rows.items():
         ratio = f"{m['real_time_factor'] / peer_rtf:9.2f}x" if peer_rtf else f"{'-':>10}"
@@ -131,11 +136,12 @@ def main() -> None:
     ap.add_argument("--stacks", nargs="+", choices=STACKS, default=list(STACKS), help="stacks of the real-time rows")
     ap.add_argument("--no-peer", action="store_true", help="skip the PyFlyt row")
     ap.add_argument("--only-rtf", action="store_true", help="only the real-time rows (no render / physics micro-benchmarks)")
+    ap.add_argument("--renderer", choices=["tiny", "raycast"], default="raycast", help="camera.renderer of the real-time rows")
     args = ap.parse_args()
     if not args.only_rtf:
         render_bench(3 if args.quick else 10)
         physics_bench(5 if args.quick else 20)
-    rtf_bench(5.0 if args.quick else 20.0, tuple(args.stacks), peer=not args.no_peer)
+    rtf_bench(5.0 if args.quick else 20.0, tuple(args.stacks), peer=not args.no_peer, renderer=args.renderer)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Domain-randomised detector dataset rendered by sim/ (labels from the segmentation).
 
 Each *scene seed* builds one world (obstacles with random colours, up to
-``n_drones_max`` quadrotors) in a :class:`sim.renderer.SceneRenderer` and
+``n_drones_max`` quadrotors) in the renderer ``camera.renderer`` names (:func:`sim.render_pool.make_renderer`) and
 renders ``frames_per_scene`` frames from it. Per frame it draws:
 
 * the camera: position in the arena (0.5-3 m high), any heading, roll and
@@ -51,7 +51,8 @@ import numpy as np
 from mpcde.errors import ConfigError
 from sim.camera import CameraConfig, apply_depth_sensor_model, intrinsics, rotation_camera_to_body
 from sim.obstacles import ObstacleSpec, distance_to_obstacles, generate_obstacles
-from sim.renderer import PARKED_POS, SceneRenderer
+from sim.render_pool import make_renderer
+from sim.renderer import PARKED_POS
 from sim.rotations import quat_xyzw_from_rotation
 from sim.scene import RenderStyle, SceneSpec
 
@@ -272,7 +273,7 @@ def render_scene(scene_seed: int, cfg: DatasetConfig = DatasetConfig(), camera: 
     cam_xy = rng.uniform(-0.5 * cfg.arena_half_m, 0.5 * cfg.arena_half_m, (n_frames, 2))
     obstacles = _scene_obstacles(rng, cfg, cam_xy)
     n = cfg.n_drones_max
-    renderer = SceneRenderer(SceneSpec(obstacles=obstacles, n_drones=n), camera)
+    renderer = make_renderer(SceneSpec(obstacles=obstacles, n_drones=n), camera)
     K = intrinsics(camera)
     K_inv = np.linalg.inv(K)
     R_cb = rotation_camera_to_body(camera.mount_pitch_deg)

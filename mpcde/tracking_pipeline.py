@@ -2,7 +2,7 @@
 
 For one :class:`mpcde.eval_tracking.TrackingScenario` this renders, at every
 frame time, the observer's forward RGB-D camera (:class:`sim.camera.CameraConfig`,
-TinyRenderer + the analytic ground of :class:`sim.renderer.SceneRenderer`),
+the renderer ``camera.renderer`` names, :func:`sim.render_pool.make_renderer`),
 applies the depth sensor model (:func:`sim.camera_rig.sensor_depth`), runs the
 shipped detector (:class:`perception.detector.detector.DroneDetector`, batched
 over ``batch_frames`` frames) on the RGB-D frame alone and back-projects every
@@ -146,7 +146,7 @@ class PipelineMeasurements:
 
     def run(self, scenario: TrackingScenario, seed: int) -> PipelineRun:
         """:meth:`measure` with the run's detection counts."""
-        from sim.renderer import SceneRenderer
+        from sim.render_pool import make_renderer
 
         detector = self._detector
         times = np.asarray(scenario.times_s, float)
@@ -166,7 +166,7 @@ class PipelineMeasurements:
         pe = self.pose_estimate
         backprojection = replace(self.backprojection, pose_pos_std_m=pe.pos_noise_m, pose_yaw_std_rad=pe.yaw_noise_rad)
         spec = SceneSpec(obstacles=background_trees(seed, self.n_background_trees, observer, yaw), n_drones=n_targets)
-        renderer = SceneRenderer(spec, self.camera)
+        renderer = make_renderer(spec, self.camera)
         frames: list[list[Measurement]] = []
         n_det = n_nodepth = n_visible = 0
         pending = []

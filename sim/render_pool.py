@@ -25,10 +25,11 @@ import numpy as np
 
 from sim.camera import CameraConfig
 from sim.camera_rig import sensor_depth
+from sim.raycast_renderer import RaycastRenderer
 from sim.renderer import RawRender, SceneRenderer
 from sim.scene import RenderStyle, SceneSpec
 
-__all__ = ["CameraRequest", "RenderPool"]
+__all__ = ["CameraRequest", "RenderPool", "make_renderer"]
 
 CameraRequest = tuple[int, np.ndarray]  # (drone index, true transform_camera_to_world (4, 4))
 
@@ -48,7 +49,14 @@ def _slot_views(buf: memoryview, n_slots: int, H: int, W: int) -> list[tuple[np.
     return views
 
 
-def _render_one(renderer: SceneRenderer, drone: int, T_cw: np.ndarray, style, sensor: tuple[int, int] | None) -> RawRender:
+def make_renderer(spec: SceneSpec, camera: CameraConfig) -> SceneRenderer | RaycastRenderer:
+    """The renderer ``camera.renderer`` names, holding a copy of the scene."""
+    if camera.renderer == "raycast":
+        return RaycastRenderer(spec, camera)
+    return SceneRenderer(spec, camera)
+
+
+def _render_one(renderer: SceneRenderer | RaycastRenderer, drone: int, T_cw: np.ndarray, style, sensor: tuple[int, int] | None) -> RawRender:
     r = renderer.render(T_cw, drone, style)
     if sensor is None:
         return r
@@ -58,7 +66,7 @@ def _render_one(renderer: SceneRenderer, drone: int, T_cw: np.ndarray, style, se
 
 def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_slots: int) -> None:  # pragma: no cover - runs in a child
     shm = shared_memory.SharedMemory(name=shm_name)
-    renderer = SceneRenderer(spec, camera)
+    renderer = make_renderer(spec, camera)
     views = _slot_views(shm.buf, n_slots, camera.height_px, camera.width_px)
     try:
         while True:
@@ -98,13 +106,13 @@ class RenderPool:
         self.camera = camera
         self.n_workers = n_workers
         self._pending: list[tuple[int, list[tuple[int, int]]]] | None = None
-        self._local: SceneRenderer | None = None
+        self._local: SceneRenderer | RaycastRenderer | None = None
         self._local_result: list[RawRender] | None = None
         self._workers, self._conns, self._shms, self._views = [], [], [], []
         self.render_s = 0.0  # CPU time [s] spent rendering (in the workers, or here with none), and renders made
         self.renders = 0
         if n_workers == 0:
-            self._local = SceneRenderer(spec, camera)
+            self._local = make_renderer(spec, camera)
             return
         ctx = mp.get_context("spawn")
         H, W = camera.height_px, camera.width_px
