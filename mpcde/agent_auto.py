@@ -40,56 +40,9 @@ obstacles), the denied half its own camera map. ``denied.perceive_neighbours:
 false`` turns the perception off for both halves (the blind-fallback ablation).
 
 Measured on radio_outage (forest_swarm, every receiver deaf from 3 s to
-15 s; full physics and rendering), seeds 0-5, with ``mpcde compare
-radio_outage --seeds 6 --jobs 2`` at dec0191, dependencies as in
-``requirements-lock.txt`` (a flight's metrics do not depend on the job count
-or ``run.render_workers``: ``mpcde fly radio_outage --mode denied --seed 0``
-with 2 render workers gives the same metrics as the compare run, timings
-aside). Drone-drone and obstacle collision events per seed, with the default
-tracking-mode camera swing (``YawPlannerConfig.tracking_sweep_deg``, 35 deg)
-and without it (0, MP-CDE's tracking mode, by ``mpcde fly``; comm does not
-use it):
-
-=========  ==================  =====  ========  ===============  =============
-mode       per seed 0-5        total  success   worst min dist   mean mission
-=========  ==================  =====  ========  ===============  =============
-comm       10, 8, 4, 8, 9, 4   43     0 of 6    0.092 m          11.7 s
-denied     0, 0, 0, 1, 0, 0    1      5 of 6    0.188 m          25.4 s
-auto       0, 1, 0, 0, 0, 1    2      4 of 6    0.190 m          20.0 s
-denied 0   1, 0, 1, 1, 2, 1    6      1 of 6    0.174 m          24.7 s
-auto 0     0, 0, 0, 0, 1, 1    2      4 of 6    0.130 m          20.5 s
-=========  ==================  =====  ========  ===============  =============
-
-Every drone arrived in every run. Seeds 6-11 are in
-``planners/yaw/config.py``. auto seed 1's event is an obstacle graze
-(clearance -0.006 m) by drone 1 at 15.9 s, 0.7 s after it switched back to
-DMPC at 15.2 s: its QP was primal infeasible in the rounds at 15.6, 15.8
-and 16.0 s (each with one on-demand obstacle row and no collision row; the
-drone at about (2.0 to 2.5, -1.7, 3.1) m, where the denied half had taken
-it), so it flew the 15.4 s plan shifted (the fallback), whose unconstrained
-steps cut the obstacle's disc. The hard obstacle row cannot be met from
-where the denied half left the drone. Not fixed: a fallback that brakes
-away from the obstacle, or rows relaxed to what the input limits can reach,
-would change every flight that has a fallback (in the compare run above:
-auto seeds 1 and 5, 3 and 4 rounds, and comm seed 2, 1 round).
-A flight is chaotic in its collision count (a 1e-4 px change in one
-detection changed denied seed 3's mission time by 0.5 s), so per-seed
-counts move by one or two between commits that change any arithmetic, and
-between installs: this table's first three rows, measured at a353109 in
-the environment of 2026-11-22, read comm 43 (the same), denied
-0, 0, 0, 0, 0, 0 (5 of 6 successes) and auto 0, 0, 0, 0, 0, 0 (6 of 6);
-the same commit in a venv rebuilt on 2026-11-25 flies denied seed 0 to a
-different outcome (hence the pinned versions). Before the denied agent's
-committed stop (f802920) and the history-free renderer (0f41624), without
-the swing, they read denied 1, 0, 1, 1, 1, 1 and auto 0, 0, 0, 0, 0, 1.
-
-Without the radio memory
-(``plan_memory_s: 0``, the behaviour before it; measured when it was added)
-auto had 0, 3, 2 collisions on seeds 0-2:
-its collisions came 1-2 s after the switch, sideways dodges into a neighbour
-flying beside the drone that its camera had never seen. 2.0 s is the only
-memory tried; a shorter ``radio_silence_s`` (0.4 s) without memory gave 5
-and 1 on seeds 1-2, no better than 1.0 s.
+15 s), seeds 0-5, against comm and denied: ``docs/results/radio_outage.md``
+(the per-seed table with its command and commit, and the history of what
+was tried: the radio memory, the tracking-mode swing, the diagnosed grazes).
 """
 
 from __future__ import annotations
