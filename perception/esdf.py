@@ -87,6 +87,16 @@ def _envelope(f, out, n, v, z):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def _trivial(line, n):  # pragma: no cover - compiled
+    """Whether the first ``n`` values of ``line`` are all 0 (all features) or all ``_BIG`` (none): its own transform."""
+    lo, hi = _BIG, 0.0
+    for q in range(n):
+        lo = min(lo, line[q])
+        hi = max(hi, line[q])
+    return hi == 0.0 or lo >= _BIG
+
+
+@njit(cache=True)
 def _squared_edt_numba(feature):  # pragma: no cover - compiled
     """Squared distance [voxels^2] from every voxel to the nearest True voxel of ``feature`` (nx, ny, nz).
 
@@ -120,12 +130,9 @@ def _squared_edt_numba(feature):  # pragma: no cover - compiled
     z = np.empty(m + 1)
     for i in range(nx):  # pass 2 along y
         for k in range(nz):
-            lo, hi = _BIG, 0.0
             for j in range(ny):
                 f[j] = g[i, j, k]
-                lo = min(lo, f[j])
-                hi = max(hi, f[j])
-            if hi == 0.0 or lo >= _BIG:
+            if _trivial(f, ny):
                 continue
             _envelope(f, out, ny, v, z)
             for j in range(ny):
@@ -137,11 +144,7 @@ def _squared_edt_numba(feature):  # pragma: no cover - compiled
                 slab[k, i] = g[i, j, k]
         for k in range(nz):
             line = slab[k]
-            lo, hi = _BIG, 0.0
-            for i in range(nx):
-                lo = min(lo, line[i])
-                hi = max(hi, line[i])
-            if hi == 0.0 or lo >= _BIG:
+            if _trivial(line, nx):
                 continue
             _envelope(line, out, nx, v, z)
             for i in range(nx):

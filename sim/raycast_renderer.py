@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from sim.camera import CameraConfig, intrinsics
-from sim.renderer import RawRender
+from sim.renderer import RawRender, ground_distance, ground_or_sky
 from sim.rotations import rotation_from_quat_xyzw
 from sim.scene import RenderStyle, SceneSpec
 
@@ -295,9 +295,7 @@ def _raycast(
             dw1 = R_wc[1, 0] * rx + R_wc[1, 1] * ry + R_wc[1, 2]
             dw2 = R_wc[2, 0] * rx + R_wc[2, 1] * ry + R_wc[2, 2]
             p = hit[v, u]
-            lam = np.inf
-            if dw2 < -1e-9:
-                lam = -t_wc[2] / dw2
+            lam = ground_distance(t_wc, dw2)
             if p >= 0 and depth[v, u] <= lam:
                 # the winning primitive's normal, from its intersection once more
                 Rp = rot[p]
@@ -320,15 +318,6 @@ def _raycast(
                 out_depth[v, u] = depth[v, u]
                 if owner[p] >= 0:
                     mask[v, u] = owner[p]
-            elif lam <= far:
-                gx = t_wc[0] + lam * dw0
-                gy = t_wc[1] + lam * dw1
-                odd = (int(math.floor(gx)) + int(math.floor(gy))) & 1
-                for c in range(3):
-                    rgb[v, u, c] = dark_tile[c] if odd else light_tile[c]
-                out_depth[v, u] = lam
             else:
-                for c in range(3):
-                    rgb[v, u, c] = sky[c]
-                out_depth[v, u] = np.inf
+                ground_or_sky(rgb, out_depth, v, u, t_wc, dw0, dw1, lam, far, light_tile, dark_tile, sky)
     return rgb, out_depth, mask

@@ -40,7 +40,7 @@ from sim.camera import (
 )
 from sim.scene import RenderStyle, SceneSpec, build_obstacles, load_drones
 
-__all__ = ["RawRender", "SceneRenderer"]
+__all__ = ["RawRender", "SceneRenderer", "ground_distance", "ground_or_sky"]
 
 PARKED_POS = [0.0, 0.0, -100.0]  # where a camera's own drone waits during its render
 _PARITY_PX = 1  # size of the call that keeps every real render an even getCameraImage call (module docstring)
@@ -179,18 +179,29 @@ def _compose(rgba, zbuf, seg, lut, near_m, far_m, ray_x, ray_y, R, t, light_tile
             dx = R[0, 0] * ray_x[u] + R[0, 1] * ray_y[v] + R[0, 2]
             dy = R[1, 0] * ray_x[u] + R[1, 1] * ray_y[v] + R[1, 2]
             dz = R[2, 0] * ray_x[u] + R[2, 1] * ray_y[v] + R[2, 2]
-            lam = np.inf
-            if dz < -1e-9:
-                lam = -t[2] / dz
-            if lam <= far_m:
-                gx = t[0] + lam * dx
-                gy = t[1] + lam * dy
-                odd = (int(np.floor(gx)) + int(np.floor(gy))) & 1
-                for c in range(3):
-                    rgb[v, u, c] = dark_tile[c] if odd else light_tile[c]
-                depth[v, u] = lam
-            else:
-                for c in range(3):
-                    rgb[v, u, c] = sky[c]
-                depth[v, u] = np.inf
+            ground_or_sky(rgb, depth, v, u, t, dx, dy, ground_distance(t, dz), far_m, light_tile, dark_tile, sky)
     return rgb, depth, mask
+
+
+@njit(cache=True)
+def ground_distance(t, dz):  # pragma: no cover - compiled
+    """Ray parameter lambda [m] at which t + lambda d meets the ground z = 0 (inf when the ray does not descend)."""
+    if dz < -1e-9:
+        return -t[2] / dz
+    return np.inf
+
+
+@njit(cache=True)
+def ground_or_sky(rgb, depth, v, u, t, dx, dy, lam, far_m, light_tile, dark_tile, sky):  # pragma: no cover - compiled
+    """In place: pixel (v, u) shows the 1 m checker of the ground at ray parameter ``lam`` [m], or the sky beyond ``far_m``."""
+    if lam <= far_m:
+        gx = t[0] + lam * dx
+        gy = t[1] + lam * dy
+        odd = (int(np.floor(gx)) + int(np.floor(gy))) & 1
+        for c in range(3):
+            rgb[v, u, c] = dark_tile[c] if odd else light_tile[c]
+        depth[v, u] = lam
+    else:
+        for c in range(3):
+            rgb[v, u, c] = sky[c]
+        depth[v, u] = np.inf
