@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from sim.camera import CameraConfig, intrinsics
-from sim.renderer import RawRender, ground_distance, ground_or_sky
+from sim.renderer import RawRender, ground_distance, ground_tile
 from sim.rotations import rotation_from_quat_xyzw
 from sim.scene import RenderStyle, SceneSpec
 
@@ -295,7 +295,7 @@ def _raycast(
             dw1 = R_wc[1, 0] * rx + R_wc[1, 1] * ry + R_wc[1, 2]
             dw2 = R_wc[2, 0] * rx + R_wc[2, 1] * ry + R_wc[2, 2]
             p = hit[v, u]
-            lam = ground_distance(t_wc, dw2)
+            lam = ground_distance(t_wc[2], dw2)
             if p >= 0 and depth[v, u] <= lam:
                 # the winning primitive's normal, from its intersection once more
                 Rp = rot[p]
@@ -319,5 +319,8 @@ def _raycast(
                 if owner[p] >= 0:
                     mask[v, u] = owner[p]
             else:
-                ground_or_sky(rgb, out_depth, v, u, t_wc, dw0, dw1, lam, far, light_tile, dark_tile, sky)
+                tile = ground_tile(t_wc[0], t_wc[1], dw0, dw1, lam, far)
+                colour = sky if tile == 2 else (dark_tile if tile == 1 else light_tile)
+                rgb[v, u, 0], rgb[v, u, 1], rgb[v, u, 2] = colour[0], colour[1], colour[2]
+                out_depth[v, u] = lam if tile != 2 else np.inf
     return rgb, out_depth, mask

@@ -40,7 +40,7 @@ from sim.camera import (
 )
 from sim.scene import RenderStyle, SceneSpec, build_obstacles, load_drones
 
-__all__ = ["RawRender", "SceneRenderer", "ground_distance", "ground_or_sky"]
+__all__ = ["RawRender", "SceneRenderer", "ground_distance", "ground_tile"]
 
 PARKED_POS = [0.0, 0.0, -100.0]  # where a camera's own drone waits during its render
 _PARITY_PX = 1  # size of the call that keeps every real render an even getCameraImage call (module docstring)
@@ -179,29 +179,28 @@ def _compose(rgba, zbuf, seg, lut, near_m, far_m, ray_x, ray_y, R, t, light_tile
             dx = R[0, 0] * ray_x[u] + R[0, 1] * ray_y[v] + R[0, 2]
             dy = R[1, 0] * ray_x[u] + R[1, 1] * ray_y[v] + R[1, 2]
             dz = R[2, 0] * ray_x[u] + R[2, 1] * ray_y[v] + R[2, 2]
-            ground_or_sky(rgb, depth, v, u, t, dx, dy, ground_distance(t, dz), far_m, light_tile, dark_tile, sky)
+            lam = ground_distance(t[2], dz)
+            tile = ground_tile(t[0], t[1], dx, dy, lam, far_m)
+            colour = sky if tile == 2 else (dark_tile if tile == 1 else light_tile)
+            rgb[v, u, 0], rgb[v, u, 1], rgb[v, u, 2] = colour[0], colour[1], colour[2]
+            depth[v, u] = lam if tile != 2 else np.inf
     return rgb, depth, mask
 
 
 @njit(cache=True)
-def ground_distance(t, dz):  # pragma: no cover - compiled
-    """Ray parameter lambda [m] at which t + lambda d meets the ground z = 0 (inf when the ray does not descend)."""
+def ground_distance(t_z, dz):  # pragma: no cover - compiled
+    """Ray parameter lambda [m] at which a ray from height ``t_z`` with vertical component ``dz`` meets z = 0 (inf: never)."""
     if dz < -1e-9:
-        return -t[2] / dz
+        return -t_z / dz
     return np.inf
 
 
 @njit(cache=True)
-def ground_or_sky(rgb, depth, v, u, t, dx, dy, lam, far_m, light_tile, dark_tile, sky):  # pragma: no cover - compiled
-    """In place: pixel (v, u) shows the 1 m checker of the ground at ray parameter ``lam`` [m], or the sky beyond ``far_m``."""
-    if lam <= far_m:
-        gx = t[0] + lam * dx
-        gy = t[1] + lam * dy
-        odd = (int(np.floor(gx)) + int(np.floor(gy))) & 1
-        for c in range(3):
-            rgb[v, u, c] = dark_tile[c] if odd else light_tile[c]
-        depth[v, u] = lam
-    else:
-        for c in range(3):
-            rgb[v, u, c] = sky[c]
-        depth[v, u] = np.inf
+def ground_tile(t_x, t_y, dx, dy, lam, far_m):  # pragma: no cover - compiled
+    """What a background pixel shows at ray parameter ``lam`` [m]: 0 the light tile of the 1 m checker, 1 the dark one, 2 the sky (beyond ``far_m``).
+
+    Scalars only, so the per-pixel call costs no array reference counting.
+    """
+    if lam > far_m:
+        return 2
+    return (int(np.floor(t_x + lam * dx)) + int(np.floor(t_y + lam * dy))) & 1
