@@ -26,7 +26,9 @@ from dataclasses import replace
 import numpy as np
 import pybullet as pb
 
+from mpcde.compute_budget import COMPONENTS
 from mpcde.loop import prepare_run, run_scenario
+from mpcde.modes import MODES
 from mpcde.scenario import load_scenario
 from sim.camera import CameraConfig
 from sim.camera_rig import CameraRig
@@ -86,9 +88,8 @@ def physics_bench(repeats: int) -> None:
           f"240 Hz needs {step * 240:.0f} ms per simulated s")
 
 
-STACKS = ("placeholder", "comm", "denied", "auto")  # planner.kind of each: min_jerk_line, dmpc, mpcde, auto
-_KIND = {"placeholder": "min_jerk_line", "comm": "dmpc", "denied": "mpcde", "auto": "auto"}
-BUDGET_ROWS = ("render", "render_wait", "physics", "detect", "track", "map_insert", "esdf", "yaw", "front_end", "optimiser", "dmpc_qp", "other")
+STACKS = ("placeholder", "comm", "denied", "auto")  # mpcde.modes.MODES names; the stacks that fly forest_swarm
+BUDGET_ROWS = (*COMPONENTS, "other")
 
 
 def rtf_bench(duration_s: float, stacks: tuple[str, ...] = STACKS, peer: bool = True, renderer: str = "raycast") -> None:
@@ -102,7 +103,7 @@ def rtf_bench(duration_s: float, stacks: tuple[str, ...] = STACKS, peer: bool = 
     base = load_scenario("forest_swarm", {"duration_s": duration_s})
     rows = {}
     for stack in stacks:
-        cfg = load_scenario("forest_swarm", {"duration_s": duration_s, "planner": {"kind": _KIND[stack]}, "camera": {"renderer": renderer}})
+        cfg = load_scenario("forest_swarm", {"duration_s": duration_s, "planner": {"kind": MODES[stack]}, "camera": {"renderer": renderer}})
         cfg = replace(cfg, run=replace(cfg.run, stop_when_arrived=False))
         rows[stack] = run_scenario(prepare_run(cfg)).metrics
     peer_rtf, note = None, pyflyt_available() if peer else "not asked (--no-peer)"

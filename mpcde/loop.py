@@ -149,9 +149,10 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
     arrived_at = None
     eps = 1e-9
     wall0 = time.perf_counter()
-    threads = detector.single_threaded() if detector is not None else contextlib.nullcontext()
+    threads = contextlib.ExitStack()  # torch on one thread while the loop runs (mpcde/onboard_detection.py)
+    if detector is not None:
+        threads.enter_context(detector.single_threaded())
     try:
-        threads.__enter__()
         while world.time_s < cfg.duration_s - eps:
             t = world.time_s
             if t >= next_cam - eps:
@@ -213,7 +214,7 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
                     break
         wall = time.perf_counter() - wall0
     finally:
-        threads.__exit__(None, None, None)
+        threads.close()
         if pool is not None:
             budget.add("render", pool.render_s, pool.renders)
             pool.close()

@@ -12,10 +12,8 @@ is not None) are served; with none, no detector is loaded.
 Threads: in flight the detector shares the machine with the render workers,
 so :meth:`BatchedDetector.single_threaded` runs torch on one intra-op thread
 for the flight. With torch's default (one thread per core) its OpenMP team
-spin-waits on the cores the renderers need: measured on forest_swarm, denied,
-10 s, 2 cores, the detector took 214 ms per 6-frame batch and the flight ran
-at real-time factor 0.086; on one thread 45 ms and 0.15 (the renders sped up
-too). See ``docs/results/realtime.md``.
+spin-waits on the cores the renderers need (measured in
+``docs/results/realtime.md``, "Thread oversubscription").
 """
 
 from __future__ import annotations

@@ -88,8 +88,7 @@ class OccupancyMap:
         # (update number, (k, 3) global voxel indices) of voxels that became occupied, for clearance()
         self._became_occupied: deque[tuple[int, np.ndarray]] = deque()
         self._esdf_base: tuple[int, np.ndarray, np.ndarray] | None = None  # (update number, origin, ESDF) of the newest ESDF
-        self.esdf_seconds = 0.0  # wall time [s] spent in distance transforms, and their number
-        self.esdf_count = 0
+        self.esdf_count = 0  # distance transforms computed
         self.on_esdf: Callable[[float], None] | None = on_esdf
         if center_world is not None:
             self.recenter(np.asarray(center_world, float))
@@ -216,12 +215,10 @@ class OccupancyMap:
         p = np.asarray(points_world, float).reshape(-1, 3)
         if self._esdf_base is None:
             self.snapshot().distance_m
-        seq, origin, dist = self._esdf_base
+        _, origin, dist = self._esdf_base
         v = self.config.voxel_m
         d = trilinear(dist, origin, v, p)[0]
-        while self._became_occupied and self._became_occupied[0][0] <= seq:
-            self._became_occupied.popleft()
-        if self._became_occupied:
+        if self._became_occupied:  # only those after the base (_esdf_done drops the older)
             centres = (np.concatenate([idx for _, idx in self._became_occupied]) + 0.5) * v
             near = np.sqrt(np.min(np.sum((p[:, None, :] - centres[None, :, :]) ** 2, axis=-1), axis=1)) - 0.5 * v
             d = np.minimum(d, near)
@@ -229,12 +226,13 @@ class OccupancyMap:
 
     def _esdf_done(self, seq: int | None, origin: np.ndarray, distance_m: np.ndarray | None, seconds: float) -> None:
         """Book a finished transform: its time, and (for the ESDF) the newest base of :meth:`clearance`."""
-        self.esdf_seconds += seconds
         self.esdf_count += 1
         if self.on_esdf is not None:
             self.on_esdf(seconds)
         if seq is not None and (self._esdf_base is None or seq > self._esdf_base[0]):
             self._esdf_base = (seq, origin, distance_m)
+            while self._became_occupied and self._became_occupied[0][0] <= seq:
+                self._became_occupied.popleft()
 
     def _rays_camera(self, frame: RgbdFrame, detections: Sequence[Detection]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Ray end points in camera frame (n, 3) [m], whether each ends on a surface (n,) bool, and where its traversal starts (n,) in [0, 1].

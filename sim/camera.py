@@ -53,12 +53,10 @@ class CameraConfig:
         render_far_m: far clipping plane of the RGB render [m] (objects
             beyond ``depth_max_m`` still show in colour).
         renderer: ``"raycast"`` (default: the analytic renderer of
-            :mod:`sim.raycast_renderer`, exact depth, 3.5x cheaper at
-            320 x 240) or ``"tiny"`` (PyBullet's TinyRenderer,
-            :mod:`sim.renderer`, whose images the shipped detector was
-            trained on; on the held-out set the detector scores within 0.01
-            of its TinyRenderer precision and recall on the analytic images,
-            ``docs/results/realtime.md``).
+            :mod:`sim.raycast_renderer`, exact depth) or ``"tiny"``
+            (PyBullet's TinyRenderer, :mod:`sim.renderer`, whose images the
+            shipped detector was trained on); their cost and the detector's
+            scores on each are in ``docs/results/realtime.md``.
     """
 
     width_px: int = 320

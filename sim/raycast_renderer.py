@@ -4,9 +4,10 @@ Every surface of the world is a primitive with a closed-form ray intersection:
 the obstacles (vertical capped cylinders, boxes turned about z), each drone's
 visuals (the boxes and capped cylinders of ``data/quadrotor.urdf``, at the
 drone's pose), the ground plane z = 0 and the sky. For each camera, each
-primitive's bounding sphere is projected to a pixel rectangle and only the
-pixels inside it are intersected with the primitive (compiled with numba); the
-nearest hit wins. Depth is the exact ray parameter along the optical axis
+primitive's oriented bounding box, clipped at the near plane, is projected to
+a pixel rectangle and only the pixels inside it are intersected with the
+primitive (compiled with numba; its bounding sphere rejects it first when it
+lies wholly behind the near plane or beyond the far one); the nearest hit wins. Depth is the exact ray parameter along the optical axis
 (rays r_c = K^-1 [u, v, 1] have unit optical z), so cylinders are round, not
 tessellated as in TinyRenderer.
 
@@ -15,12 +16,11 @@ with the world-space normal n, the light direction l, the reflection r of l
 about n and the direction v towards the camera (s = 16). TinyRenderer shades
 in clip space with interpolated vertex normals, so the two renderers agree in
 depth and masks (``tests/unit/sim/test_raycast_renderer.py``) but not pixel
-for pixel in colour (mean absolute difference about 1 level of 255). The
-shipped detector, trained on TinyRenderer's images, scores within 0.01 of
-its TinyRenderer precision and recall on this renderer's held-out images
-(``mpcde eval-detector --renderer raycast``, ``docs/results/realtime.md``),
-so this is the default (:class:`sim.camera.CameraConfig` ``renderer``);
-``"tiny"`` remains selectable.
+for pixel in colour. It is the default (:class:`sim.camera.CameraConfig`
+``renderer``), ``"tiny"`` remains selectable; how the shipped detector,
+trained on TinyRenderer's images, scores on this renderer's
+(``mpcde eval-detector --renderer``) and what it costs are in
+``docs/results/realtime.md``.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from sim.camera import CameraConfig, intrinsics
-from sim.renderer import RawRender, ground_distance, ground_tile
+from sim.renderer import RawRender, ground_distance, ground_tile, style_lighting
 from sim.rotations import rotation_from_quat_xyzw
 from sim.scene import RenderStyle, SceneSpec
 
@@ -131,12 +131,7 @@ class RaycastRenderer:
         style = style or self.spec.style
         cam = self.camera
         T = np.asarray(transform_camera_to_world, float)
-        light = np.asarray(style.light_direction, float)
-        light = light / np.linalg.norm(light)
-        shade = style.ambient + style.diffuse * max(light[2], 0.0)
-        light_tile = np.clip(np.asarray(style.ground_rgb) * shade * 255.0 + 0.5, 0, 255).astype(np.uint8)
-        dark_tile = np.clip(np.asarray(style.ground_rgb) * shade * (1.0 - style.ground_checker_contrast) * 255.0 + 0.5, 0, 255).astype(np.uint8)
-        sky = np.clip(np.asarray(style.sky_rgb) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        light, light_tile, dark_tile, sky = style_lighting(style)
         rgb, depth, mask = _raycast(
             cam.height_px, cam.width_px, self.K, np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]),
             float(cam.render_near_m), float(cam.render_far_m), self.kind, self.centre, self.rot, self.size, self.radius,

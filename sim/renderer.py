@@ -40,7 +40,7 @@ from sim.camera import (
 )
 from sim.scene import RenderStyle, SceneSpec, build_obstacles, load_drones
 
-__all__ = ["RawRender", "SceneRenderer", "ground_distance", "ground_tile"]
+__all__ = ["RawRender", "SceneRenderer", "ground_distance", "ground_tile", "style_lighting"]
 
 PARKED_POS = [0.0, 0.0, -100.0]  # where a camera's own drone waits during its render
 _PARITY_PX = 1  # size of the call that keeps every real render an even getCameraImage call (module docstring)
@@ -114,8 +114,7 @@ class SceneRenderer:
         W, H = cam.width_px, cam.height_px
         if own_drone is not None:
             pb.resetBasePositionAndOrientation(self.drone_ids[own_drone], PARKED_POS, [0, 0, 0, 1], physicsClientId=self.client)
-        light = np.asarray(style.light_direction, float)
-        light = light / np.linalg.norm(light)
+        light, light_tile, dark_tile, sky = style_lighting(style)
         _, _, rgba, zbuf, seg = pb.getCameraImage(
             W,
             H,
@@ -133,10 +132,6 @@ class SceneRenderer:
         if own_drone is not None:
             pos, quat = self._poses[own_drone]
             pb.resetBasePositionAndOrientation(self.drone_ids[own_drone], pos, quat, physicsClientId=self.client)
-        shade = style.ambient + style.diffuse * max(light[2], 0.0)
-        light_tile = np.clip(np.asarray(style.ground_rgb) * shade * 255.0 + 0.5, 0, 255).astype(np.uint8)
-        dark_tile = np.clip(np.asarray(style.ground_rgb) * shade * (1.0 - style.ground_checker_contrast) * 255.0 + 0.5, 0, 255).astype(np.uint8)
-        sky = np.clip(np.asarray(style.sky_rgb) * 255.0 + 0.5, 0, 255).astype(np.uint8)
         T_cw = transform_camera_to_world
         rgb, depth, mask = _compose(
             np.asarray(rgba, np.uint8).reshape(H, W, 4), np.asarray(zbuf, np.float32).reshape(H, W), np.asarray(seg, np.int32).reshape(H, W),
@@ -144,6 +139,21 @@ class SceneRenderer:
             np.ascontiguousarray(T_cw[:3, :3], dtype=float), np.ascontiguousarray(T_cw[:3, 3], dtype=float), light_tile, dark_tile, sky,
         )
         return RawRender(rgb=rgb, depth_true_m=depth, drone_index_mask=mask)
+
+
+def style_lighting(style: RenderStyle) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Unit light direction (3,) and the uint8 (3,) colours of the ground's light and dark checker tiles and the sky.
+
+    The ground is a horizontal plane lit like TinyRenderer's diffuse surfaces:
+    ``ground_rgb (ambient + diffuse max(l_z, 0))``, the dark tiles darker by ``ground_checker_contrast``.
+    """
+    light = np.asarray(style.light_direction, float)
+    light = light / np.linalg.norm(light)
+    shade = style.ambient + style.diffuse * max(light[2], 0.0)
+    light_tile = np.clip(np.asarray(style.ground_rgb) * shade * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    dark_tile = np.clip(np.asarray(style.ground_rgb) * shade * (1.0 - style.ground_checker_contrast) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    sky = np.clip(np.asarray(style.sky_rgb) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    return light, light_tile, dark_tile, sky
 
 
 @njit(cache=True)
