@@ -6,7 +6,7 @@ on-demand collision rows with every-step obstacle rows (``DmpcConfig.obstacle_av
 
 Scenarios: the two of ``mpcde eval-dmpc`` (``formation_square``: 4 drones in a
 square formation through static obstacles; ``antipodal``: 8 drones swap across
-a circle), flown by the real :class:`mpcde.agent_dmpc.DmpcAgent` (carrot goal,
+a circle), flown by the real :class:`mpcde.onboard.dmpc.DmpcAgent` (carrot goal,
 obstacle half-spaces, formation offsets, plans over an ideal radio) but
 kinematically: no physics, each drone is exactly at its plan's state one round
 later, so a run takes seconds and both methods see comparable rounds. The two
@@ -37,9 +37,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from mpcde.agents import make_agent
-from mpcde.loop import prepare_run
-from mpcde.scenario import load_scenario
+from mpcde.config.scenario import load_scenario
+from mpcde.flight.loop import prepare_run
+from mpcde.onboard.factory import make_agent
 from planners.dmpc import DmpcProblem, DmpcSolveError
 from sim.types import PoseEstimate, RadioMessage
 

@@ -1,6 +1,6 @@
 """Benchmark: one MLR-DMPC compute-unit step for N = 16 (DMPC-Swarm Alg. 1), with same-run baselines.
 
-State: the 16-UAV circle swap of ``mpcde.eval_mlr`` (3 CUs, ideal messages,
+State: the 16-UAV circle swap of ``mpcde.evals.mlr`` (3 CUs, ideal messages,
 in-process) flown for 12 rounds (2.4 s, the UAVs in motion toward the
 centre); then CU 0's trackers and the next inbox are frozen. Timed with
 :func:`timing.median_ms` (OMP_NUM_THREADS=1):
@@ -29,7 +29,7 @@ import argparse
 import numpy as np
 from timing import median_ms
 
-from mpcde.eval_mlr import circle_swap
+from mpcde.evals.mlr import circle_swap
 from planners.dmpc.config import DmpcConfig
 from planners.dmpc.mlr.compute_unit import ComputeUnit
 from planners.dmpc.mlr.config import MlrConfig

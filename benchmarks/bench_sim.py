@@ -25,11 +25,13 @@ from dataclasses import replace
 
 import numpy as np
 import pybullet as pb
+from peer_pyflyt import pyflyt_available, pyflyt_peer_rtf
+from timing import median_ms
 
-from mpcde.compute_budget import COMPONENTS
-from mpcde.loop import prepare_run, run_scenario
-from mpcde.modes import MODES
-from mpcde.scenario import load_scenario
+from mpcde.config.modes import MODES
+from mpcde.config.scenario import load_scenario
+from mpcde.flight.loop import prepare_run, run_scenario
+from mpcde.onboard.budget import COMPONENTS
 from sim.camera import CameraConfig
 from sim.camera_rig import CameraRig
 from sim.raycast_renderer import RaycastRenderer
@@ -38,8 +40,6 @@ from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import SceneSpec
 from sim.types import FlatOutputReference
 from sim.world import World
-from peer_pyflyt import pyflyt_available, pyflyt_peer_rtf
-from timing import median_ms
 
 
 def render_bench(repeats: int) -> None:
@@ -88,7 +88,7 @@ def physics_bench(repeats: int) -> None:
           f"240 Hz needs {step * 240:.0f} ms per simulated s")
 
 
-STACKS = ("placeholder", "comm", "denied", "auto")  # mpcde.modes.MODES names; the stacks that fly forest_swarm
+STACKS = ("placeholder", "comm", "denied", "auto")  # mpcde.config.modes.MODES names; the stacks that fly forest_swarm
 BUDGET_ROWS = (*COMPONENTS, "other")
 
 

@@ -114,8 +114,8 @@ def main() -> None:
     if note is not None:
         print(f"PyFlyt peer row skipped: {note}")
         return
-    from mpcde.loop import prepare_run
-    from mpcde.scenario import load_scenario
+    from mpcde.config.scenario import load_scenario
+    from mpcde.flight.loop import prepare_run
 
     prepared = prepare_run(load_scenario("forest_swarm", {"seed": 0}))
     obstacles = [(*o.center_xy, o.footprint_radius_m, o.height_m) for o in prepared.obstacles]

@@ -19,9 +19,9 @@ import os
 import sys
 from pathlib import Path
 
-from mpcde.compute_budget import ComputeBudget
+from mpcde.config.modes import MODES
 from mpcde.errors import ConfigError, MpcdeError
-from mpcde.modes import MODES
+from mpcde.onboard.budget import ComputeBudget
 
 __all__ = ["main"]
 
@@ -146,10 +146,10 @@ def _at_least(option: str, value: int, minimum: int) -> None:
 
 
 def _cmd_fly(args: argparse.Namespace) -> int:
-    from mpcde.loop import prepare_run, run_scenario
-    from mpcde.run_folder import RunFolder
-    from mpcde.scenario import load_scenario
-    from mpcde.video import VideoWriter
+    from mpcde.config.scenario import load_scenario
+    from mpcde.flight.loop import prepare_run, run_scenario
+    from mpcde.flight.run_folder import RunFolder
+    from mpcde.flight.video import VideoWriter
 
     overrides = {}
     if args.seed is not None:
@@ -192,7 +192,7 @@ def _cmd_fly(args: argparse.Namespace) -> int:
 
 
 def _cmd_train_detector(args: argparse.Namespace) -> int:
-    from mpcde.train_detector import run_train_detector
+    from mpcde.training.train import run_train_detector
 
     _at_least("--frames", args.frames, 16)
     _at_least("--val-frames", args.val_frames, 8)
@@ -216,7 +216,7 @@ def _cmd_train_detector(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval_detector(args: argparse.Namespace) -> int:
-    from mpcde.eval_detector import run_eval_detector
+    from mpcde.training.evaluate import run_eval_detector
 
     _at_least("--frames", args.frames, 1)
     _at_least("--workers", args.workers, 1)
@@ -228,7 +228,7 @@ def _cmd_eval_detector(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval_tracking(args: argparse.Namespace) -> int:
-    from mpcde.eval_tracking import format_table, run_eval_tracking
+    from mpcde.evals.tracking import format_table, run_eval_tracking
 
     _at_least("--seeds", args.seeds, 1)
     _check_out_dir(args.out)
@@ -243,7 +243,7 @@ def _cmd_eval_tracking(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval_dmpc(args: argparse.Namespace) -> int:
-    from mpcde.eval_dmpc import format_table, run_eval_dmpc
+    from mpcde.evals.dmpc import format_table, run_eval_dmpc
 
     _at_least("--seeds", args.seeds, 1)
     _check_out_dir(args.out)
@@ -254,7 +254,7 @@ def _cmd_eval_dmpc(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from mpcde.compare import format_table, run_compare
+    from mpcde.evals.compare import format_table, run_compare
 
     _at_least("--seeds", args.seeds, 1)
     _at_least("--jobs", args.jobs, 1)
@@ -272,7 +272,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval_mlr(args: argparse.Namespace) -> int:
-    from mpcde.eval_mlr import run_eval_mlr
+    from mpcde.evals.mlr import run_eval_mlr
 
     _at_least("--seeds", args.seeds, 1)
     _check_out_dir(args.out)
@@ -282,7 +282,7 @@ def _cmd_eval_mlr(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from mpcde.bench import format_table, run_bench
+    from mpcde.evals.bench import format_table, run_bench
 
     _check_out_dir(args.out)
     results = run_bench(args.out, args.names, quick=args.quick, overwrite=args.overwrite, progress=not args.quiet)

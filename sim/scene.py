@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pybullet as pb
 
-from sim.obstacles import ObstacleSpec
+from sim.types import ObstacleSpec
 
 __all__ = ["DRONE_URDF", "RenderStyle", "SceneSpec", "build_obstacles", "load_drones"]
 

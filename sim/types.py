@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "ObstacleSpec",
     "FlatOutputReference",
     "GroundTruthSegmentation",
     "PlanMessage",
@@ -146,3 +147,42 @@ class PlanMessage:
     times_s: np.ndarray
     pos_world: np.ndarray
     vel_world: np.ndarray
+
+
+@dataclass(frozen=True)
+class ObstacleSpec:
+    """One static obstacle.
+
+    Attributes:
+        kind: ``"tree"`` (vertical cylinder) or ``"box"``.
+        center_xy: (2,) ground position of its axis/centre in world [m].
+        height_m: height [m] (from z = 0).
+        radius_m: cylinder radius [m] (trees).
+        half_extents_xy: (2,) half sizes along the box's own x, y [m] (boxes).
+        yaw: box heading about world z [rad].
+        rgba: colour (4,) in [0, 1].
+    """
+
+    kind: str
+    center_xy: tuple[float, float]
+    height_m: float
+    radius_m: float = 0.0
+    half_extents_xy: tuple[float, float] = (0.0, 0.0)
+    yaw: float = 0.0
+    rgba: tuple[float, float, float, float] = (0.45, 0.32, 0.2, 1.0)
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("tree", "box"):
+            raise ValueError(f"kind={self.kind!r}: allowed 'tree' or 'box'")
+        if self.height_m <= 0:
+            raise ValueError(f"height_m={self.height_m!r}: must be > 0")
+        if self.kind == "tree" and self.radius_m <= 0:
+            raise ValueError(f"radius_m={self.radius_m!r}: a tree needs a radius > 0")
+        if self.kind == "box" and min(self.half_extents_xy) <= 0:
+            raise ValueError(f"half_extents_xy={self.half_extents_xy!r}: a box needs positive half sizes")
+
+    @property
+    def footprint_radius_m(self) -> float:
+        """Radius [m] of the smallest vertical cylinder containing the obstacle."""
+        return self.radius_m if self.kind == "tree" else float(np.hypot(*self.half_extents_xy))
+

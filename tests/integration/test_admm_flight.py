@@ -1,7 +1,7 @@
 """ADMM formation DMPC in the full simulator (physics + SE(3) controller, cameras off): ``formation_open``.
 
 Four drones take up a 1.6 m square from starts scattered by up to 0.36 m and
-fly it 10 m (:mod:`mpcde.agent_admm`; the radio at 50 Hz, one sub-round per
+fly it 10 m (:mod:`mpcde.onboard.admm`; the radio at 50 Hz, one sub-round per
 ADMM exchange). Measured, seeds 0-3: ideal radio, all arrive in 10.48-10.50 s,
 min inter-drone distance 1.297-1.300 m, formation error chi 0.29-0.51 mm at
 the end (8-14 mm while cruising: the OCP's balance of the formation term
@@ -15,11 +15,11 @@ from dataclasses import replace
 
 import pytest
 import yaml
+from agent_metrics import agent_total, without_wall_clock  # tests/integration/agent_metrics.py
 
 from mpcde.cli import main
-from mpcde.loop import prepare_run, run_scenario
-from mpcde.scenario import load_scenario
-from agent_metrics import agent_total, without_wall_clock  # tests/integration/agent_metrics.py
+from mpcde.config.scenario import load_scenario
+from mpcde.flight.loop import prepare_run, run_scenario
 
 
 def _fly(loss: float = 0.0, seed: int = 0) -> dict:

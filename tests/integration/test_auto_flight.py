@@ -4,8 +4,8 @@ from dataclasses import replace
 
 import pytest
 
-from mpcde.loop import prepare_run, run_scenario
-from mpcde.scenario import load_scenario
+from mpcde.config.scenario import load_scenario
+from mpcde.flight.loop import prepare_run, run_scenario
 
 pytestmark = pytest.mark.slow
 

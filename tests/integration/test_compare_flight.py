@@ -6,7 +6,7 @@ import time
 import numpy as np
 import pytest
 
-from mpcde.compare import ROW_KEYS, run_compare
+from mpcde.evals.compare import ROW_KEYS, run_compare
 
 
 @pytest.mark.slow

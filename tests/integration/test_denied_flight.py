@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from mpcde.loop import prepare_run, run_scenario
-from mpcde.scenario import load_scenario
+from mpcde.config.scenario import load_scenario
+from mpcde.flight.loop import prepare_run, run_scenario
 from sim.obstacles import distance_to_obstacles
 
 

@@ -4,9 +4,10 @@ from dataclasses import replace
 
 import pytest
 
-from mpcde import agent_denied, agents
-from mpcde.loop import prepare_run, run_scenario
-from mpcde.scenario import load_scenario
+from mpcde.config.scenario import load_scenario
+from mpcde.flight.loop import prepare_run, run_scenario
+from mpcde.onboard import denied as agent_denied
+from mpcde.onboard import factory as agents
 from perception.types import Detection
 from sim.types import RgbdFrame
 

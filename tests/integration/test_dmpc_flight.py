@@ -13,8 +13,8 @@ from dataclasses import replace
 import pytest
 
 from mpcde.cli import main
-from mpcde.loop import prepare_run, run_scenario
-from mpcde.scenario import load_scenario
+from mpcde.config.scenario import load_scenario
+from mpcde.flight.loop import prepare_run, run_scenario
 
 
 def _swap(loss: float, seed: int = 0):

@@ -8,10 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mpcde import agent as agent_module
 from mpcde.cli import main
-from mpcde.loop import prepare_run, run_scenario
-from mpcde.scenario import load_scenario
+from mpcde.config.scenario import load_scenario
+from mpcde.flight.loop import prepare_run, run_scenario
+from mpcde.onboard import base as agent_module
+from mpcde.onboard import placeholder as placeholder_module
 from sim.types import PoseEstimate, RadioMessage, RgbdFrame
 
 VOLATILE = {"wall_time_s", "real_time_factor", "compute_time"}
@@ -133,7 +134,7 @@ def test_the_placeholder_crossing_collides_and_the_metrics_say_so():
     assert r.metrics["min_inter_drone_distance_m"] < 0.2
 
 
-class SpyAgent(agent_module.Agent):
+class SpyAgent(placeholder_module.Agent):
     """Records the type of everything the loop hands to the onboard agent."""
 
     seen: list = []
@@ -152,7 +153,7 @@ class SpyAgent(agent_module.Agent):
 
 
 def test_onboard_agent_sees_only_its_frames_its_estimate_and_its_inbox(monkeypatch):
-    import mpcde.loop as loop
+    import mpcde.flight.loop as loop
 
     monkeypatch.setattr(loop, "make_agent", lambda cfg, i, goals, obstacles, budget=None: SpyAgent(i, goals[i], cfg.planner.cruise_speed_mps, cfg.planner.start_delay_s))
     SpyAgent.seen = []
@@ -171,7 +172,7 @@ def test_onboard_agent_sees_only_its_frames_its_estimate_and_its_inbox(monkeypat
     # the only entry points of an onboard agent are these three inputs plus its two outputs
     protocol = {n for n, _ in inspect.getmembers(agent_module.OnboardAgent, inspect.isfunction) if not n.startswith("_")}
     assert protocol == {"on_pose_estimate", "on_frame", "on_radio", "outgoing", "reference"}
-    public = {n for n, _ in inspect.getmembers(agent_module.Agent, inspect.isfunction) if not n.startswith("_")}
+    public = {n for n, _ in inspect.getmembers(placeholder_module.Agent, inspect.isfunction) if not n.startswith("_")}
     assert public == protocol
 
 

@@ -1,6 +1,6 @@
 """MLR-DMPC in the full simulator (physics + SE(3) controller, cameras off): six drones swap on a 3 m circle.
 
-Drones 0 and 1 host the two compute units (:mod:`mpcde.agent_mlr`); 15 s
+Drones 0 and 1 host the two compute units (:mod:`mpcde.onboard.mlr`); 15 s
 simulated at most. Measured (seeds 0-3): ideal radio, min inter-drone
 distance 0.464-0.477 m, all 6 arrive in 7.3-8.2 s, no recovery; 20 %
 Bernoulli loss, min 0.455-0.469 m, all arrive in 10.4-14.2 s, 25-43 recovery
@@ -11,11 +11,11 @@ jumps 0. OSQP 2.2-2.9 ms median per QP.
 from dataclasses import replace
 
 import pytest
+from agent_metrics import agent_total, without_wall_clock  # tests/integration/agent_metrics.py
 
 from mpcde.cli import main
-from mpcde.loop import prepare_run, run_scenario
-from mpcde.scenario import load_scenario
-from agent_metrics import agent_total, without_wall_clock  # tests/integration/agent_metrics.py
+from mpcde.config.scenario import load_scenario
+from mpcde.flight.loop import prepare_run, run_scenario
 
 
 def _swap(loss: float = 0.0, seed: int = 0) -> dict:

@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from mpcde.eval_mlr import circle_swap, format_table, formation_points, run_eval_mlr
-from mpcde.mlr_swarm import MlrSwarmConfig, run_mlr_swarm
+from mpcde.evals.mlr import circle_swap, format_table, formation_points, run_eval_mlr
+from mpcde.evals.mlr_swarm import MlrSwarmConfig, run_mlr_swarm
 from planners.dmpc.collision import ellipsoidal_distance
 from planners.dmpc.mlr.config import MlrConfig
 from sim.radio import RadioConfig

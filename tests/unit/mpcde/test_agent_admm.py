@@ -13,12 +13,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mpcde.agent_admm import AdmmAgent
-from mpcde.agent_admm_config import AdmmAgentConfig
-from mpcde.agents import make_agent
+from mpcde.config.admm import AdmmAgentConfig
+from mpcde.config.scenario import load_scenario
 from mpcde.errors import ConfigError
-from mpcde.metrics import formation_metrics
-from mpcde.scenario import load_scenario
+from mpcde.flight.metrics import formation_metrics
+from mpcde.onboard.admm import AdmmAgent
+from mpcde.onboard.factory import make_agent
 from planners.dmpc.admm_formation import AdmmFormationAgent, solve_admm_round
 from planners.dmpc.admm_local_qp import AdmmLocalQpError
 from planners.dmpc.admm_types import AdmmBundle

@@ -4,14 +4,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
-from mpcde.agent_auto import AutoAgent
-from mpcde.agents import make_agent
-from mpcde.errors import ConfigError
-from mpcde.scenario import load_scenario
-from sim.types import PlanMessage, PoseEstimate, RadioMessage
-
 from test_agent_denied_tracks import GOAL, NEIGHBOUR, START, _frame
+
+from mpcde.config.scenario import load_scenario
+from mpcde.errors import ConfigError
+from mpcde.onboard.auto import AutoAgent
+from mpcde.onboard.factory import make_agent
+from sim.types import PlanMessage, PoseEstimate, RadioMessage
 
 ROUND = 0.2  # radio period [s] (5 Hz)
 

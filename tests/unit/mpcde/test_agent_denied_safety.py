@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from mpcde.agent_denied import DeniedAgent, DeniedAgentConfig
+from mpcde.config.denied import DeniedAgentConfig
+from mpcde.onboard.denied import DeniedAgent
 from planners.minco import minco_s3
 
 GOAL = np.array([6.0, 0.0, 1.5])

@@ -5,8 +5,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mpcde.neighbour_perception import PerceptionConfig
-from mpcde.agent_denied import DeniedAgent, DeniedAgentConfig
+from mpcde.config.denied import DeniedAgentConfig
+from mpcde.config.perception import PerceptionConfig
+from mpcde.onboard.denied import DeniedAgent
 from perception.types import Detection
 from sim.camera import CameraConfig, intrinsics
 from sim.types import PoseEstimate, RgbdFrame

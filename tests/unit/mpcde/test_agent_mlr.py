@@ -13,10 +13,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mpcde.agent_mlr import MlrAgent, MlrAgentConfig
-from mpcde.agents import make_agent
+from mpcde.config.mlr import MlrAgentConfig
+from mpcde.config.scenario import load_scenario
 from mpcde.errors import ConfigError
-from mpcde.scenario import load_scenario
+from mpcde.onboard.factory import make_agent
+from mpcde.onboard.mlr import MlrAgent
 from planners.dmpc.collision import ellipsoidal_distance
 from planners.dmpc.mlr.types import MlrBundle
 from sim.rotations import quat_xyzw_from_yaw
@@ -198,8 +199,8 @@ def test_make_agent_builds_an_mlr_agent_per_drone_with_cus_on_the_first_drones()
 
 def test_mlr_is_a_mode_of_fly_and_compare() -> None:
     from mpcde.cli import build_parser
-    from mpcde.compare import check_modes
-    from mpcde.modes import MODES
+    from mpcde.config.modes import MODES
+    from mpcde.evals.compare import check_modes
 
     assert MODES["mlr"] == "mlr" and check_modes(["comm", "mlr"]) == ("comm", "mlr")
     args = build_parser().parse_args(["fly", "antipodal", "--mode", "mlr", "--out", "x"])

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-import mpcde.bench as bench
+import mpcde.evals.bench as bench
 from mpcde.cli import main
 
 REPO = Path(__file__).resolve().parents[3]

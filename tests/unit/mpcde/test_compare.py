@@ -3,17 +3,24 @@
 import numpy as np
 import pytest
 
-from mpcde import compare
-from mpcde.compare import (
-    ROW_KEYS, SUMMARY_KEYS, check_modes, default_modes, format_table, row_from_metrics, run_compare, summarize,
-)  # fmt: skip
-from mpcde.plots import min_inter_drone_distance
+from mpcde.config.modes import MODES
 from mpcde.errors import ConfigError
-from mpcde.modes import MODES
+from mpcde.evals import compare as compare
+from mpcde.evals.compare import (
+    ROW_KEYS,
+    SUMMARY_KEYS,
+    check_modes,
+    default_modes,
+    format_table,
+    row_from_metrics,
+    run_compare,
+    summarize,
+)  # fmt: skip
+from mpcde.flight.plots import min_inter_drone_distance
 
 
 def fake_metrics(**changes):
-    """A metrics dict shaped like mpcde.metrics + loop extras (a perceiving, communicating run)."""
+    """A metrics dict shaped like mpcde.flight.metrics + loop extras (a perceiving, communicating run)."""
     m = {
         "success": True, "collisions": 0, "drone_drone_collisions": 0, "drone_obstacle_collisions": 0,
         "min_inter_drone_distance_m": 0.62, "min_obstacle_distance_m": None, "mission_time_s": 5.8,
@@ -127,9 +134,9 @@ def test_a_non_empty_out_dir_is_refused_without_overwrite(tmp_path):
 
 
 def test_parallel_jobs_share_the_cores_only_where_render_workers_is_automatic(monkeypatch):
-    from mpcde.compare import _share_cores
-    from mpcde.loop import prepare_run
-    from mpcde.scenario import load_scenario
+    from mpcde.config.scenario import load_scenario
+    from mpcde.evals.compare import _share_cores
+    from mpcde.flight.loop import prepare_run
 
     monkeypatch.setattr("os.cpu_count", lambda: 8)
     auto = prepare_run(load_scenario("crossing"))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from mpcde.compute_budget import ComputeBudget
+from mpcde.onboard.budget import ComputeBudget
 
 
 def test_result_books_totals_calls_and_rates() -> None:

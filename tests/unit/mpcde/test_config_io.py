@@ -8,7 +8,7 @@ from typing import Optional
 
 import pytest
 
-from mpcde.config_io import from_dict
+from mpcde.config.io import from_dict
 from mpcde.errors import ConfigError
 
 

@@ -6,9 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim.camera import CameraConfig
-
-from mpcde.detector_dataset import (
+from mpcde.errors import ConfigError
+from mpcde.training.dataset import (
     MIN_BOX_HEIGHT_PX,
     MIN_BOX_WIDTH_PX,
     MIN_VISIBLE_PX,
@@ -19,7 +18,7 @@ from mpcde.detector_dataset import (
     render_scene,
     split_seeds,
 )
-from mpcde.errors import ConfigError
+from sim.camera import CameraConfig
 
 FIXTURE = Path(__file__).resolve().parents[3] / "data" / "detector" / "fixture" / "test"
 
@@ -97,7 +96,7 @@ def test_bad_dataset_config_names_the_field():
 
 
 def test_truncation_rule_ignores_drones_whose_centre_leaves_the_image():
-    from mpcde.detector_dataset import centre_out_of_view
+    from mpcde.training.dataset import centre_out_of_view
     from sim.camera import CameraConfig, intrinsics
 
     cam = CameraConfig()

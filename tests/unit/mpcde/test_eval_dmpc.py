@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from mpcde.eval_dmpc import ROW_KEYS, format_table, formation_error, run_eval_dmpc
+from mpcde.evals.dmpc import ROW_KEYS, format_table, formation_error, run_eval_dmpc
 
 
 def test_short_eval_writes_exactly_the_schema(tmp_path):

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from mpcde.eval_tracking import (
+from mpcde.evals.tracking import (
     SyntheticMeasurements,
     camera_pose,
     format_table,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mpcde.metrics import MetricsAccumulator
+from mpcde.flight.metrics import MetricsAccumulator
 from sim.ground_truth import TrueState
 
 R = 0.1  # robot radius [m]: a drone-drone collision is a centre distance below 0.2 m

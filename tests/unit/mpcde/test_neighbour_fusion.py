@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from mpcde.neighbour_fusion import FusionConfig, fuse_neighbours, unknown_neighbour_id
+from mpcde.config.auto import FusionConfig
+from mpcde.onboard.fusion import fuse_neighbours, unknown_neighbour_id
 from perception.types import NeighborPrediction
 
 T = 10.0

@@ -1,9 +1,9 @@
-"""All-or-nothing outputs of the evaluation commands (mpcde.run_folder.staged_output)."""
+"""All-or-nothing outputs of the evaluation commands (mpcde.flight.run_folder.staged_output)."""
 
 import pytest
 
-import mpcde.eval_dmpc as eval_dmpc
-from mpcde.run_folder import staged_output
+import mpcde.evals.dmpc as eval_dmpc
+from mpcde.flight.run_folder import staged_output
 
 
 def _no_staging_left(parent):

@@ -2,14 +2,13 @@
 
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
 from mpcde.cli import main
+from mpcde.config.scenario import SCENARIO_DIR, load_scenario
 from mpcde.errors import ConfigError
-from mpcde.loop import prepare_run
-from mpcde.scenario import SCENARIO_DIR, load_scenario
+from mpcde.flight.loop import prepare_run
 
 BUILTINS = sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from mpcde.eval_tracking import TrackingScenario
-from mpcde.tracking_pipeline import PipelineMeasurements, background_trees, flat_attitudes
+from mpcde.evals.tracking import TrackingScenario
+from mpcde.evals.tracking_pipeline import PipelineMeasurements, background_trees, flat_attitudes
 
 
 def test_hover_attitude_is_level_and_heads_along_the_velocity():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mpcde.tracking_score import TrackingScore
+from mpcde.flight.tracking_score import TrackingScore
 from perception.types import NeighborPrediction
 
 

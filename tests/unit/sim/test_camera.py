@@ -5,10 +5,10 @@ import pytest
 
 from sim.camera import CameraConfig, apply_depth_sensor_model, depth_buffer_to_depth_m, intrinsics
 from sim.camera_rig import CameraRig
-from sim.obstacles import ObstacleSpec
 from sim.renderer import SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import SceneSpec
+from sim.types import ObstacleSpec
 
 
 def test_depth_buffer_conversion_inverts_the_opengl_z_mapping():

@@ -7,11 +7,11 @@ import pytest
 
 from sim.camera import CameraConfig
 from sim.camera_rig import CameraRig
-from sim.obstacles import ObstacleSpec
 from sim.raycast_renderer import BOX, CYLINDER, RaycastRenderer, drone_primitives
 from sim.renderer import SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import DRONE_URDF, SceneSpec
+from sim.types import ObstacleSpec
 
 OBSTACLES = (
     ObstacleSpec("tree", (3.0, 0.4), 4.0, radius_m=0.25),

@@ -1,0 +1,58 @@
+"""The ``denied:`` section of a scenario: settings of the MP-CDE (communication-denied) stack."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mpcde.errors import require_finite_positive
+from perception.map_config import MapConfig
+from planners.yaw import YawPlannerConfig
+
+__all__ = ["DeniedAgentConfig"]
+
+
+@dataclass(frozen=True)
+class DeniedAgentConfig:
+    """Settings of the MP-CDE agent.
+
+    Attributes:
+        v_max_mps: speed limit of the optimiser [m/s].
+        a_max_mps2: acceleration limit [m/s^2].
+        clearance_m: obstacle clearance of the trajectory on the ESDF [m].
+        front_end_clearance_m: clearance required by the front-end search [m].
+        replan_period_s: replan at least this often [s] (DESIGN.md: 0.5 s).
+        yaw_rate_max_radps: heading rate limit [rad/s] (MP-CDE Table I: 2.0).
+        start_delay_s: hover before the first departure [s].
+        swarm_clearance_m: C_s [m] kept from tracked neighbours (MP-CDE Table I: 0.7).
+        swarm_z_scale: c of the ellipsoidal metric E = diag(1, 1, 1/c) [-] (Eq. 16).
+        conflict_horizon_s: look-ahead [s] of replanning trigger (d) along the tracks' predictions.
+        perceive_neighbours: run the detector and tracker (False: map only, blind to other drones);
+            their settings are the scenario's ``perception:`` section.
+        active_yaw: plan the heading with MP-CDE's active yaw planner (False: heading along travel).
+        map: occupancy map settings.
+        yaw: active yaw planner settings; its speed limit, yaw-rate limit, t_hold
+            and field of view are taken from ``v_max_mps``, ``yaw_rate_max_radps``,
+            ``perception.tracker.t_hold_s`` and the scenario's camera, so each is set once.
+    """
+
+    v_max_mps: float = 1.0
+    a_max_mps2: float = 3.0
+    clearance_m: float = 0.4
+    front_end_clearance_m: float = 0.45
+    replan_period_s: float = 0.5
+    yaw_rate_max_radps: float = 2.0
+    start_delay_s: float = 0.5
+    swarm_clearance_m: float = 0.7
+    swarm_z_scale: float = 2.0
+    conflict_horizon_s: float = 1.2
+    perceive_neighbours: bool = True
+    active_yaw: bool = True
+    map: MapConfig = field(default_factory=MapConfig)
+    yaw: YawPlannerConfig = field(default_factory=YawPlannerConfig)
+
+    def __post_init__(self) -> None:
+        require_finite_positive(self, "swarm_clearance_m", "conflict_horizon_s")
+        if not (isinstance(self.swarm_z_scale, (int, float)) and np.isfinite(self.swarm_z_scale) and self.swarm_z_scale >= 1):
+            raise ValueError(f"swarm_z_scale={self.swarm_z_scale!r}: a finite number >= 1")

@@ -1,0 +1,74 @@
+"""The ``dmpc:`` section of a scenario: settings of the communicating (DMPC) stack."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from mpcde.errors import ConfigError
+from planners.dmpc.config import DmpcConfig
+
+__all__ = ["DmpcAgentConfig"]
+
+
+@dataclass(frozen=True)
+class DmpcAgentConfig:
+    """DMPC settings of a scenario (the ``dmpc:`` mapping of a scenario file).
+
+    Attributes:
+        qp: the per-drone QP (:class:`planners.dmpc.DmpcConfig`); ``qp.step_s``
+            must equal ``1 / radio.rate_hz`` (one round per step). Default: the
+            QP's defaults with 4 obstacle-plane slots (allocated only when the
+            scenario has obstacles).
+        formation_from_goals: keep the formation the goals form: the desired
+            offset to neighbour j is d_ij = goal_j - goal_i (on-demand DMPC
+            design goal 2), weighted by ``qp.weight_formation``.
+        plan_timeout_s: a neighbour's plan older than this [s] is dropped
+            (chosen: 3.0 s, the QP horizon K h; beyond it the plan says nothing).
+        obstacle_margin_m: clearance [m] kept from an obstacle surface on top
+            of the robot radius (chosen: 0.25 m, a few times the controller's
+            tracking error at 2 m/s).
+        obstacle_range_m: obstacles whose footprint comes closer than this [m]
+            to the previous plan get a plane (chosen: 3.0 m).
+        goal_lookahead_m: the QP's goal is the point this far [m] along the
+            line to the real goal when the goal is farther (a carrot; 0 =
+            always the real goal, the paper's form). Chosen: 4.0 m, two
+            thirds of what v_max = 2 m/s covers in the 3 s horizon. With the
+            goal itself 15 m away the terminal cost pins the plan to the speed
+            limit at every step and OSQP needed 410 iterations on average
+            (median 2.1 ms) in formation_square; with the carrot 70 (0.41 ms),
+            at the price of a slower cruise (mission 9.9 s -> 13.0 s).
+        state_tolerance_m: x0 is the own plan's state when the estimated
+            position is within this of it [m], else the estimate (chosen:
+            0.1 m, a few times the controller's tracking error; 0 = always
+            the estimate). See the module docstring.
+        state_tolerance_mps: the same bound on the velocity [m/s] (chosen: 0.3).
+        perceive_neighbours: run the drone's detector and tracker on its frames
+            (DESIGN.md: perception runs in every mode, so the tracks are warm
+            when an outage starts; settings in the scenario's ``perception:``).
+            In ``comm`` mode the tracks are scored (``tracking_*`` metrics) and
+            not planned against; the ``auto`` mode plans against them when a
+            neighbour's plan is stale (:mod:`mpcde.onboard.fusion`).
+    """
+
+    qp: DmpcConfig = field(default_factory=lambda: DmpcConfig(max_obstacle_planes=4))
+    formation_from_goals: bool = False
+    plan_timeout_s: float = 3.0
+    obstacle_margin_m: float = 0.25
+    obstacle_range_m: float = 3.0
+    goal_lookahead_m: float = 4.0
+    state_tolerance_m: float = 0.1
+    state_tolerance_mps: float = 0.3
+    perceive_neighbours: bool = True
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.plan_timeout_s) and self.plan_timeout_s > 0):
+            raise ConfigError("plan_timeout_s", self.plan_timeout_s, "a number > 0 [s]")
+        if not (math.isfinite(self.obstacle_margin_m) and self.obstacle_margin_m >= 0):
+            raise ConfigError("obstacle_margin_m", self.obstacle_margin_m, "a number >= 0 [m]")
+        if not (math.isfinite(self.obstacle_range_m) and self.obstacle_range_m > 0):
+            raise ConfigError("obstacle_range_m", self.obstacle_range_m, "a number > 0 [m]")
+        for name in ("goal_lookahead_m", "state_tolerance_m", "state_tolerance_mps"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ConfigError(name, value, "a number >= 0")

@@ -1,0 +1,53 @@
+"""The ``perception:`` section of a scenario: every perceiving drone's detector, tracker and back-projection."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from perception.backprojection import BackprojectionConfig
+from perception.tracker_config import TrackerConfig
+
+__all__ = ["DetectorRequest", "PerceptionConfig"]
+
+
+@dataclass(frozen=True)
+class DetectorRequest:
+    """What an agent asks of the detector (its ``detector_request`` attribute).
+
+    Attributes:
+        weights: checkpoint path; None for the shipped weights.
+        score_threshold: keep detections scoring >= this; None: the checkpoint's own.
+        field: the scenario field that set ``weights`` (named in the error if they do not load).
+    """
+
+    weights: str | None = None
+    score_threshold: float | None = None
+    field: str = "detector_weights"
+
+
+
+@dataclass(frozen=True)
+class PerceptionConfig:
+    """Neighbour perception of every drone (the ``perception:`` mapping of a scenario file).
+
+    Attributes:
+        detector_weights: detector checkpoint; None: the shipped weights.
+        detector_score_threshold: keep detections scoring >= this; None: the checkpoint's own.
+        tracker: neighbour tracker settings (MP-CDE Sec. IV-B, Table I).
+        backprojection: detection back-projection settings (Eq. 7-8); its pose-noise
+            terms are replaced by the scenario's ``pose_estimate`` white noise.
+    """
+
+    detector_weights: str | None = None
+    detector_score_threshold: float | None = None
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    backprojection: BackprojectionConfig = field(default_factory=BackprojectionConfig)
+
+    def __post_init__(self) -> None:
+        thr = self.detector_score_threshold
+        if thr is not None and not (isinstance(thr, (int, float)) and 0.0 <= thr <= 1.0):
+            raise ValueError(f"detector_score_threshold={thr!r}: a number in [0, 1] or null")
+
+    def detector_request(self) -> DetectorRequest:
+        """What the loop's batched detector loads for an agent with this perception."""
+        return DetectorRequest(self.detector_weights, self.detector_score_threshold, "perception.detector_weights")

@@ -1,0 +1,1 @@
+"""Flying a scenario: the event loop, flight metrics, the run folder, plots and video."""

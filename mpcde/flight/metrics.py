@@ -1,0 +1,161 @@
+"""Run metrics from ground truth (DESIGN.md section 4, mpcde: metrics).
+
+Accumulated every physics tick from :class:`sim.ground_truth.TrueState`:
+
+* collisions: drone-drone events (a pair's centre distance falls below
+  2 r_robot; counted once per entry) plus drone-obstacle events (a drone
+  starts touching an obstacle or the ground, from PyBullet's contacts);
+  ``collision_events`` lists each one in order (time [s], kind ``"drone"``
+  with the pair and its centre distance [m] at entry, or ``"obstacle"`` with
+  the drone), so a run's collisions can be found in its log and video;
+* minimum inter-drone centre distance and minimum obstacle clearance (exact
+  distance from the drone centre to the nearest obstacle surface, minus r_robot);
+* arrival: the first time each drone is within the goal tolerance;
+  success = all arrived before the time limit and no collision;
+  mission_time_s = the time the last drone arrived (null if not all did);
+* path length, mean speed and mean acceleration magnitude (averaged over
+  drones, from the true state);
+* real-time factor = simulated time / wall time of the loop.
+
+:func:`formation_metrics` adds the formation error chi(k) of a flight that
+keeps the goals' formation (DMPC with ``formation_from_goals``, ADMM), from
+the state log.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+from planners.dmpc.formation_graph import FormationGraph, complete_edges, formation_error
+from sim.ground_truth import TrueState, pairwise_distances
+from sim.obstacles import ObstacleField
+from sim.types import ObstacleSpec
+
+__all__ = ["MetricsAccumulator", "formation_metrics"]
+
+
+def formation_metrics(pos_world: np.ndarray, goals_world: np.ndarray) -> dict[str, float | None]:
+    """Formation error of a flight that keeps the formation its goals form (true positions).
+
+    chi(k) = sqrt( (1/E) sum_{i<j} ||(p_i(k) - p_j(k)) - (g_i - g_j)||^2 ) [m] over every pair of drones
+    (:func:`planners.dmpc.formation_graph.formation_error` on the complete graph of the goals), so the
+    same for every planner and coupling graph; 0 for the goals' shape anywhere, translated.
+
+    Args:
+        pos_world: (T, N, 3) true positions of the state log [m].
+        goals_world: (N, 3) goals [m].
+
+    Returns:
+        ``formation_error_final_m`` (the last sample), ``formation_error_mean_m`` and
+        ``formation_error_max_m`` (over the log); None without samples or with one drone.
+    """
+    goals = np.asarray(goals_world, float)
+    pos = np.asarray(pos_world, float)
+    keys = ("formation_error_final_m", "formation_error_mean_m", "formation_error_max_m")
+    if goals.shape[0] < 2 or pos.ndim != 3 or pos.shape[0] == 0:
+        return dict.fromkeys(keys)
+    chi = formation_error(pos, FormationGraph(goals - goals.mean(axis=0), complete_edges(goals.shape[0])))
+    return dict(zip(keys, (float(chi[-1]), float(chi.mean()), float(chi.max()))))
+
+
+class MetricsAccumulator:
+    """Collects metrics tick by tick; :meth:`update`, then :meth:`result`."""
+
+    def __init__(
+        self, goals_world: np.ndarray, obstacles: Sequence[ObstacleSpec], robot_radius_m: float, goal_tolerance_m: float
+    ) -> None:
+        self.goals = np.asarray(goals_world, float)
+        n = self.goals.shape[0]
+        self.obstacles = tuple(obstacles)
+        self.field = ObstacleField(self.obstacles)
+        self.r = robot_radius_m
+        self.tol = goal_tolerance_m
+        self.min_pair = np.inf
+        self.min_obstacle = np.inf
+        self.in_collision = np.zeros((n, n), bool)
+        self.in_contact = np.zeros(n, bool)
+        self.drone_drone_collisions = 0
+        self.drone_obstacle_collisions = 0
+        self.events: list[dict[str, Any]] = []
+        self.arrival_time = np.full(n, np.nan)
+        self.path_length = np.zeros(n)
+        self.prev_pos: np.ndarray | None = None
+        self.prev_vel: np.ndarray | None = None
+        self.speed_sum = np.zeros(n)
+        self.acc_sum = np.zeros(n)
+        self.ticks = 0
+        self.time_s = 0.0
+        self.min_pair_series: list[tuple[float, float]] = []
+
+    def update(self, s: TrueState, dt_s: float) -> None:
+        """Account for one tick of duration ``dt_s`` [s] ending in state ``s``."""
+        n = s.pos_world.shape[0]
+        self.time_s = s.time_s
+        if n > 1:
+            d = pairwise_distances(s.pos_world)
+            m = float(d.min())
+            self.min_pair = min(self.min_pair, m)
+            close = d < 2 * self.r
+            iu = np.triu(close & ~self.in_collision, 1)
+            self.drone_drone_collisions += int(iu.sum())
+            for i, j in np.argwhere(iu):
+                pair = [int(i), int(j)]
+                self.events.append(
+                    {"time_s": float(s.time_s), "kind": "drone", "drones": pair, "distance_m": float(d[i, j])}
+                )
+            self.in_collision = close
+            self.min_pair_series.append((s.time_s, m))
+        if self.obstacles:
+            clearance = self.field.distance(s.pos_world) - self.r
+            self.min_obstacle = min(self.min_obstacle, float(clearance.min()))
+        new_contact = s.obstacle_contact & ~self.in_contact
+        self.drone_obstacle_collisions += int(new_contact.sum())
+        for i in np.flatnonzero(new_contact):
+            self.events.append({"time_s": float(s.time_s), "kind": "obstacle", "drones": [int(i)]})
+        self.in_contact = s.obstacle_contact.copy()
+        arrived = (np.linalg.norm(s.pos_world - self.goals, axis=1) <= self.tol) & np.isnan(self.arrival_time)
+        self.arrival_time[arrived] = s.time_s
+        if self.prev_pos is not None:
+            self.path_length += np.linalg.norm(s.pos_world - self.prev_pos, axis=1)
+            self.acc_sum += np.linalg.norm(s.vel_world - self.prev_vel, axis=1) / dt_s
+        self.speed_sum += np.linalg.norm(s.vel_world, axis=1)
+        self.prev_pos, self.prev_vel = s.pos_world.copy(), s.vel_world.copy()
+        self.ticks += 1
+
+    @property
+    def all_arrived(self) -> bool:
+        """Whether every drone has reached its goal at some point."""
+        return not np.any(np.isnan(self.arrival_time))
+
+    def result(self, wall_time_s: float, failed: np.ndarray, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+        """The metrics dictionary written to ``metrics.json``."""
+        collisions = self.drone_drone_collisions + self.drone_obstacle_collisions
+        arrived = self.all_arrived
+        ticks = max(self.ticks, 1)
+
+        def finite(x: float) -> float | None:
+            return float(x) if np.isfinite(x) else None
+
+        out = {
+            "success": bool(arrived and collisions == 0),
+            "collisions": int(collisions),
+            "drone_drone_collisions": int(self.drone_drone_collisions),
+            "drone_obstacle_collisions": int(self.drone_obstacle_collisions),
+            "collision_events": list(self.events),
+            "min_inter_drone_distance_m": finite(self.min_pair),
+            "min_obstacle_distance_m": finite(self.min_obstacle),
+            "mission_time_s": float(np.max(self.arrival_time)) if arrived else None,
+            "arrived": int(np.sum(~np.isnan(self.arrival_time))),
+            "n_drones": int(self.goals.shape[0]),
+            "failed_drones": [int(i) for i in np.flatnonzero(failed)],
+            "path_length_m": float(self.path_length.mean()),
+            "mean_speed_mps": float((self.speed_sum / ticks).mean()),
+            "mean_accel_mps2": float((self.acc_sum / max(ticks - 1, 1)).mean()),
+            "sim_time_s": float(self.time_s),
+            "wall_time_s": float(wall_time_s),
+            "real_time_factor": float(self.time_s / wall_time_s) if wall_time_s > 0 else None,
+        }
+        out.update(extra or {})
+        return out

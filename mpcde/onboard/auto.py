@@ -1,0 +1,200 @@
+"""The ``auto`` agent: DMPC while the radio delivers, MP-CDE when it does not (``planner.kind: auto``).
+
+DESIGN.md section 4: "comm while the radio delivers; neighbour by neighbour it
+falls back to perception tracks when that neighbour's plan is stale, and the
+whole agent falls back to the denied stack when the radio is out; back again
+when it returns. Perception runs in every mode, so tracks are warm when an
+outage starts."
+
+One drone runs both stacks over one perception:
+
+* the *denied half* (:class:`mpcde.onboard.denied.DeniedAgent`) owns the
+  detector's tracks and the camera map. Every frame is tracked and mapped in
+  both modes (:meth:`DeniedAgent.observe`); only in ``denied`` mode does it
+  also plan (heading, replanning: :meth:`DeniedAgent.plan_step`);
+* the *comm half* (:class:`mpcde.onboard.dmpc.DmpcAgent`) runs the DMPC round
+  at every radio round in ``comm`` mode, against the neighbours' radio plans
+  fused with the same tracks (:mod:`mpcde.onboard.fusion`: a neighbour whose
+  plan is older than ``fusion.stale_after_s`` is planned against by its track
+  when one matches; tracks the radio does not explain are extra neighbours).
+
+Mode switch, at each radio round t (the only clock the radio gives a drone):
+the radio is *out* when nothing from any drone was sent within the last
+``radio_silence_s`` (the newest send time heard; a drone cannot tell a
+blackout from being alone out of range, and in both the cameras are all it
+has). comm -> denied when it goes out; denied -> comm when a message arrives
+again. A switch hands the reference over continuously: the stack taking over
+starts from the left stack's reference state (position, velocity,
+acceleration) and heading (:meth:`DeniedAgent.take_over`,
+:meth:`DmpcAgent.take_over`). In ``denied`` mode the drone still broadcasts
+its MINCO trajectory as a plan, so neighbours that hear it can use it.
+
+The radio is remembered for ``plan_memory_s`` after the switch: the denied
+half plans (and aims its camera) against the neighbours' last plans fused with
+its tracks (:meth:`AutoAgent._denied_neighbours`), so a neighbour flying beside
+it, which its camera has not seen, is not forgotten the moment the radio goes.
+
+What each half knows of static obstacles is what it knows alone: the comm
+half the scenario's obstacle list (the on-demand DMPC paper's known
+obstacles), the denied half its own camera map. ``denied.perceive_neighbours:
+false`` turns the perception off for both halves (the blind-fallback ablation).
+
+Measured on radio_outage (forest_swarm, every receiver deaf from 3 s to
+15 s), seeds 0-5, against comm and denied: ``docs/results/radio_outage.md``
+(the per-seed table with its command and commit, and the history of what
+was tried: the radio memory, the tracking-mode swing, the diagnosed grazes).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from mpcde.config.auto import AutoAgentConfig
+from mpcde.onboard.base import AgentCounters
+from mpcde.onboard.denied import DeniedAgent
+from mpcde.onboard.dmpc import DmpcAgent
+from mpcde.onboard.fusion import fuse_neighbours
+from perception.types import Detection, NeighborPrediction
+from planners.dmpc import DmpcPlan
+from sim.types import FlatOutputReference, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
+
+__all__ = ["AutoAgent", "AutoAgentConfig"]
+
+COMM, DENIED = "comm", "denied"
+
+
+class AutoAgent:
+    """One drone's ``auto`` stack (implements :class:`mpcde.onboard.base.OnboardAgent`; module docstring).
+
+    Args:
+        config: the scenario's ``auto:`` settings.
+        comm: the DMPC half, sharing ``denied.perception`` and fusing with it.
+        denied: the MP-CDE half (owns the perception and the map).
+    """
+
+    def __init__(self, config: AutoAgentConfig, comm: DmpcAgent, denied: DeniedAgent) -> None:
+        if comm.drone_id != denied.drone_id or comm.perception is not denied.perception:
+            raise ValueError("AutoAgent: comm and denied halves must be the same drone and share one perception")
+        self.drone_id = comm.drone_id
+        self.config = config
+        self.comm, self.denied = comm, denied
+        self.perception = denied.perception
+        self.detector_request = denied.detector_request
+        self.counters = AgentCounters()
+        self.mode = COMM
+        self.last_heard_s: float | None = None  # newest send time heard (None: the first estimate's time)
+        self.switches: list[tuple[float, str]] = []
+        self.mode_time_s = {COMM: 0.0, DENIED: 0.0}
+        self._last_round_s: float | None = None
+        self.remembered_plans = 0  # denied-mode neighbour sets that used a remembered radio plan (summed over plans)
+        denied.neighbour_source = self._denied_neighbours
+
+    # inputs ------------------------------------------------------------------
+    def on_pose_estimate(self, estimate: PoseEstimate) -> None:
+        """Own pose estimate, to both halves (the first starts the silence clock)."""
+        if self.last_heard_s is None:
+            self.last_heard_s = float(estimate.time_s)
+        self.comm.on_pose_estimate(estimate)
+        self.denied.on_pose_estimate(estimate)
+
+    def on_frame(self, frame: RgbdFrame, detections: list[Detection] | None = None) -> None:
+        """Track and map every frame; in ``denied`` mode also plan on it."""
+        self.counters.frames += 1
+        if self.mode == DENIED:
+            self.denied.on_frame(frame, detections)
+        else:
+            self.denied.observe(frame, detections)
+
+    def on_radio(self, messages: list[RadioMessage]) -> None:
+        """This round's inbox: to the DMPC half; any message from another drone restarts the silence clock."""
+        self.counters.messages += len(messages)
+        self.comm.on_radio(messages)
+        for m in messages:
+            if m.sender_id != self.drone_id:
+                self.last_heard_s = max(self.last_heard_s or -np.inf, float(m.send_time_s))
+
+    # round -------------------------------------------------------------------
+    def outgoing(self, time_s: float) -> PlanMessage | None:
+        """Choose the mode at this round, then run it: the DMPC round, or broadcast the MINCO plan."""
+        t = float(time_s)
+        if self._last_round_s is not None:
+            self.mode_time_s[self.mode] += t - self._last_round_s
+        self._last_round_s = t
+        self._choose_mode(t)
+        if self.mode == COMM:
+            return self.comm.outgoing(t)
+        plan = self._denied_plan(t)
+        if plan is None:
+            return None
+        return PlanMessage(sender_id=self.drone_id, time_s=t, times_s=plan.times_s, pos_world=plan.pos_world, vel_world=plan.vel_world)
+
+    def radio_out(self, time_s: float) -> bool:
+        """Whether nothing was heard from any drone within ``radio_silence_s`` of ``time_s`` [s]."""
+        heard = self.last_heard_s if self.last_heard_s is not None else float(time_s)
+        return float(time_s) - heard > self.config.radio_silence_s + 1e-9  # rounds sit on a float grid
+
+    def _choose_mode(self, t: float) -> None:
+        out = self.radio_out(t)
+        if self.mode == COMM and out:
+            pva = np.stack(self.comm.reference_state(t))
+            self.denied.take_over(t, pva, self.comm.yaw)
+            self._switch(t, DENIED)
+        elif self.mode == DENIED and not out:
+            plan = self._denied_plan(t)
+            if plan is not None:
+                self.comm.take_over(plan, self.denied.reference(t).yaw)
+            self._switch(t, COMM)
+
+    def _denied_neighbours(self, t: float, count: bool = True) -> list[NeighborPrediction]:
+        """What the denied half plans, maps and points its camera against at ``t`` [s]: tracks plus radio memory.
+
+        The neighbours' last plans sent within ``plan_memory_s`` are fused with
+        the tracks exactly as in comm mode (:func:`mpcde.onboard.fusion.fuse_neighbours`):
+        a plan whose drone is tracked gives way to the track, an untracked one
+        is kept (extrapolated at constant velocity past its horizon). ``count``:
+        tally the remembered plans used (planning calls; the map's are not).
+        """
+        tracks = self.perception.predictions(t)
+        if self.config.plan_memory_s <= 0:
+            return tracks
+        plans = self.comm.radio_predictions(t, self.config.plan_memory_s)
+        if not plans:
+            return tracks
+        f = self.config.fusion
+        fused = fuse_neighbours(plans, tracks, t, f.stale_after_s, f.gate_m, self.comm.qp_config.v_max)
+        if count:  # planning calls (denied mode) only; the map asks at every frame in both modes
+            self.remembered_plans += fused.fresh_plans + fused.stale_plans
+        return fused.predictions
+
+    def _switch(self, t: float, mode: str) -> None:
+        self.mode = mode
+        self.switches.append((t, mode))
+
+    def _denied_plan(self, t: float) -> DmpcPlan | None:
+        """The denied half's reference sampled on the DMPC grid t + k h, k = 0..K (None before an estimate)."""
+        if self.denied.latest_estimate is None:
+            return None
+        cfg = self.comm.qp_config
+        times = t + cfg.step_s * np.arange(cfg.horizon_steps + 1)
+        pva = np.stack([self.denied.state_at(tk) for tk in times])  # (K+1, 3, 3)
+        return DmpcPlan(t0_s=t, h_s=cfg.step_s, pos_world=pva[:, 0], vel_world=pva[:, 1], acc_world=pva[:, 2])
+
+    # output ------------------------------------------------------------------
+    def reference(self, time_s: float) -> FlatOutputReference:
+        """Controller reference at ``time_s`` [s] from the half that flies now."""
+        return self.comm.reference(time_s) if self.mode == COMM else self.denied.reference(time_s)
+
+    def extra_metrics(self) -> dict[str, Any]:
+        """Mode shares and switches, and each half's own statistics."""
+        return {
+            "drone_id": self.drone_id,
+            "planner": "auto",
+            "mode_time_s": {k: round(v, 3) for k, v in self.mode_time_s.items()},
+            "mode_switches": len(self.switches),
+            "remembered_plans": self.remembered_plans,
+            "switches": [{"time_s": round(t, 3), "to": m} for t, m in self.switches],
+            "dmpc": self.comm.extra_metrics(),
+            "denied": self.denied.extra_metrics(),
+        }

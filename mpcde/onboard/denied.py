@@ -1,0 +1,347 @@
+"""The communication-denied agent (MP-CDE): detector + tracks, own map, front end, MINCO, replanning.
+
+What it uses: its own camera frames with the boxes its own detector found in
+them (:mod:`mpcde.onboard.detection`), its own pose estimate, and nothing
+else. Each frame (MP-CDE Sec. IV-B, :class:`mpcde.onboard.perception.NeighbourPerception`):
+detections are back-projected to world measurements (Eq. 7-8) and tracked by
+the adaptive Kalman tracker (Eq. 9-12); the depth frame is mapped
+(:class:`perception.occupancy_map.OccupancyMap`) with the detection boxes
+masked, so neighbours do not become walls. The tracks' predictions are the
+neighbours MINCO keeps the swarm clearance C_s from (Eq. 16). What it never
+uses: ground truth, the radio. With ``perceive_neighbours: false`` it runs no
+detector and flies blind to other drones (the map-only ablation).
+
+Replanning (MP-CDE Alg. 1 line 13 and DESIGN.md section 3): after a frame is
+mapped, replan when (a) no trajectory exists, (b) at least ``replan_period_s``
+passed since the last plan, (c) the rest of the current trajectory comes
+closer than the clearance to an obstacle on the updated ESDF, or (d) within
+the next ``conflict_horizon_s`` it comes closer than C_s (ellipsoidal metric
+E = diag(1, 1, 1/c) of Eq. 16) to a tracked neighbour's prediction; (d) holds
+Alg. 1's ``min_q d_q(0) < C_s`` at its first instant and looks ahead along the
+tracks' constant-velocity predictions (MP-CDE: prediction horizons up to
+1.2 s), so that a neighbour on a collision course is answered before it is
+within C_s. A replan starts
+from the current trajectory's own state (position, velocity, acceleration) at
+the frame time, so the reference stays continuous; the front end
+(:func:`planners.path_search.search_path`) searches the map window, with each
+track's capsule added as an obstacle (:mod:`planners.neighbour_field`: C_s, or
+1.2 C_s for a track unseen for longer than t_hold), towards the
+goal (clipped to the window when the goal lies outside it) and the MINCO
+optimiser (:mod:`planners.trajectory_optimizer`) refines that path on the ESDF.
+A plan that fails or leaves obstacle clearance violated is rejected (one that
+keeps obstacle clearance but not all of C_s is kept: the optimiser's best
+separation beats the old plan's); if the current trajectory is itself unsafe
+with respect to obstacles, the agent brakes to a stop along it (a stopping
+MINCO piece from its current state).
+
+Yaw (MP-CDE Sec. IV-A, :mod:`mpcde.onboard.heading`): every t_y = 0.1 s of frame
+time the active yaw planner (:mod:`planners.yaw`, Alg. 1) chooses exploring,
+observing or tracking from the safety margin S(0) and the tracks, and the
+reference follows its rate-limited yaw sequence; its line 13 (S(0) < tau_thr or
+a neighbour within C_s now) is replanning trigger (e). With ``active_yaw:
+false`` the heading follows the direction of travel (the ablation).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mpcde.config.denied import DeniedAgentConfig
+from mpcde.config.perception import PerceptionConfig
+from mpcde.onboard.base import AgentCounters
+from mpcde.onboard.budget import ComputeBudget
+from mpcde.onboard.heading import ActiveYaw, yaw_config_for
+from mpcde.onboard.perception import NeighbourPerception, onboard_perception
+from perception.occupancy_map import OccupancyMap
+from perception.types import Detection, NeighborPrediction, OccupancySnapshot
+from planners.dmpc.collision import ellipsoidal_distance
+from planners.minco import MincoTrajectory, minco_s3
+from planners.neighbour_field import with_neighbour_capsules
+from planners.path_search import PathSearchConfig, search_path
+from planners.trajectory_optimizer import TrajectoryOptimizationError, TrajectoryOptimizerConfig, build_trajectory_problem, solve
+from sim.rotations import rotation_from_quat_xyzw, yaw_from_rotation
+from sim.types import FlatOutputReference, PoseEstimate, RadioMessage, RgbdFrame
+
+__all__ = ["DeniedAgent", "DeniedAgentConfig", "PlanningStats"]
+
+
+@dataclass
+class PlanningStats:
+    """What the agent's planner did (for metrics)."""
+
+    replans: int = 0
+    failures: int = 0
+    brakes: int = 0
+    swarm_replans: int = 0
+    yaw_replans: int = 0
+    solve_ms: list = field(default_factory=list)
+    map_ms: list = field(default_factory=list)
+
+
+class DeniedAgent:
+    """One drone's MP-CDE stack (implements :class:`mpcde.onboard.base.OnboardAgent`).
+
+    Args:
+        drone_id: index of the drone.
+        goal_world: (3,) goal [m].
+        config: the scenario's ``denied:`` settings.
+        fov_deg: the camera's (horizontal, vertical) field of view [deg], for the yaw planner.
+        perception_config: the scenario's ``perception:`` settings (detector, tracker, back-projection).
+        perception: a perception to share (the ``auto`` agent's DMPC half reads the same tracks);
+            None: the agent makes its own when ``config.perceive_neighbours``.
+        budget: where the compute time of tracking, mapping, ESDF and planning is booked (the run's).
+    """
+
+    def __init__(
+        self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig, fov_deg: tuple[float, float] = (85.0, 58.0),
+        perception_config: PerceptionConfig | None = None, perception: NeighbourPerception | None = None,
+        budget: ComputeBudget | None = None,
+    ) -> None:
+        self.drone_id = drone_id
+        self.budget = budget if budget is not None else ComputeBudget()
+        self.goal_world = np.asarray(goal_world, float)
+        self.config = config
+        self.counters = AgentCounters()
+        self.stats = PlanningStats()
+        self.map = OccupancyMap(config.map, on_esdf=lambda seconds: self.budget.add("esdf", seconds))
+        self.trajectory: MincoTrajectory | None = None
+        self.braking = False  # whether self.trajectory is a stopping piece (committed until a replan succeeds)
+        self.last_plan_time_s = -np.inf
+        self.latest_estimate: PoseEstimate | None = None
+        self.hover_world: np.ndarray | None = None
+        self.heading: ActiveYaw | None = None  # made from the first pose estimate (its yaw)
+        c = config
+        self.t_hold_s = (perception_config or PerceptionConfig()).tracker.t_hold_s
+        self.yaw_config = yaw_config_for(c.yaw, c.v_max_mps, c.yaw_rate_max_radps, self.t_hold_s, *fov_deg)
+        self.optimizer = TrajectoryOptimizerConfig(
+            v_max_mps=c.v_max_mps, a_max_mps2=c.a_max_mps2, obstacle_clearance_m=c.clearance_m,
+            swarm_clearance_m=c.swarm_clearance_m, swarm_z_scale=c.swarm_z_scale,
+        )
+        # detector_request: what the loop's batched detector reads (None: no detections)
+        self.perception, self.detector_request = onboard_perception(c.perceive_neighbours, perception_config, perception)
+        self.search = PathSearchConfig()
+        # where plan_step reads the neighbours from (None: this drone's tracks); the auto agent adds its radio memory
+        # (t, count) -> predictions; count: whether the call is a planning use the source may tally
+        self.neighbour_source: Callable[[float, bool], list[NeighborPrediction]] | None = None
+
+    # inputs ---------------------------------------------------------------
+    def on_pose_estimate(self, estimate: PoseEstimate) -> None:
+        """Own pose estimate; the first one fixes the hover point and heading."""
+        self.latest_estimate = estimate
+        if self.hover_world is None:
+            self.hover_world = estimate.pos_world.copy()
+            yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
+            c = self.config
+            self.heading = ActiveYaw(self.yaw_config, c.active_yaw, yaw, c.swarm_clearance_m, c.swarm_z_scale)
+
+    def on_radio(self, messages: list[RadioMessage]) -> None:
+        """Denied: the radio is not used (messages are counted only)."""
+        self.counters.messages += len(messages)
+
+    def on_frame(self, frame: RgbdFrame, detections: list[Detection] | None = None) -> None:
+        """Track the detected neighbours, map the frame, then replan if due or if the plan became unsafe.
+
+        Args:
+            frame: this drone's frame.
+            detections: the boxes this drone's detector found in ``frame`` (None: no detector ran).
+        """
+        snap = self.observe(frame, detections)
+        self.plan_step(frame.time_s, snap)
+
+    def observe(self, frame: RgbdFrame, detections: list[Detection] | None = None) -> OccupancySnapshot:
+        """Track the detected neighbours and map the frame (no planning); returns the map's snapshot.
+
+        The ``auto`` agent calls this alone while it flies DMPC, so the map and
+        the tracks are warm when it falls back to this stack.
+        """
+        self.counters.frames += 1
+        if self.perception is not None and detections is not None:
+            with self.budget.measure("track"):
+                self.perception.update(frame, detections)
+        t0 = time.perf_counter()
+        near = None  # where it believes its neighbours are: their depth hits are not obstacles (when on)
+        if self.config.map.neighbour_exclusion_m > 0.0:
+            t = np.array([frame.time_s])
+            near = np.array([nb.position(t)[0] for nb in self.neighbours(frame.time_s, count=False)]).reshape(-1, 3)
+        self.map.update(frame, detections or (), near)
+        snap = self.map.snapshot()  # its ESDF is computed only if a planner reads it
+        seconds = time.perf_counter() - t0
+        self.budget.add("map_insert", seconds)
+        self.stats.map_ms.append(1e3 * seconds)
+        return snap
+
+    def plan_step(self, t: float, snap: OccupancySnapshot) -> None:
+        """Heading and replanning at frame time ``t`` [s] on the map ``snap`` (module docstring)."""
+        if t < self.config.start_delay_s or self.latest_estimate is None:
+            return
+        neighbours = self.neighbours(t)
+        yaw_trigger = False
+        if self.heading.due(t):  # Alg. 1 lines 1-12 every t_y; line 13's trigger is (e)
+            with self.budget.measure("yaw"):
+                yaw_trigger = self.heading.update(t, snap, self.trajectory, self.hover_world, neighbours)
+        # the per-frame check reads the newest ESDF and the voxels occupied since (no transform)
+        unsafe = self.trajectory is not None and not self._safe(self.trajectory, self.map.clearance, t)
+        conflict = self.trajectory is not None and self._swarm_conflict(self.trajectory, neighbours, t)
+        due = t - self.last_plan_time_s >= self.config.replan_period_s
+        if self.trajectory is None or unsafe or conflict or yaw_trigger or due:
+            replanned = self._replan(snap, neighbours, t)
+            self.stats.swarm_replans += int(replanned and conflict)
+            self.stats.yaw_replans += int(replanned and yaw_trigger)
+            if not replanned and unsafe:
+                self._brake(t)
+
+    def neighbours(self, t: float, count: bool = True) -> list[NeighborPrediction]:
+        """The neighbour predictions planned against at ``t`` [s]: ``neighbour_source``'s, else the tracks.
+
+        ``count`` False: a look that is not a planning use (the map's exclusion), not tallied by the source.
+        """
+        if self.neighbour_source is not None:
+            return self.neighbour_source(t, count)
+        return self.perception.predictions(t) if self.perception is not None else []
+
+    def outgoing(self, time_s: float) -> None:
+        """Denied: nothing is broadcast."""
+        return None
+
+    def take_over(self, time_s: float, pos_vel_acc: np.ndarray, yaw: float) -> None:
+        """Start flying this stack from another stack's reference (the ``auto`` agent's fallback).
+
+        The current trajectory becomes a stopping piece from ``pos_vel_acc``
+        ((3, 3) position, velocity, acceleration [m, m/s, m/s^2] of the
+        reference being left at ``time_s``), so the reference is continuous;
+        the next frame replans (it is due) from that state. The heading
+        continues from ``yaw`` [rad] and the yaw planner plans at the next frame.
+        """
+        self.trajectory = self._stopping_piece(time_s, np.asarray(pos_vel_acc, float))
+        self.braking = True
+        self.last_plan_time_s = -np.inf
+        if self.heading is not None:
+            self.heading.restart(yaw, time_s)
+
+
+    # planning ---------------------------------------------------------------
+    def state_at(self, t: float) -> np.ndarray:
+        """(3, 3) position, velocity, acceleration of the current reference at ``t``."""
+        if self.trajectory is None:
+            return np.stack([self.hover_world, np.zeros(3), np.zeros(3)])
+        tau = t - self.trajectory.t0_s
+        return np.stack([self.trajectory.pos(tau), self.trajectory.vel(tau), self.trajectory.acc(tau)])
+
+    def _safe(self, traj: MincoTrajectory, distance: Callable[[np.ndarray], np.ndarray], t: float) -> bool:
+        """Whether ``traj`` keeps 0.75 clearance_m from the map's obstacles from ``t`` [s] on.
+
+        ``distance`` maps (n, 3) points [m] to their obstacle distance (n,) [m]:
+        :meth:`perception.occupancy_map.OccupancyMap.clearance` on the hot
+        path, the fresh snapshot's ESDF for a new plan.
+
+        Tried and dropped: the front end's escape rule here (a plan starting
+        inside that band, e.g. next to phantom voxels mapped off a neighbour's
+        body, is safe if it never comes closer than it starts). On
+        ``radio_outage`` seeds 0-5 (with the committed stop of :meth:`_brake`)
+        it moved auto's one collision from seed 5 to seed 3 and took denied
+        from 5 collisions to 7.
+        """
+        tau = np.linspace(max(t - traj.t0_s, 0.0), traj.total_duration, 40)
+        d = distance(traj.pos(tau))
+        return bool(np.min(d) >= 0.75 * self.config.clearance_m)
+
+    def _swarm_conflict(self, traj: MincoTrajectory, neighbours: list[NeighborPrediction], t: float) -> bool:
+        """Whether ``traj`` comes within C_s (metric E of Eq. 16) of a prediction in the next ``conflict_horizon_s``."""
+        if not neighbours:
+            return False
+        times = t + np.linspace(0.0, self.config.conflict_horizon_s, 13)
+        own = traj.pos(np.clip(times - traj.t0_s, 0.0, traj.total_duration))
+        theta_z = np.sqrt(self.config.swarm_z_scale)  # ||E^1/2 d|| = ||Theta^-1 d|| with Theta = diag(1, 1, sqrt(c))
+        d = [np.min(ellipsoidal_distance(own - nb.position(times), theta_z)) for nb in neighbours]
+        return min(d) < self.config.swarm_clearance_m
+
+    def _replan(self, snap, neighbours: list[NeighborPrediction], t: float) -> bool:
+        start = self.state_at(t)
+        snap.distance_m  # a replan needs this frame's ESDF (booked as "esdf" by the map)
+        t0 = time.perf_counter()
+        c = self.config
+        # the front end sees each track as a capsule (planners.neighbour_field); MINCO sees the predictions
+        with self.budget.measure("front_end"):
+            front = with_neighbour_capsules(
+                snap, neighbours, t, c.conflict_horizon_s, c.swarm_clearance_m, self.t_hold_s, reach_m=c.front_end_clearance_m + 0.3
+            )
+            path = search_path(front, start[0], self.goal_world, c.front_end_clearance_m, self.search)
+        if not path.found:
+            self.stats.failures += 1
+            return False
+        goal_pva = np.stack([path.goal_used_world, np.zeros(3), np.zeros(3)])
+        try:
+            with self.budget.measure("optimiser"):
+                problem = build_trajectory_problem(start, goal_pva, path.waypoints_world, snap, neighbours, t, self.optimizer)
+                result = solve(problem)
+        except (TrajectoryOptimizationError, ValueError):
+            self.stats.failures += 1
+            return False
+        self.stats.solve_ms.append(1e3 * (time.perf_counter() - t0))
+        if not self._safe(result.trajectory, lambda p: snap.distance_and_gradient(p)[0], t):
+            self.stats.failures += 1
+            return False
+        self.trajectory = result.trajectory
+        self.braking = False
+        self.last_plan_time_s = t
+        self.stats.replans += 1
+        return True
+
+    def _brake(self, t: float) -> None:
+        """Stop from the current state with a single minimum-jerk piece (no obstacle knowledge).
+
+        A stop already under way is kept, not restarted: a minimum-jerk piece
+        starts with the current acceleration and zero jerk, so one restarted
+        at every frame (every failed replan while the plan is unsafe) never
+        builds up its deceleration: from 2 m/s, restarted at 25 Hz, the
+        reference is still at 1.62 m/s after 0.5 s against 1.37 m/s for the
+        committed piece (whose peak deceleration is 0.75 a_max). ``brakes``
+        counts the stops started.
+        """
+        if self.braking and self.trajectory is not None:
+            return
+        self.trajectory = self._stopping_piece(t, self.state_at(t))
+        self.braking = True
+        self.last_plan_time_s = t
+        self.stats.brakes += 1
+
+    def _stopping_piece(self, t: float, pva: np.ndarray) -> MincoTrajectory:
+        """One minimum-jerk piece from ``pva`` (3, 3) at ``t`` [s] to rest, over 2 |v| / a_max (>= 0.3 s)."""
+        p, v, a = pva
+        T = max(2.0 * float(np.linalg.norm(v)) / self.config.a_max_mps2, 0.3)
+        stop = p + 0.5 * v * T  # a comfortable stopping distance along the current velocity
+        return minco_s3(np.stack([p, v, a]), np.stack([stop, np.zeros(3), np.zeros(3)]), np.zeros((0, 3)), np.array([T]), t0_s=t)
+
+    # output -----------------------------------------------------------------
+    def reference(self, time_s: float) -> FlatOutputReference:
+        """Reference at ``time_s`` [s]: the current MINCO trajectory and the heading of :mod:`mpcde.onboard.heading`."""
+        if self.heading is None:  # no pose estimate yet
+            return FlatOutputReference.hover(np.zeros(3), 0.0)
+        if self.trajectory is None:
+            yaw, yaw_rate = self.heading.reference(time_s, None)
+            return FlatOutputReference(self.hover_world, np.zeros(3), np.zeros(3), yaw, yaw_rate)
+        p, v, a = self.state_at(time_s)
+        yaw, yaw_rate = self.heading.reference(time_s, v)
+        return FlatOutputReference(pos_world=p, vel_world=v, acc_world=a, yaw=yaw, yaw_rate=yaw_rate)
+
+    def extra_metrics(self) -> dict:
+        """Planner statistics for metrics.json."""
+        s = self.stats
+        out = {
+            "replans": s.replans,
+            "plan_failures": s.failures,
+            "brakes": s.brakes,
+            "swarm_replans": s.swarm_replans,
+            "yaw_replans": s.yaw_replans,
+            "replan_ms_median": float(np.median(s.solve_ms)) if s.solve_ms else None,
+            "map_ms_median": float(np.median(s.map_ms)) if s.map_ms else None,
+        }
+        if self.heading is not None:
+            out.update(self.heading.metrics())
+        if self.perception is not None:
+            out.update(self.perception.counts.metrics())
+        return out

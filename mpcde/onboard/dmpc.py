@@ -1,0 +1,371 @@
+"""The communicating onboard agent: DMPC over exchanged plans (``planner.kind: dmpc``).
+
+Every radio round (period ``radio.rate_hz``, which must equal the QP step h;
+DESIGN.md section 3) the loop first hands the agent its inbox
+(:meth:`DmpcAgent.on_radio`), then asks for its broadcast
+(:meth:`DmpcAgent.outgoing`). In ``outgoing(t)`` the agent
+
+1. builds its state x0 at t from its own pose estimate (position extrapolated
+   from the estimate's time with the estimated velocity; velocity; for the
+   triple integrator the acceleration of its own previous plan at t). When
+   the estimate agrees with the own previous plan's state at t within
+   ``state_tolerance_m`` and ``state_tolerance_mps`` (the controller is
+   tracking the plan), x0 is the plan's state instead. Why: the goal cost
+   acts on the last ``goal_steps`` only, so each plan moves slowly in its
+   first steps; replanning every round from the estimate then feeds the
+   estimate's noise and the controller's lag into every first step, and in
+   the 8-drone swap (full physics, default pose noise) the drones drifted
+   off their goals (5 of 8 arrived within 20 s; from the plan's state: 8 of
+   8 in 5.4 s). Setting both tolerances to 0 always replans from the estimate.
+2. turns the neighbours' latest received plans into
+   :class:`perception.types.NeighborPrediction` (source ``"radio"``, stamped
+   with the send time, so ``age_s`` is the plan's age). A neighbour with no new
+   plan in this round's inbox is planned against with its last plan, evaluated
+   at the current times (i.e. shifted; beyond its horizon it extrapolates at
+   constant velocity) and counted *stale*; a plan older than
+   ``plan_timeout_s`` is dropped,
+3. solves its QP (:class:`planners.dmpc.DmpcProblem`; on-demand DMPC Sec. 3,
+   or the BVC baseline, DMPC-Swarm Eq. 14-15) toward its goal, with formation
+   offsets when configured and half-spaces of the known static obstacles,
+4. broadcasts the new plan as a :class:`sim.types.PlanMessage`.
+
+If OSQP fails (:class:`planners.dmpc.DmpcSolveError`) the agent keeps flying
+its previous plan shifted to t (a *fallback*). :meth:`DmpcAgent.reference`
+samples the current plan (position, velocity, acceleration feed-forward) for
+the SE(3) controller, at a constant heading (the heading of the first pose
+estimate, which the world sets toward the goal).
+
+Static obstacles: the agent is given the scenario's obstacle list as a prior
+map (the on-demand DMPC paper plans against "known obstacle positions"); it
+never sees another drone's state except through the radio. For each step k of
+its previous plan the nearest point of each obstacle's footprint gives a
+vertical separating plane n_k^T p[k] >= n_k^T c_k + r_robot + margin (the
+tangent plane at the nearest point, pushed out by the inflation), for the
+``max_obstacle_planes`` nearest obstacles. The inflation is the obstacle
+safety radius r_obs of on-demand DMPC design goal 4. How the QP uses the
+planes is ``qp.obstacle_avoidance``: a row at every step, or on demand (one
+row per obstacle at its first predicted conflict, the paper's mechanism and
+the default with ``collision_mode: on_demand``; :mod:`planners.dmpc.obstacle`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any, Sequence
+
+import numpy as np
+
+from mpcde.config.auto import FusionConfig
+from mpcde.config.dmpc import DmpcAgentConfig
+from mpcde.config.perception import PerceptionConfig
+from mpcde.onboard.base import AgentCounters
+from mpcde.onboard.budget import ComputeBudget
+from mpcde.onboard.fusion import fuse_neighbours
+from mpcde.onboard.perception import NeighbourPerception, onboard_perception
+from perception.types import NeighborPrediction
+from planners.dmpc import DmpcPlan, DmpcProblem, DmpcSolveError
+from planners.dmpc.half_spaces import obstacle_half_spaces
+from planners.dmpc.plan_sampler import PlanSampler, sample_or_hover
+from sim.rotations import rotation_from_quat_xyzw, yaw_from_rotation
+from sim.types import FlatOutputReference, ObstacleSpec, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
+
+__all__ = ["DmpcAgent", "DmpcRoundStats"]
+
+
+@dataclass
+class DmpcRoundStats:
+    """What one agent's rounds did (for metrics; :meth:`DmpcAgent.extra_metrics`).
+
+    Attributes:
+        qp_solve_s: per solved round, OSQP's wall time [s] (update + solve, :attr:`DmpcResult.solve_time_s`).
+        qp_build_s: per solved round, Python time [s] building the round's constraints.
+        iterations: per solved round, OSQP iterations.
+        collision_rows: per solved round, active collision constraints.
+        obstacle_rows: per solved round, obstacle rows in the QP (after culling; on demand: conflicts).
+        statuses: count per OSQP status (failures included).
+        fallbacks: rounds flown on the previous plan because OSQP failed.
+        state_resets: rounds whose x0 came from the estimate (it disagreed with the plan, or no plan yet).
+        stale_plans: neighbour plans used that were not renewed this round.
+        fresh_plans: neighbour plans used that arrived this round.
+        dropped_plans: neighbour plans dropped for age (``plan_timeout_s``).
+        neighbour_age_s: per used neighbour plan, its age [s] at the round.
+        substituted_plans: stale plans replaced by the matched camera track (fusion only).
+        unknown_tracks: tracks no plan explains, planned against as extra neighbours (fusion only).
+    """
+
+    qp_solve_s: list[float] = field(default_factory=list)
+    qp_build_s: list[float] = field(default_factory=list)
+    iterations: list[int] = field(default_factory=list)
+    collision_rows: list[int] = field(default_factory=list)
+    obstacle_rows: list[int] = field(default_factory=list)
+    statuses: dict[str, int] = field(default_factory=dict)
+    fallbacks: int = 0
+    state_resets: int = 0
+    stale_plans: int = 0
+    fresh_plans: int = 0
+    dropped_plans: int = 0
+    neighbour_age_s: list[float] = field(default_factory=list)
+    substituted_plans: int = 0
+    unknown_tracks: int = 0
+
+
+class DmpcAgent:
+    """One drone's DMPC agent (implements :class:`mpcde.onboard.base.OnboardAgent`).
+
+    Args:
+        drone_id: index of the drone.
+        goal_world: (3,) goal [m].
+        config: the scenario's :class:`DmpcAgentConfig`.
+        start_delay_s: hover (goal = start) until this time [s]; the first
+            rounds exchange plans before anyone departs.
+        formation_offsets: desired p_j - p_i (3,) [m] by neighbour id, or None.
+        obstacles: the known static obstacles (prior map).
+        robot_radius_m: the drone's radius [m] (obstacle inflation).
+        perception_config: the scenario's ``perception:`` settings (used when
+            ``config.perceive_neighbours``).
+        perception: a perception to share (the ``auto`` agent's); None: its own.
+        fusion: plan against camera tracks where a neighbour's plan is stale
+            (:func:`mpcde.onboard.fusion.fuse_neighbours`); None: radio plans only.
+        budget: where the compute time of tracking and of the DMPC round is booked (the run's).
+    """
+
+    def __init__(
+        self,
+        drone_id: int,
+        goal_world: np.ndarray,
+        config: DmpcAgentConfig,
+        start_delay_s: float = 0.0,
+        formation_offsets: dict[int, np.ndarray] | None = None,
+        obstacles: Sequence[ObstacleSpec] = (),
+        robot_radius_m: float = 0.1,
+        perception_config: PerceptionConfig | None = None,
+        perception: NeighbourPerception | None = None,
+        fusion: FusionConfig | None = None,
+        budget: ComputeBudget | None = None,
+    ) -> None:
+        self.drone_id = int(drone_id)
+        self.budget = budget if budget is not None else ComputeBudget()
+        self.perception, self.detector_request = onboard_perception(config.perceive_neighbours, perception_config, perception)
+        self.fusion = fusion if self.perception is not None else None
+        self.goal_world = np.asarray(goal_world, float).reshape(3)
+        self.config = config
+        self.obstacles = tuple(obstacles)
+        # Its planes are vertical (obstacle_half_spaces), so the QP may drop their z columns.
+        qp = replace(config.qp, vertical_obstacle_planes=True) if self.obstacles else replace(config.qp, max_obstacle_planes=0)
+        self.qp_config = qp
+        self.problem = DmpcProblem(qp)
+        self.start_delay_s = float(start_delay_s)
+        self.formation_offsets = formation_offsets
+        self.inflation_m = float(robot_radius_m) + config.obstacle_margin_m
+        self.counters = AgentCounters()
+        self.stats = DmpcRoundStats()
+        self.plan: DmpcPlan | None = None
+        self._sampler: PlanSampler | None = None
+        self.latest_estimate: PoseEstimate | None = None
+        self.start_world: np.ndarray | None = None
+        self.yaw = 0.0
+        self.neighbour_plans: dict[int, PlanMessage] = {}
+        self._renewed: set[int] = set()
+
+    # ------------------------------------------------------------------ inputs
+    def on_pose_estimate(self, estimate: PoseEstimate) -> None:
+        """Take the drone's own pose estimate (the first fixes start and heading)."""
+        if self.latest_estimate is None:
+            self.start_world = np.asarray(estimate.pos_world, float).copy()
+            self.yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
+        self.latest_estimate = estimate
+
+    def on_frame(self, frame: RgbdFrame, detections: list | None = None) -> None:
+        """Take one camera frame: track the neighbours its detector found (when it perceives)."""
+        self.counters.frames += 1
+        if self.perception is not None and detections is not None:
+            with self.budget.measure("track"):
+                self.perception.update(frame, detections)
+
+    def on_radio(self, messages: list[RadioMessage]) -> None:
+        """Take this round's inbox: keep each neighbour's newest plan."""
+        self._renewed = set()
+        for m in messages:
+            self.counters.messages += 1
+            if isinstance(m.payload, PlanMessage) and m.sender_id != self.drone_id:
+                old = self.neighbour_plans.get(m.sender_id)
+                if old is None or m.payload.time_s > old.time_s:
+                    self.neighbour_plans[m.sender_id] = m.payload
+                    self._renewed.add(m.sender_id)
+                    self.counters.plans += 1
+
+    # ------------------------------------------------------------------ round
+    def _state(self, time_s: float) -> np.ndarray:
+        """x0 at ``time_s``: (6,) [p, v] or (9,) [p, v, a], from the estimate or the plan (module docstring)."""
+        est = self.latest_estimate
+        dt = time_s - est.time_s
+        pos = np.asarray(est.pos_world, float) + np.asarray(est.vel_world, float) * dt
+        vel = np.asarray(est.vel_world, float)
+        if self.plan is not None:
+            plan_pos, plan_vel = self.plan.position(time_s), self.plan.velocity(time_s)
+            cfg = self.config
+            if np.linalg.norm(plan_pos - pos) <= cfg.state_tolerance_m and np.linalg.norm(plan_vel - vel) <= cfg.state_tolerance_mps:
+                pos, vel = plan_pos, plan_vel
+            else:
+                self.stats.state_resets += 1
+        else:
+            self.stats.state_resets += 1
+        if self.qp_config.model == "double":
+            return np.r_[pos, vel]
+        acc = self.plan.acceleration(time_s) if self.plan is not None else np.zeros(3)
+        return np.r_[pos, vel, acc]
+
+    def _predictions(self, time_s: float) -> list[NeighborPrediction]:
+        """The neighbours' plans as predictions; counts fresh, stale and dropped plans."""
+        out = []
+        for j in sorted(self.neighbour_plans):
+            msg = self.neighbour_plans[j]
+            age = time_s - msg.time_s
+            if age > self.config.plan_timeout_s:
+                self.stats.dropped_plans += 1
+                continue
+            if j in self._renewed:
+                self.stats.fresh_plans += 1
+            else:
+                self.stats.stale_plans += 1
+            self.stats.neighbour_age_s.append(age)
+            out.append(_plan_prediction(j, msg))
+        self._renewed = set()
+        if self.fusion is None:
+            return out
+        f = self.fusion
+        fused = fuse_neighbours(out, self.perception.predictions(time_s), time_s, f.stale_after_s, f.gate_m, self.qp_config.v_max)
+        self.stats.substituted_plans += fused.substituted
+        self.stats.unknown_tracks += fused.unknown_tracks
+        return fused.predictions
+
+    def radio_predictions(self, time_s: float, max_age_s: float) -> list[NeighborPrediction]:
+        """The neighbours' last plans sent within ``max_age_s`` [s] of ``time_s`` [s], as predictions (no counting).
+
+        The ``auto`` agent's memory of the radio while it flies the denied stack.
+        """
+        plans = sorted(self.neighbour_plans.items())
+        return [_plan_prediction(j, msg) for j, msg in plans if time_s - msg.time_s <= max_age_s]
+
+    def take_over(self, plan: DmpcPlan, yaw: float) -> None:
+        """Start flying DMPC from another stack's reference (the ``auto`` agent's return to the radio).
+
+        ``plan`` is the reference being left, sampled at this QP's step from
+        the hand-over time; it becomes the previous plan (x0 and warm start of
+        the next round, :meth:`_state`) and the reference until that round. The
+        heading is held at ``yaw`` [rad] from now on.
+        """
+        self.plan = plan
+        self._sampler = PlanSampler(plan)
+        self.yaw = float(yaw)
+
+    def outgoing(self, time_s: float) -> PlanMessage | None:
+        """Run this round's DMPC solve at ``time_s`` [s] and return the plan to broadcast (booked as ``dmpc_qp``)."""
+        if self.latest_estimate is None:
+            return None
+        with self.budget.measure("dmpc_qp"):
+            return self._round(time_s)
+
+    def _round(self, time_s: float) -> PlanMessage:
+        """The DMPC round: obstacle half-spaces, the QP (or the fallback plan), the message."""
+        cfg = self.qp_config
+        x0 = self._state(time_s)
+        goal = self.goal_world if time_s >= self.start_delay_s - 1e-9 else self.start_world
+        lookahead = self.config.goal_lookahead_m
+        to_goal = goal - x0[:3]
+        dist = float(np.linalg.norm(to_goal))
+        if lookahead > 0 and dist > lookahead:
+            goal = x0[:3] + to_goal * (lookahead / dist)  # carrot on the line to the goal
+        predictions = self._predictions(time_s)
+        obstacles = None
+        if cfg.max_obstacle_planes:
+            t_steps = time_s + cfg.step_s * np.arange(1, cfg.horizon_steps + 1)
+            if self.plan is not None:
+                path = self.plan.position(t_steps)
+            else:
+                path = x0[:3] + x0[3:6] * (t_steps - time_s)[:, None]
+            obstacles = obstacle_half_spaces(
+                path, self.obstacles, self.inflation_m, self.config.obstacle_range_m, cfg.max_obstacle_planes
+            )
+        try:
+            res = self.problem.solve(
+                x0, goal, predictions, self.plan, self.formation_offsets, t_now_s=time_s, obstacles=obstacles
+            )  # fmt: skip
+        except DmpcSolveError as e:
+            self.stats.statuses[e.status] = self.stats.statuses.get(e.status, 0) + 1
+            self.stats.fallbacks += 1
+            if self.plan is None:
+                self.plan = DmpcPlan.hover(time_s, cfg.step_s, cfg.horizon_steps, x0[:3])
+            else:
+                self.plan = self.plan.shifted(time_s)
+        else:
+            self.stats.statuses[res.status] = self.stats.statuses.get(res.status, 0) + 1
+            self.stats.qp_solve_s.append(res.solve_time_s)
+            self.stats.qp_build_s.append(res.update_time_s)
+            self.stats.iterations.append(res.iterations)
+            self.stats.collision_rows.append(res.n_collision_constraints)
+            self.stats.obstacle_rows.append(res.n_obstacle_rows)
+            self.plan = res.plan
+        p = self.plan
+        self._sampler = PlanSampler(p)
+        return PlanMessage(
+            sender_id=self.drone_id, time_s=float(time_s), times_s=p.times_s.copy(),
+            pos_world=p.pos_world.copy(), vel_world=p.vel_world.copy(),
+        )  # fmt: skip
+
+    def reference_state(self, time_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position [m], velocity [m/s], acceleration [m/s^2] (3,) each of the reference at ``time_s`` [s]."""
+        return sample_or_hover(self._sampler, self.start_world, time_s)
+
+    def reference(self, time_s: float) -> FlatOutputReference:
+        """Controller reference at ``time_s`` [s]: the current plan (hover at the start before it)."""
+        pos, vel, acc = self.reference_state(time_s)
+        return FlatOutputReference(pos_world=pos, vel_world=vel, acc_world=acc, yaw=self.yaw, yaw_rate=0.0)
+
+    # ------------------------------------------------------------------ metrics
+    def extra_metrics(self) -> dict[str, Any]:
+        """This agent's DMPC statistics (the loop adds them to ``metrics.json`` under ``agents``).
+
+        ``qp_solve_ms`` is the list of every solved round's OSQP time [ms]
+        (update + solve), so an evaluation can pool rounds across drones.
+        """
+        s = self.stats
+        solve_ms = np.asarray(s.qp_solve_s) * 1e3
+
+        def stat(values: np.ndarray, q: float) -> float | None:
+            return float(np.percentile(values, q)) if values.size else None
+
+        return {
+            "drone_id": self.drone_id,
+            "planner": "dmpc",
+            "collision_mode": self.qp_config.collision_mode,
+            "obstacle_avoidance": self.qp_config.obstacle_mode if self.qp_config.max_obstacle_planes else None,
+            "rounds": len(s.qp_solve_s) + s.fallbacks,
+            "solves": len(s.qp_solve_s),
+            "fallbacks": s.fallbacks,
+            "state_resets": s.state_resets,
+            "statuses": dict(s.statuses),
+            "fresh_plans": s.fresh_plans,
+            "stale_plans": s.stale_plans,
+            "dropped_plans": s.dropped_plans,
+            "mean_neighbour_age_s": float(np.mean(s.neighbour_age_s)) if s.neighbour_age_s else None,
+            "substituted_plans": s.substituted_plans,
+            "unknown_tracks": s.unknown_tracks,
+            "qp_ms_median": stat(solve_ms, 50),
+            "qp_ms_p95": stat(solve_ms, 95),
+            "qp_build_ms_median": stat(np.asarray(s.qp_build_s) * 1e3, 50),
+            "mean_iterations": float(np.mean(s.iterations)) if s.iterations else None,
+            "mean_collision_rows": float(np.mean(s.collision_rows)) if s.collision_rows else None,
+            "mean_obstacle_rows": float(np.mean(s.obstacle_rows)) if s.obstacle_rows else None,
+            "obstacle_row_rounds": int(np.count_nonzero(s.obstacle_rows)),
+            "qp_solve_ms": [round(float(v), 5) for v in solve_ms],
+            **(self.perception.counts.metrics() if self.perception is not None else {}),
+        }
+
+
+def _plan_prediction(neighbor_id: int, msg: PlanMessage) -> NeighborPrediction:
+    """A received plan as an exact (zero-covariance) radio prediction."""
+    return NeighborPrediction(
+        neighbor_id=neighbor_id, source="radio", stamp_s=msg.time_s, times_s=np.asarray(msg.times_s, float),
+        pos_world=np.asarray(msg.pos_world, float), vel_world=np.asarray(msg.vel_world, float), cov_world=np.zeros((6, 6)),
+    )  # fmt: skip

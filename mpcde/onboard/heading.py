@@ -1,0 +1,161 @@
+"""The denied agent's heading: MP-CDE's active yaw planner on its schedule, or heading along travel.
+
+Every ``t_y`` (``YawPlannerConfig.period_s``, 0.1 s) of frame time the agent
+hands :class:`ActiveYaw` its map snapshot, its current MINCO trajectory and its
+track predictions; the planner (:class:`planners.yaw.YawPlanner`, Alg. 1 lines
+1-12) returns a rate-limited yaw sequence that the reference follows until the
+next plan, and :meth:`ActiveYaw.update` reports Alg. 1 line 13's replanning
+trigger ``S(0) < tau_thr or min_q d_q(0) < C_s`` (d measured with the swarm's
+ellipsoid metric E = diag(1, 1, 1/c), as MINCO's clearance is).
+
+The plan starts from the yaw the reference last commanded (not the measured
+yaw), so the commanded heading is continuous and never exceeds
+``yaw_rate_max``. With ``active`` False the heading follows the direction of
+travel, rate-limited (the tracking mode alone: the ablation without active
+perception, and the behaviour before the yaw planner existed).
+
+Measured (``forest_swarm``, 6 drones crossing a forest through the centre,
+seed 0, 40 s, full physics and rendering; ``neighbours tracked`` is the share
+of neighbours within 3 m that had a track, :mod:`mpcde.flight.tracking_score`):
+
+=====================================  ==========  ============  =================
+denied stack                           collisions  min dist [m]  neighbours tracked
+=====================================  ==========  ============  =================
+blind (``perceive_neighbours: false``)  1          0.10          -- (2 drones stuck)
+tracks, heading along travel            1          0.10          0.15
+tracks + active yaw (default)           1          0.19          0.26
+=====================================  ==========  ============  =================
+
+Along travel, two drones converging side by side never enter each other's
+85 deg view. With active yaw the remaining contact is MP-CDE's Fig. 3 hazard: a
+drone observing a tracked neighbour sidesteps it into space verified free
+seconds earlier, where a drone neither had tracked now flies. The safety
+margin (Eq. 1) does not age verified-free space by default, so it cannot see
+that risk (``YawPlannerConfig.free_max_age_s`` ages it; measured there).
+
+On radio_outage (seeds 0-5) every contact of the denied stack was between two
+drones with no track of each other, most of them converging side by side at
+78-94 deg bearings, which a forward camera in tracking mode never sees;
+``YawPlannerConfig.tracking_sweep_deg`` (35 deg by default; measured there on
+seeds 0-11: denied 15 collisions -> 1, ``auto`` 2 -> 2) swings the
+tracking-mode camera about the direction of travel.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from dataclasses import replace
+from typing import Sequence
+
+import numpy as np
+
+from perception.types import NeighborPrediction, OccupancySnapshot
+from planners.dmpc.collision import ellipsoidal_distance
+from planners.minco import MincoTrajectory
+from planners.yaw import TrajectoryView, YawPlan, YawPlanner, YawPlannerConfig, needs_replan
+
+__all__ = ["ActiveYaw"]
+
+
+def trajectory_view(traj: MincoTrajectory | None, hover_world: np.ndarray) -> TrajectoryView:
+    """The yaw planner's read-only view of a MINCO trajectory (or of hovering at ``hover_world`` (3,))."""
+    if traj is None:
+        return TrajectoryView.hover(hover_world)
+    return TrajectoryView(
+        position_at=lambda t: traj.pos(np.clip(np.asarray(t, float) - traj.t0_s, 0.0, traj.total_duration)),
+        velocity_at=lambda t: traj.vel(np.clip(np.asarray(t, float) - traj.t0_s, 0.0, traj.total_duration)),
+        end_time_s=traj.t0_s + traj.total_duration,
+    )
+
+
+class ActiveYaw:
+    """Heading of one denied drone.
+
+    Args:
+        config: the yaw planner's settings.
+        active: plan with the active yaw planner (else heading along travel).
+        initial_yaw: heading at the start [rad].
+        swarm_clearance_m, swarm_z_scale: C_s [m] and c of E for Alg. 1 line 13.
+    """
+
+    def __init__(self, config: YawPlannerConfig, active: bool, initial_yaw: float, swarm_clearance_m: float, swarm_z_scale: float):
+        self.config = config
+        self.active = active
+        self.planner = YawPlanner(config) if active else None
+        self.plan: YawPlan | None = None
+        self.next_plan_s = -np.inf
+        self.yaw = float(initial_yaw)
+        self.yaw_time_s = 0.0
+        self.swarm_clearance_m, self.swarm_z_scale = swarm_clearance_m, swarm_z_scale
+        self.modes: Counter = Counter()
+        self.plan_ms: list[float] = []
+
+    def restart(self, yaw: float, time_s: float) -> None:
+        """Continue from heading ``yaw`` [rad] at ``time_s`` [s], dropping the yaw plan (a stack hand-over)."""
+        self.yaw, self.yaw_time_s = float(yaw), float(time_s)
+        self.plan = None
+        self.next_plan_s = -np.inf
+
+    def due(self, time_s: float) -> bool:
+        """Whether a yaw plan is due at ``time_s`` [s] (every ``period_s``)."""
+        return self.active and time_s >= self.next_plan_s - 1e-9
+
+    def update(
+        self, time_s: float, snapshot: OccupancySnapshot, traj: MincoTrajectory | None, hover_world: np.ndarray,
+        neighbours: Sequence[NeighborPrediction],
+    ) -> bool:
+        """Plan the yaw at ``time_s`` [s] (call when :meth:`due`); returns Alg. 1 line 13's replanning trigger."""
+        t0 = time.perf_counter()
+        view = trajectory_view(traj, hover_world)
+        yaw_now = self._commanded(time_s)
+        self.plan = self.planner.plan(time_s, yaw_now, view, snapshot, neighbours)
+        self.plan_ms.append(1e3 * (time.perf_counter() - t0))
+        self.modes[self.plan.mode] += 1
+        self.next_plan_s = time_s + self.config.period_s
+        own = view.positions(np.array([time_s]))[0]
+        theta_z = np.sqrt(self.swarm_z_scale)  # ||E^1/2 d|| = ||Theta^-1 d|| with Theta = diag(1, 1, sqrt(c))
+        d = [float(ellipsoidal_distance(own - nb.position(time_s), theta_z)) for nb in neighbours]
+        return needs_replan(self.plan.safety_margin_s, self.plan.tau_thr_s, min(d, default=np.inf), self.swarm_clearance_m)
+
+    def _commanded(self, time_s: float) -> float:
+        """The yaw the reference commands at ``time_s`` under the current plan [rad]."""
+        if self.plan is None:
+            return self.yaw
+        return float(self.plan.yaw_at(time_s)[0])
+
+    def reference(self, time_s: float, vel_world: np.ndarray | None) -> tuple[float, float]:
+        """Commanded (yaw [rad], yaw rate [rad/s]) at ``time_s``; ``vel_world`` (3,) is the reference velocity."""
+        if self.active:
+            if self.plan is None:
+                return self.yaw, 0.0
+            yaw, rate = self.plan.yaw_at(time_s)
+            self.yaw = float(yaw)
+            return self.yaw, float(rate)
+        dt = max(time_s - self.yaw_time_s, 0.0)
+        self.yaw_time_s = time_s
+        if vel_world is None or np.hypot(vel_world[0], vel_world[1]) <= 0.2:
+            return self.yaw, 0.0
+        err = (np.arctan2(vel_world[1], vel_world[0]) - self.yaw + np.pi) % (2 * np.pi) - np.pi
+        limit = self.config.yaw_rate_max_radps * dt
+        step = float(np.clip(err, -limit, limit))
+        self.yaw += step
+        return self.yaw, step / dt if dt > 0 else 0.0
+
+    def metrics(self) -> dict:
+        """Mode counts and planning time for metrics.json."""
+        if not self.active:
+            return {}
+        total = sum(self.modes.values())
+        return {
+            "yaw_plans": total,
+            "yaw_mode_fraction": {m: self.modes[m] / total for m in ("exploring", "observing", "tracking")} if total else None,
+            "yaw_plan_ms_median": float(np.median(self.plan_ms)) if self.plan_ms else None,
+        }
+
+
+def yaw_config_for(base: YawPlannerConfig, v_max_mps: float, yaw_rate_max_radps: float, t_hold_s: float, hfov_deg: float,
+                   vfov_deg: float) -> YawPlannerConfig:
+    """``base`` with the fields the agent owns elsewhere (speed limit, yaw rate, t_hold, camera FoV) made consistent."""
+    return replace(base, v_max_mps=v_max_mps, yaw_rate_max_radps=yaw_rate_max_radps, t_hold_s=t_hold_s, fov_h_deg=hfov_deg,
+                   fov_v_deg=vfov_deg)

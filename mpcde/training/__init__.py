@@ -1,0 +1,1 @@
+"""The detector's data: rendered datasets, training and held-out scoring."""
