@@ -1,3 +1,43 @@
-"""mpcde: the integration package (scenarios, onboard agent, simulation loop, metrics, CLI)."""
+"""mpcde: quadrotor swarms in simulation when the radio cannot be trusted.
 
-__version__ = "0.1.0"
+The Python API (``docs/design.md``, "Python API"):
+
+* :func:`mpcde.fly` flies a scenario headless and returns its
+  :class:`~mpcde.flight.loop.RunResult` (metrics, state log), optionally
+  writing the run folder that ``mpcde fly`` writes;
+* :func:`mpcde.load_scenario` reads and checks a scenario file or built-in name;
+* :data:`mpcde.MODES` names the onboard stacks.
+
+They are imported on first use, so ``import mpcde`` (and reading a scenario)
+loads no simulator, detector or planner.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from mpcde.api import fly, load_scenario
+    from mpcde.config.modes import MODES
+    from mpcde.config.scenario import ScenarioConfig
+    from mpcde.errors import ConfigError
+    from mpcde.flight.loop import RunResult
+
+__all__ = ["MODES", "ConfigError", "RunResult", "ScenarioConfig", "fly", "load_scenario"]
+
+_WHERE = {
+    "fly": "mpcde.api", "load_scenario": "mpcde.api", "MODES": "mpcde.config.modes",
+    "ScenarioConfig": "mpcde.config.scenario", "ConfigError": "mpcde.errors", "RunResult": "mpcde.flight.loop",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        import importlib
+
+        return getattr(importlib.import_module(_WHERE[name]), name)
+    raise AttributeError(f"module 'mpcde' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

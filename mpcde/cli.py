@@ -146,41 +146,17 @@ def _at_least(option: str, value: int, minimum: int) -> None:
 
 
 def _cmd_fly(args: argparse.Namespace) -> int:
-    from mpcde.config.scenario import load_scenario
-    from mpcde.flight.loop import prepare_run, run_scenario
-    from mpcde.flight.run_folder import RunFolder
-    from mpcde.flight.video import VideoWriter
+    from mpcde.api import fly, load_scenario
 
-    overrides = {}
-    if args.seed is not None:
-        overrides["seed"] = args.seed
-    if args.duration is not None:
-        overrides["duration_s"] = args.duration
     # the mode replaces planner.kind before the checks (what a kind derives starts from the file's values)
-    cfg = load_scenario(args.scenario, overrides, planner_kind=None if args.mode is None else MODES[args.mode])
-    from dataclasses import replace
-
-    if args.no_cameras:
-        cfg = replace(cfg, run=replace(cfg.run, cameras=False))
-    if args.video and not cfg.run.cameras:
+    cfg = load_scenario(args.scenario, mode=args.mode, seed=args.seed, duration_s=args.duration)
+    if args.video and (args.no_cameras or not cfg.run.cameras):
         raise ConfigError("--video", True, "needs cameras (drop --no-cameras or set run.cameras: true)")
-    prepared = prepare_run(cfg)  # validates everything before anything is written
-    folder = RunFolder(args.out, args.overwrite)
-    video = None
-    try:
-        if args.video:
-            video = VideoWriter(folder.path("video.mp4"), prepared.obstacles, prepared.goals, cfg.world.arena_size_m, cfg.camera.rate_hz, (cfg.camera.width_px, cfg.camera.height_px))
-        result = run_scenario(prepared, frame_sink=video, progress=not args.quiet)
-        if video is not None:
-            video.close()
-            video = None
-        folder.write_result(result)
-        out = folder.publish()
-    except BaseException:
-        if video is not None:
-            video.close()
-        folder.discard()
-        raise
+    result = fly(
+        cfg, cameras=False if args.no_cameras else None, out=args.out, overwrite=args.overwrite, video=args.video,
+        progress=not args.quiet,
+    )  # fmt: skip
+    out = args.out
     m = result.metrics
     print(
         f"{cfg.name} seed {cfg.seed}: success={m['success']} collisions={m['collisions']} "

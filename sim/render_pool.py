@@ -28,6 +28,7 @@ from sim.camera_rig import sensor_depth
 from sim.raycast_renderer import RaycastRenderer
 from sim.renderer import RawRender, SceneRenderer
 from sim.scene import RenderStyle, SceneSpec
+from sim.spawn import main_module_hidden
 
 __all__ = ["CameraRequest", "RenderPool", "make_renderer"]
 
@@ -121,7 +122,8 @@ class RenderPool:
             shm = shared_memory.SharedMemory(create=True, size=max(1, n_slots * H * W * SLOT_BYTES_PER_PX))
             parent, child = ctx.Pipe()
             proc = ctx.Process(target=_worker_main, args=(child, spec, camera, shm.name, n_slots), daemon=True)
-            proc.start()
+            with main_module_hidden():  # works from a script without a __main__ guard (sim/spawn.py)
+                proc.start()
             child.close()
             self._workers.append(proc)
             self._conns.append(parent)

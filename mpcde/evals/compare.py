@@ -69,6 +69,7 @@ from mpcde.config.scenario import load_scenario
 from mpcde.errors import ConfigError
 from mpcde.evals.text_table import cell
 from mpcde.flight.loop import PreparedRun, RunResult, prepare_run, run_scenario
+from sim.spawn import main_module_hidden
 
 __all__ = [
     "DEFAULT_MODES", "ROW_KEYS", "SUMMARY_KEYS", "check_modes", "default_modes", "format_table",
@@ -322,7 +323,8 @@ def run_compare(
     try:
         if jobs > 1:
             pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
-            futures = {key: pool.submit(_fly, prepared[key]) for key in order}
+            with main_module_hidden():  # the workers start on the first submit (sim/spawn.py)
+                futures = {key: pool.submit(_fly, prepared[key]) for key in order}
         rows, first = [], {}
         for mode, seed in order:  # rows in this order whatever order the jobs finish in
             if pool is None:

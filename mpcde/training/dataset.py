@@ -55,6 +55,7 @@ from sim.render_pool import make_renderer
 from sim.renderer import PARKED_POS
 from sim.rotations import quat_xyzw_from_rotation
 from sim.scene import RenderStyle, SceneSpec
+from sim.spawn import main_module_hidden
 from sim.types import ObstacleSpec
 
 __all__ = [
@@ -369,7 +370,9 @@ def iter_scenes(seeds: Sequence[int], cfg: DatasetConfig, camera: CameraConfig, 
         for j in jobs:
             yield _render_scene_job(j)
         return
-    with mp.get_context("spawn").Pool(workers) as pool:
+    with main_module_hidden():  # sim/spawn.py
+        pool = mp.get_context("spawn").Pool(workers)
+    with pool:
         yield from pool.imap(_render_scene_job, jobs, chunksize=2)
 
 
