@@ -23,34 +23,13 @@ import pybullet as pb
 from sim.controller import ControllerGains, SE3Controller
 from sim.ground_truth import TrueState
 from sim.motors import MotorBank
+from sim.physics_config import PhysicsConfig
 from sim.quadrotor_params import GRAVITY_MPS2, QuadrotorParams
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import SceneSpec, build_obstacles, load_drones
 from sim.types import FlatOutputReference
 
 __all__ = ["PhysicsConfig", "World"]
-
-
-@dataclass(frozen=True)
-class PhysicsConfig:
-    """Physics and low-level control.
-
-    Attributes:
-        physics_hz: physics and controller rate [Hz] (PyBullet default 240).
-        quadrotor: airframe, rotors and motors.
-        gains: SE(3) controller gains.
-        crash_tilt_rad: a drone tilted beyond this [rad] while touching
-            something is declared failed (motors off) and falls.
-    """
-
-    physics_hz: float = 240.0
-    quadrotor: QuadrotorParams = field(default_factory=QuadrotorParams)
-    gains: ControllerGains = field(default_factory=ControllerGains)
-    crash_tilt_rad: float = 1.2
-
-    def __post_init__(self) -> None:
-        if not 50.0 <= self.physics_hz <= 2000.0:
-            raise ValueError(f"physics_hz={self.physics_hz!r}: in [50, 2000] Hz")
 
 
 class World:

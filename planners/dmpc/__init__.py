@@ -1,55 +1,53 @@
 """DMPC: per-drone QP over exchanged plans with on-demand or BVC collision avoidance.
 
 Imports :mod:`perception.types` and :mod:`sim.types` only (DESIGN.md section 1).
+
+The names below are imported on first use, so reading a planner's settings
+(:mod:`planners.dmpc.config`) does not load the QP solver.
 """
 
-from planners.dmpc.collision import (
-    BvcPlanes,
-    OnDemandConstraints,
-    bvc_planes,
-    ellipsoidal_distance,
-    first_conflict_step,
-    on_demand_constraints,
-)
-from planners.dmpc.config import DmpcConfig
-from planners.dmpc.model import (
-    PredictionMatrices,
-    discrete_model,
-    fine_position_matrices,
-    prediction_matrices,
-    rollout,
-)
-from planners.dmpc.obstacle import ObstacleConflicts, ObstacleRows, obstacle_conflicts, obstacle_rows, stack_obstacles
-from planners.dmpc.qp import DmpcProblem, DmpcResult, DmpcSolveError, QpSnapshot
-from planners.dmpc.reach import implied_half_spaces, reach_boxes
-from planners.dmpc.sampling import hermite_positions, sample_predictions
-from planners.dmpc.types import DmpcPlan
+from __future__ import annotations
 
-__all__ = [
-    "BvcPlanes",
-    "DmpcConfig",
-    "DmpcPlan",
-    "DmpcProblem",
-    "DmpcResult",
-    "DmpcSolveError",
-    "ObstacleConflicts",
-    "ObstacleRows",
-    "OnDemandConstraints",
-    "PredictionMatrices",
-    "QpSnapshot",
-    "bvc_planes",
-    "discrete_model",
-    "ellipsoidal_distance",
-    "fine_position_matrices",
-    "first_conflict_step",
-    "hermite_positions",
-    "implied_half_spaces",
-    "obstacle_conflicts",
-    "obstacle_rows",
-    "on_demand_constraints",
-    "prediction_matrices",
-    "reach_boxes",
-    "rollout",
-    "sample_predictions",
-    "stack_obstacles",
-]
+import importlib
+from typing import Any
+
+_WHERE = {
+    "BvcPlanes": "planners.dmpc.collision",
+    "DmpcConfig": "planners.dmpc.config",
+    "DmpcPlan": "planners.dmpc.types",
+    "DmpcProblem": "planners.dmpc.qp",
+    "DmpcResult": "planners.dmpc.qp",
+    "DmpcSolveError": "planners.dmpc.qp",
+    "ObstacleConflicts": "planners.dmpc.obstacle",
+    "ObstacleRows": "planners.dmpc.obstacle",
+    "OnDemandConstraints": "planners.dmpc.collision",
+    "PredictionMatrices": "planners.dmpc.model",
+    "QpSnapshot": "planners.dmpc.qp",
+    "bvc_planes": "planners.dmpc.collision",
+    "discrete_model": "planners.dmpc.model",
+    "ellipsoidal_distance": "planners.dmpc.collision",
+    "fine_position_matrices": "planners.dmpc.model",
+    "first_conflict_step": "planners.dmpc.collision",
+    "hermite_positions": "planners.dmpc.sampling",
+    "implied_half_spaces": "planners.dmpc.reach",
+    "obstacle_conflicts": "planners.dmpc.obstacle",
+    "obstacle_rows": "planners.dmpc.obstacle",
+    "on_demand_constraints": "planners.dmpc.collision",
+    "prediction_matrices": "planners.dmpc.model",
+    "reach_boxes": "planners.dmpc.reach",
+    "rollout": "planners.dmpc.model",
+    "sample_predictions": "planners.dmpc.sampling",
+    "stack_obstacles": "planners.dmpc.obstacle",
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        return getattr(importlib.import_module(_WHERE[name]), name)
+    raise AttributeError(f"module 'planners.dmpc' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return list(__all__)

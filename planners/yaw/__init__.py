@@ -7,51 +7,54 @@ Imports :mod:`perception.types` only (DESIGN.md section 1). Typical use, every t
     yaw_ref, yaw_rate_ref = plan.yaw_at(t_control)
     if needs_replan(plan.safety_margin_s, plan.tau_thr_s, plan.min_neighbour_distance_m, 0.7):
         ...  # MINCO replan (Alg. 1 line 13)
+
+The names below are imported on first use, so reading one module's settings
+does not load the rest of the package.
 """
 
-from planners.yaw.config import YawPlannerConfig
-from planners.yaw.coverage import (
-    FanCast,
-    FanGeometry,
-    cast_fans,
-    edge_gains,
-    past_coverage,
-    ray_gains,
-    visible_cells_xy,
-)
-from planners.yaw.lattice import LatticePath, edge_costs, shortest_path
-from planners.yaw.planner import YawPlanner
-from planners.yaw.safety import needs_replan, safe_regime, safety_margin
-from planners.yaw.steering import mean_bearing, observe_targets, rate_limited, sweep_offsets, track_targets
-from planners.yaw.types import MODES, SafetyMargin, TrajectoryView, YawPlan
-from planners.yaw.visibility import layer_weights, visibility_rewards, wrap_angle
+from __future__ import annotations
 
-__all__ = [
-    "MODES",
-    "FanCast",
-    "FanGeometry",
-    "LatticePath",
-    "SafetyMargin",
-    "TrajectoryView",
-    "YawPlan",
-    "YawPlanner",
-    "YawPlannerConfig",
-    "cast_fans",
-    "edge_costs",
-    "edge_gains",
-    "layer_weights",
-    "mean_bearing",
-    "needs_replan",
-    "observe_targets",
-    "past_coverage",
-    "ray_gains",
-    "rate_limited",
-    "safe_regime",
-    "safety_margin",
-    "shortest_path",
-    "sweep_offsets",
-    "track_targets",
-    "visibility_rewards",
-    "visible_cells_xy",
-    "wrap_angle",
-]
+import importlib
+from typing import Any
+
+_WHERE = {
+    "FanCast": "planners.yaw.coverage",
+    "FanGeometry": "planners.yaw.coverage",
+    "LatticePath": "planners.yaw.lattice",
+    "MODES": "planners.yaw.types",
+    "SafetyMargin": "planners.yaw.types",
+    "TrajectoryView": "planners.yaw.types",
+    "YawPlan": "planners.yaw.types",
+    "YawPlanner": "planners.yaw.planner",
+    "YawPlannerConfig": "planners.yaw.config",
+    "cast_fans": "planners.yaw.coverage",
+    "edge_costs": "planners.yaw.lattice",
+    "edge_gains": "planners.yaw.coverage",
+    "layer_weights": "planners.yaw.visibility",
+    "mean_bearing": "planners.yaw.steering",
+    "needs_replan": "planners.yaw.safety",
+    "observe_targets": "planners.yaw.steering",
+    "past_coverage": "planners.yaw.coverage",
+    "rate_limited": "planners.yaw.steering",
+    "ray_gains": "planners.yaw.coverage",
+    "safe_regime": "planners.yaw.safety",
+    "safety_margin": "planners.yaw.safety",
+    "shortest_path": "planners.yaw.lattice",
+    "sweep_offsets": "planners.yaw.steering",
+    "track_targets": "planners.yaw.steering",
+    "visibility_rewards": "planners.yaw.visibility",
+    "visible_cells_xy": "planners.yaw.coverage",
+    "wrap_angle": "planners.yaw.visibility",
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        return getattr(importlib.import_module(_WHERE[name]), name)
+    raise AttributeError(f"module 'planners.yaw' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return list(__all__)

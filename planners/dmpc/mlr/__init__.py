@@ -2,36 +2,50 @@
 
 Imports numpy, scipy, osqp and planners.* only (DESIGN.md section 1); the
 round-based swarm driver that connects them over ``sim.radio`` is
-:mod:`mpcde.mlr_swarm`; the onboard agent that flies them in the physics
-loop, with the first M drones hosting the CUs, is :mod:`mpcde.agent_mlr`.
+:mod:`mpcde.evals.mlr_swarm`; the onboard agent that flies them in the physics
+loop, with the first M drones hosting the CUs, is :mod:`mpcde.onboard.mlr`.
+
+The names below are imported on first use, so reading one module's settings
+does not load the rest of the package.
 """
 
-from planners.dmpc.mlr.config import TRIGGERS, MlrConfig
-from planners.dmpc.mlr.qp import BvcRows, MlrProblem, MlrQpResult, time_varying_bvc
-from planners.dmpc.mlr.tracker import InformationTrackers, TrackerEntry, TrackerUpdate
-from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
-from planners.dmpc.mlr.trigger import consensus, event_set, quantize, raw_priorities, selected_uav
-from planners.dmpc.mlr.types import CuTrajectoryMessage, MlrBundle, RecoveryReply, RecoveryRequest, UavStateMessage
+from __future__ import annotations
 
-__all__ = [
-    "TRIGGERS",
-    "BvcRows",
-    "CuTrajectoryMessage",
-    "InformationTrackers",
-    "MlrBundle",
-    "MlrConfig",
-    "MlrProblem",
-    "MlrQpResult",
-    "RecoveryReply",
-    "RecoveryRequest",
-    "ReferenceTrajectory",
-    "TrackerEntry",
-    "TrackerUpdate",
-    "TrajectoryId",
-    "UavStateMessage",
-    "consensus",
-    "event_set",
-    "quantize",
-    "raw_priorities",
-    "selected_uav",
-]
+import importlib
+from typing import Any
+
+_WHERE = {
+    "BvcRows": "planners.dmpc.mlr.qp",
+    "CuTrajectoryMessage": "planners.dmpc.mlr.types",
+    "InformationTrackers": "planners.dmpc.mlr.tracker",
+    "MlrBundle": "planners.dmpc.mlr.types",
+    "MlrConfig": "planners.dmpc.mlr.config",
+    "MlrProblem": "planners.dmpc.mlr.qp",
+    "MlrQpResult": "planners.dmpc.mlr.qp",
+    "RecoveryReply": "planners.dmpc.mlr.types",
+    "RecoveryRequest": "planners.dmpc.mlr.types",
+    "ReferenceTrajectory": "planners.dmpc.mlr.trajectory",
+    "TRIGGERS": "planners.dmpc.mlr.config",
+    "TrackerEntry": "planners.dmpc.mlr.tracker",
+    "TrackerUpdate": "planners.dmpc.mlr.tracker",
+    "TrajectoryId": "planners.dmpc.mlr.trajectory",
+    "UavStateMessage": "planners.dmpc.mlr.types",
+    "consensus": "planners.dmpc.mlr.trigger",
+    "event_set": "planners.dmpc.mlr.trigger",
+    "quantize": "planners.dmpc.mlr.trigger",
+    "raw_priorities": "planners.dmpc.mlr.trigger",
+    "selected_uav": "planners.dmpc.mlr.trigger",
+    "time_varying_bvc": "planners.dmpc.mlr.qp",
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        return getattr(importlib.import_module(_WHERE[name]), name)
+    raise AttributeError(f"module 'planners.dmpc.mlr' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return list(__all__)

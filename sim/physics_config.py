@@ -1,0 +1,33 @@
+"""Physics and low-level control settings (the ``physics:`` section of a scenario)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from sim.controller import ControllerGains
+from sim.quadrotor_params import QuadrotorParams
+
+__all__ = ["PhysicsConfig"]
+
+
+@dataclass(frozen=True)
+class PhysicsConfig:
+    """Physics and low-level control.
+
+    Attributes:
+        physics_hz: physics and controller rate [Hz] (PyBullet default 240).
+        quadrotor: airframe, rotors and motors.
+        gains: SE(3) controller gains.
+        crash_tilt_rad: a drone tilted beyond this [rad] while touching
+            something is declared failed (motors off) and falls.
+    """
+
+    physics_hz: float = 240.0
+    quadrotor: QuadrotorParams = field(default_factory=QuadrotorParams)
+    gains: ControllerGains = field(default_factory=ControllerGains)
+    crash_tilt_rad: float = 1.2
+
+    def __post_init__(self) -> None:
+        if not 50.0 <= self.physics_hz <= 2000.0:
+            raise ValueError(f"physics_hz={self.physics_hz!r}: in [50, 2000] Hz")
+
