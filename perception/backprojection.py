@@ -26,9 +26,8 @@ this module takes:
 
 The depth camera sees the drone's near surface; the drone's position is its
 body centre, on average ``surface_to_centre_m`` farther along the ray, which is
-added along the unit ray (0.03 m: on 1365 validation renders with mask boxes the
-median along-ray offset from the foreground depth point to the true centre was
-0.027-0.036 m in every 2 m range bin from 0 to 10 m).
+added along the unit ray (0.03 m, the median offset on validation renders;
+measured: docs/results/tracker.md).
 
 Covariance (anisotropic, in world): along the ray the depth error dominates,
 std_r^2 = (pi / 2) sigma(d)^2 |r|^2 / n + model_std_m^2 (variance of a median of
@@ -41,12 +40,9 @@ ray in the camera frame (:func:`ray_covariance`). Calibration: ``model_std_m``
 = 0.01 m, ``centre_std_px`` = 0.15 px, ``centre_std_box_fraction`` = 0.02 and
 ``across_floor_m`` = 0 fit the errors of render -> detect -> back-project with a
 perfect pose on the tracking tuning seeds 100-104 (``mpcde eval-tracking``'s
-pipeline source, 15756 measurements): along-ray std 0.011 / 0.014 / 0.022 /
-0.035 / 0.049 m and across-ray std per axis 0.010 / 0.009 / 0.010 / 0.011 /
-0.011 m in the 1 m bins from 2 to 7 m. The former guesses (0.03 m, 0.5 px,
-0.05, 0.01 m) reported 2-3 times these errors, so the tracker trusted its
-measurements too little and lagged in manoeuvres. The white noise of the
-drone's own pose estimate is added (:func:`pose_noise_cov`): its position noise
+pipeline source; the errors, and the former guesses that overstated them:
+docs/results/tracker.md). The white noise of the drone's own pose estimate
+is added (:func:`pose_noise_cov`): its position noise
 ``pose_pos_std_m`` moves every measurement with it, and its heading noise
 ``pose_yaw_std_rad`` swings the measurement about the vertical through the
 camera, ``delta p = delta psi (e_z x o)`` for a point at offset ``o`` from it.

@@ -31,8 +31,8 @@ update's posterior. ``D_k`` is rank one minus positive definite, so it has at
 most one positive direction; ``D_k+`` is its positive part in the metric of
 ``M_k`` (non-zero only when the innovation is larger than ``M_k`` explains,
 ``q_k > 1``). It makes ``A_hat`` rank one, ``(K_v nu)(K_v nu)^T`` scaled, so
-no eigen-decomposition per track is needed (the Euclidean positive part gave
-the same RMSE to 3 digits in a development run and costs more).
+no eigen-decomposition per track is needed (the Euclidean positive part is no
+more accurate and costs more; measured: docs/results/tracker.md).
 
 The excess is mapped into the state through the gain, as in the classic
 covariance-matching estimate ``Q_hat = K C K^T``, but only through its velocity
@@ -42,19 +42,16 @@ about ``a dt`` per update, so ``K_v nu / dt`` estimates the acceleration ``a``.
 Why not ``A_hat = 4 D / dt^4`` (the direct DWNA reading of ``H Q H^T = D``): at
 25 Hz the true ``H Q H^T`` is far below the sampling noise of one
 ``nu nu^T``, and the ``4 / dt^4`` factor turns that noise into tens of m/s^2
-of phantom acceleration (measured in a development run: velocity RMSE 3-5 m/s).
+of phantom acceleration (measured: docs/results/tracker.md).
 ``A_hat`` is capped at trace ``sigma_acc_max_mps2^2``.
 
 Relation to the literature: the velocity block of our ``Q = G A G^T`` is
 ``dt^2 A_hat = c K_v D+ K_v^T``, i.e. the covariance-matching estimate
 ``Q_hat = K C K^T`` of Mohamed & Schwarz (1999) applied to the Eq. 11 excess
-``D+`` instead of the raw ``C``, restricted to the velocity rows. Two
-alternatives were measured on the synthetic benchmark (seeds 100-104,
-0.5 / 1 / 2 m/s, velocity RMSE): the raw ``A_hat = K_v C K_v^T / dt^2``
-(no excess) 0.235 / 0.329 / 0.548 m/s against ours 0.208 / 0.335 / 0.605;
-the excess smoothed first (EMA of ``C - M``, positive part after smoothing)
-0.209 / 0.389 / 0.739. We keep the excess form: it is what Eq. 11 writes,
-and it is the one that beats the KF at every speed.
+``D+`` instead of the raw ``C``, restricted to the velocity rows. We keep
+the excess form rather than the raw ``C`` or the excess smoothed before its
+positive part: it is what Eq. 11 writes, and it is the one that beats the KF
+at every speed (measured: docs/results/tracker.md).
 
 Three implementations that must agree to 1e-9 (tests hold it):
 :class:`KalmanCV` wraps filterpy's ``KalmanFilter`` (the reference, and the

@@ -70,12 +70,9 @@ class MapConfig:
             close range (it fills the image) is mapped as an obstacle, and a
             trail of phantom voxels follows its path (seen: a drone 0.35 m
             behind another found every plan 0.1 m from the leader's trail and
-            could not replan). Default 0 (off): on radio_outage, seeds 0-5,
-            it removed auto's seed-5 collision only together with MINCO's
-            ``swarm_recovery_mps``, and with both the totals did not improve
-            (auto 1 collision in 6 seeds, denied 7 instead of 5; see
-            :mod:`planners.trajectory_cost`); alone it is not yet measured
-            over those seeds.
+            could not replan). Default 0 (off): together with MINCO's
+            ``swarm_recovery_mps`` it did not improve the collision totals on
+            radio_outage (measured: docs/results/occupancy_map.md).
         log_odds_hit: log-odds increment [-] of the end voxel of a ray
             (logit 0.7 = 0.847).
         log_odds_miss: log-odds increment [-] of a voxel a ray passes through

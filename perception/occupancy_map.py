@@ -37,9 +37,9 @@ clear?" from the newest ESDF and the voxels occupied since, without a
 transform.
 
 Back-projection is plain numpy: open3d's ``PointCloud.create_from_depth_image``
-was measured (``benchmarks/bench_map.py``) at about the same cost for one
-320 x 240 frame (both under 1 ms, against about 7 ms of ray casting), and it
-offers neither the detection mask nor the clearing rays of invalid pixels.
+costs about the same and is small next to the ray casting (measured:
+docs/results/occupancy_map.md), and it offers neither the detection mask nor
+the clearing rays of invalid pixels.
 """
 
 from __future__ import annotations

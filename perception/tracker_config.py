@@ -2,14 +2,10 @@
 
 One frozen dataclass, :class:`TrackerConfig`. Every field has a default taken
 from MP-CDE (Table I or the text of Sec. IV-B) where the paper gives one, and
-otherwise the value chosen here with the reason in its docstring. The
-development figures quoted below ("synthetic benchmark, seeds 100-104") were
-measured with eval-tracking's former synthetic source (isotropic noise of
-2 cm + 1 % of range, 10 % misses, 0.05 false positives per frame), before it
-was calibrated on the pipeline; the defaults were re-checked on the
-calibrated source and on the pipeline (tuning seeds 100-104) and kept. Validation
+otherwise the value chosen here with the reason in its docstring. Validation
 raises ``ValueError`` with the one-line message ``"<field>=<value!r>: <allowed>"``
 (perception/ may not import mpcde; mpcde turns these into ``ConfigError``).
+Measured behind the chosen defaults: docs/results/tracker.md.
 """
 
 from __future__ import annotations
@@ -46,9 +42,7 @@ class TrackerConfig:
             ``"akf"``. MP-CDE Table I gives no process noise (nor a KF
             baseline setting), so both filters share this one value and differ
             only by the adaptation. 0.5 m/s^2 suits a slowly manoeuvring or
-            hovering neighbour; measured on the synthetic benchmark (seeds
-            100-104): a KF at 0.8 beats the AKF at 0.5 m/s targets, at 0.5
-            the AKF is better at every speed, at 0.3 both lag in turns.
+            hovering neighbour (measured: docs/results/tracker.md).
         adapt_scale: factor ``c`` on the covariance-matching estimate of the
             adaptive acceleration covariance, ``A_hat = c K_v D+ K_v^T / dt^2``
             [-] (see :mod:`perception.kalman_cv`).
@@ -62,11 +56,8 @@ class TrackerConfig:
             4 m/s^2: ``planners.trajectory_cost`` and the DMPC config); 6 m/s^2
             leaves room for a foreign drone. The cap matters when an
             association goes wrong: a swapped measurement reads as a huge
-            manoeuvre, and with the former cap of 20 m/s^2 two tracks born
-            0.7 m apart inflated to trace(A) ~ 60 m^2/s^4, widened their gates
-            and swapped targets for 0.4 s (seed 1 at 0.5 m/s: 10 ID switches;
-            none at 6). On seeds 100-104 the cap changed no RMSE by more than
-            0.006.
+            manoeuvre, which without it widens the gates until tracks swap
+            targets (measured: docs/results/tracker.md).
         init_vel_std_mps: velocity standard deviation per axis of a new track
             [m/s]. A track is born from one position with zero velocity and
             this (large) uncertainty, so its second and third measurements set
@@ -78,18 +69,14 @@ class TrackerConfig:
             the 97.5 % quantile with 2 degrees of freedom (an image-plane
             gate); on 3-D positions it keeps only about 94 % of true
             measurements, and with a CV filter that lags in turns it breaks
-            tracks often (measured on the synthetic benchmark, seeds 100-104,
-            AKF at 0.5 / 1 / 2 m/s: 6 / 58 / 184 ID switches and position
-            RMSE 0.076 / 0.195 / 0.296 m at 7.38, against 4 / 1 / 15 and
-            0.061 / 0.087 / 0.138 m at 25; 16.27, the 99.9 % quantile, gave
-            4 / 3 / 19 and 0.061 / 0.092 / 0.143 m). Set 7.38 to follow the paper.
+            tracks often (measured: docs/results/tracker.md). Set 7.38 to
+            follow the paper.
         birth_gate_chi2: an unmatched measurement starts a new track only if
             its squared Mahalanobis distance to every live track exceeds this
             [-] (40, about 6 standard deviations). Without it a true
             measurement that falls just outside ``gate_chi2`` spawns a
             duplicate track that then steals measurements from the original
-            (measured as above: 7 / 18 AKF ID switches at 1 / 2 m/s with the
-            birth gate equal to ``gate_chi2`` = 25 instead of 1 / 15 at 40).
+            (measured: docs/results/tracker.md).
         t_hold_s: a confirmed track without a matched measurement for longer
             than this keeps predicting (Eq. 9) and becomes ``coasting`` with
             linearly inflated covariance [s] (MP-CDE Table I, 0.6 s).

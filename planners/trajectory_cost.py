@@ -30,12 +30,9 @@ enters as the C^2 cubic ``max(v, 0)^3`` (GCOPTER's choice):
   obstacle penalty and the optimiser returns a plan through an obstacle (seen
   when the ``auto`` agent hands a drone flying 0.4 m behind another, as DMPC
   allows, to MINCO's C_s = 0.7 m). Off by default (``swarm_recovery_mps = inf``):
-  on radio_outage (seeds 0-5, full physics) it turned auto's one collision on
-  seed 5 into none only together with the map's ``neighbour_exclusion_m``, and
-  with both on, auto still had 1 collision in 6 seeds (seed 0 instead) and the
-  denied stack 7 instead of 5 (worst 0.083 m instead of 0.139 m): close to a
-  neighbour the relaxed clearance is small, and a cubic penalty on
-  ``clr^2 - d^2`` is then weak. Not worth its default yet.
+  close to a neighbour the relaxed clearance is small, and a cubic penalty on
+  ``clr^2 - d^2`` is then weak; on radio_outage it did not lower the collision
+  totals (measured: docs/results/minco.md).
 
 The gradient by ``T_i`` collects the growth of the sample spacing, the motion of
 the sample along the piece, and (swarm term only) the dependence of the

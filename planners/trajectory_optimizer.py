@@ -68,7 +68,7 @@ class TrajectoryOptimizerConfig:
         max_uncertainty_inflation_m: cap on that inflation [m]; default 0.5.
         swarm_recovery_mps: a neighbour the start is already inside C_s + margin of gets the
             clearance it has, growing back at this rate [m/s]; default inf: off
-            (:mod:`planners.trajectory_cost`, with what it measured).
+            (:mod:`planners.trajectory_cost`; measured: docs/results/minco.md).
         weight_vel: weight of the speed penalty [-]; default 1e5.
         weight_acc: weight of the acceleration penalty [-]; default 1e5.
         weight_obstacle: weight of the obstacle penalty [-]; default 1e5.

@@ -5,11 +5,9 @@ a handful of multi-megabyte tensors: the encoded input (6 frames x 4 channels
 x 320 x 240 float32 = 7.4 MB) and the early activations. glibc serves any
 block above ``M_MMAP_THRESHOLD`` (128 kB at start, adapting up to 32 MB only
 after frees) with a fresh ``mmap`` and returns it with ``munmap`` on free, so
-each call page-faults its buffers in again. Measured on this 2-core machine
-(benchmarks/bench_detector.py): 2.8-2.9 ms per frame batched over 6, of which
-the network is 1.1 ms; with the thresholds below 1.9 ms. This is the CPU
-tuning the PyTorch performance guide recommends (a caching allocator or
-glibc's mmap / trim thresholds).
+each call page-faults its buffers in again (measured: docs/results/detector.md).
+This is the CPU tuning the PyTorch performance guide recommends (a caching
+allocator or glibc's mmap / trim thresholds).
 
 :func:`keep_large_allocations` raises the mmap threshold to
 ``MMAP_THRESHOLD_BYTES`` and the trim threshold to ``TRIM_THRESHOLD_BYTES`` with

@@ -66,7 +66,7 @@ class DroneDetector:
         self.nms_iou = nms_iou
         self.compile_graph = compile_graph
         self._graphs: dict[tuple[int, ...], torch.jit.ScriptModule] = {}
-        keep_large_allocations()  # ~1 ms per frame of page faults otherwise (perception/detector/allocator.py)
+        keep_large_allocations()  # page faults per call otherwise (perception/detector/allocator.py)
 
     def _forward(self, x: torch.Tensor) -> torch.Tensor:
         """Network outputs; with ``compile_graph`` a traced, frozen graph per input shape (conv + ReLU fused)."""

@@ -53,9 +53,9 @@ class AdmmFormationConfig:
         weight_tracking: q_g on ||p_i[k] - r_i[k]||^2, each drone's own
             reference, k < K, in [1/m^2] (chosen: 1).
         weight_input: r on ||u_i[k]||^2 in [s^4/m^2] (paper: R_ii = 1 on
-            velocities; chosen: 0.1: with q_g = 1 a formation scattered over
-            4 m is closed to 1 mm within 4 s in ``bench_admm.py``; the input
-            box, not r, limits the first steps).
+            velocities; chosen: 0.1: with q_g = 1 a scattered formation closes
+            within seconds in ``bench_admm.py``; the input box, not r, limits
+            the first steps; docs/results/admm_formation.md).
         weight_terminal_formation: q_f at k = K in [1/m^2] (paper: P = Q, so
             the same as ``weight_formation``).
         weight_terminal_tracking: q_g at k = K in [1/m^2] (paper: P = Q).
@@ -72,8 +72,8 @@ class AdmmFormationConfig:
             on-demand DMPC Sec. 4: 4).
         rho: ADMM penalty parameter rho (Eq. 4a, 4c), in the cost's units per
             squared decision variable (paper Sec. 5.1: 1, tuned in
-            {0.1, 1, 10, 100}; kept after the same sweep on our OCP, see
-            :mod:`planners.dmpc.admm_formation`).
+            {0.1, 1, 10, 100}; kept after the same sweep on our OCP,
+            docs/results/admm_formation.md).
         l_max: ADMM iterations per MPC step (paper Sec. 5.1: 5).
         delay_compensation: paper Remark 1: u_i[0] is fixed to the input that
             is already being applied on [t, t + h) (decided in the previous
@@ -84,12 +84,10 @@ class AdmmFormationConfig:
             and gamma shifted by one step (paper Sec. 5.1); False starts every
             step cold (gamma = 0, zbar = free response), for comparison.
         osqp_eps_abs: OSQP absolute tolerance of each local QP (Step 3)
-            (chosen: 1e-4, as our DMPC's QP; ``bench_admm.py --sweep``: the
-            same distance to the centralized optimum as 1e-5 and 1e-6 in the
-            closed loop, in fewer OSQP iterations, because each ADMM
-            iteration warm-starts OSQP from the previous local solution and
-            the inexactness does not accumulate; see
-            :mod:`planners.dmpc.admm_formation`).
+            (chosen: 1e-4, as our DMPC's QP: as close to the centralized
+            optimum as tighter tolerances, because each ADMM iteration
+            warm-starts OSQP and the inexactness does not accumulate;
+            docs/results/admm_formation.md).
         osqp_eps_rel: OSQP relative tolerance of each local QP (chosen: 1e-4).
         osqp_max_iter: OSQP iteration limit of one local QP (chosen: 4000);
             a local QP that reaches it is used as it is and counted in
@@ -98,12 +96,12 @@ class AdmmFormationConfig:
             (not the ADMM rho above). Each adaptation refactorises OSQP's KKT
             matrix; ``AdmmStepResult.osqp_rho_updates`` counts them (chosen:
             False: with ``osqp_rho`` = 1 the local QPs converge about as fast
-            without it, and then no solve ever refactorises; see
-            :mod:`planners.dmpc.admm_formation`).
+            without it, and then no solve ever refactorises;
+            docs/results/admm_formation.md).
         osqp_rho: OSQP's own step size inside a local QP, fixed when
             ``osqp_adaptive_rho`` is False (chosen: 1; with OSQP's default
             0.1 single local QPs of the closed loop needed thousands of
-            iterations; see :mod:`planners.dmpc.admm_formation`).
+            iterations; docs/results/admm_formation.md).
     """
 
     horizon_steps: int = 15

@@ -44,98 +44,12 @@ which the previous step decided as its u_i[1], so a round may use the whole
 step h; the applied input is always ``result.input_now``. The first step
 fixes u_i[0] = 0 (or ``input_now_world``).
 
-Measured (``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_admm.py --seeds 3 --sweep``;
-a shared 2-core box under a load average of 5-6 from other jobs, so the times
-scatter by a factor of about 1.5 between runs; the quality columns do not
-depend on the load)::
-
-    formation ADMM, l_max = 5, rho = 1.0, K = 15, h = 0.2 s; 3 seeds x 50 steps per scenario, 25.1 s
-
-    Table 2 analogue, per drone, times in ms as median/max over drones x steps (or x iterations);
-    share: Step 3 / drone's ADMM time; round: whole round, all N drones in turn in one process
-    scenario      ADMM/step    per iter   Step 3 QP   Steps 4-8 share  round OSQP it med/p95/max
-    --------------------------------------------------------------------------------------------
-    4 ring       0.702/6.46  0.131/4.44  0.080/4.30  0.047/4.24   65%   3.11            5/45/230
-    4 complete  1.053/10.86  0.207/5.33  0.107/5.22  0.089/4.30   59%   5.05            5/50/275
-    8 ring      1.032/13.65  0.199/8.47  0.113/6.49  0.077/8.36   64%   9.79            5/45/285
-    Table 3 analogue (4 ring), Step 3 share per drone: 0: 60%, 1: 66%, 2: 67%, 3: 68%
-
-    Baseline: centralized QP of the same OCP, built once, per step q and bounds updated, OSQP eps 0.0001;
-    median of 5 repeats at every 5th state, median over states; ratios: warm-started centralized / ADMM
-    scenario   cold ms warm ms OSQP it med/max build ms / ADMM per drone / ADMM round
-    ---------------------------------------------------------------------------------
-    4 ring        3.57    2.77          25/250    15.33            3.94x        0.89x
-    4 complete    4.60    4.08          25/300    20.10            3.88x        0.81x
-    8 ring       10.74    8.45          25/300    26.39            8.19x        0.86x
-
-    Distance of 5 warm-started iterations to the centralized optimum (eps 1e-9), closed loop;
-    gap = (J_admm - J*) / J* in %; du = max over drones |u - u*| of the decided input u[1] [m/s^2];
-    late = from t = 2 s on; plan = max |du| over whole plans; chi [m] at 2 s / 4 s / 10 s, max over seeds
-    scenario     gap% med/p95/max  late       du med/p95/max    late plan        chi 2s/4s/10s |v|max |u|max
-    --------------------------------------------------------------------------------------------------------
-    4 ring             0.05/0.5/6  0.10        3e-05/1.0/2.9 8.5e-03  2.9    0.087/2e-04/6e-09  2.003  4.000
-    4 complete         0.10/0.4/6  0.38        3e-05/0.8/3.2 9.1e-03  3.2    0.079/2e-04/9e-09  2.004  4.000
-    8 ring             0.07/1.1/8  0.42        9e-05/1.8/5.1 4.2e-03  5.1    0.084/1e-03/3e-07  2.004  4.000
-    4 ring cold   38.21/184.4/272 272.28        2e-03/2.4/4.4 2.7e-01  4.4    0.066/2e-03/4e-08  2.001  4.000
-    4 ring cold: warm_start=False (every step from gamma = 0 and the free response)
-    paper, Table 2 (C++, qpOASES, LCM): ADMM per step median 6.61 ms, per iteration 0.98 ms,
-    Step 3 0.09 ms; Table 3: Step 3 share 15-37 %; Fig. 6: |u - u*| < 2e-2 m/s after the start-up
-
-    Settings sweep, 4 ring, default marked *; |du| of the decided input [m/s^2]; refac: OSQP
-    refactorisations (adaptive step); max-it: local QPs stopped at osqp_max_iter
-    setting              OSQP it med/p95/max  QP ms med/mean/max |du| med t>=2s max gap% med refac max-it
-    -----------------------------------------------------------------------------------------------------
-     rho = 0.1                      5/30/100    0.063/0.097/3.99  5.2e-04   1.5e-01    3.970     0      0
-     rho = 0.3                      5/35/110    0.084/0.117/1.05  1.8e-04   3.0e-02    0.545     0      0
-    *rho = 1                        5/45/230    0.066/0.116/1.68  3.3e-05   8.5e-03    0.053     0      0
-     rho = 3                        5/25/235    0.089/0.126/4.58  6.1e-04   2.4e-02    0.605     0      0
-     rho = 10                       5/20/170    0.100/0.137/2.33  4.7e-03   3.7e-01  337.128     0      0
-     rho = 100                      10/20/25    0.097/0.122/0.41  3.3e+00   4.1e+00  260.343     0      0
-     OSQP rho = 0.1                5/75/2275   0.062/0.372/15.82  3.3e-05   8.3e-03    0.031     0      0
-     OSQP rho = 3                   5/50/135    0.089/0.148/5.71  5.5e-05   8.6e-03    0.289     0      0
-     OSQP adaptive rho              5/45/230    0.066/0.124/5.27  3.3e-05   8.5e-03    0.053     0      0
-     OSQP eps = 1e-5                5/60/370    0.094/0.191/6.08  3.5e-05   8.4e-03    0.043     0      0
-     OSQP eps = 1e-6               10/70/510    0.136/0.249/8.43  3.2e-05   8.4e-03    0.038     0      0
-
-Reading it:
-
-* Step 3 (the local QP, OSQP with warm start, about 5 OSQP iterations) takes
-  about 0.1 ms per ADMM iteration, the paper's 0.09 ms with qpOASES; one
-  drone's whole MPC step 0.7-1.05 ms median. The maxima (6-14 ms) are the
-  first, cold step (up to 285 OSQP iterations) and scheduler noise.
-* Step 3 is 59-68 % of a drone's time here, 15-37 % in the paper's Table 3:
-  our Steps 4-8 pass messages in-process, the paper's wait on LCM.
-* Against the centralized QP of the same OCP (built once, warm-started): one
-  drone's ADMM work per step is 3.9x (4 drones) to 8.2x (8 drones) smaller.
-  All drones' rounds run in turn in one process (the simulator) cost about
-  as much as the centralized QP (0.8-0.9x): the gain is the distribution.
-* Quality: with warm start, 5 iterations stay within 0.05-0.10 % of the
-  optimal cost (median) and, from t = 2 s on, within 0.42 % and 9.1e-3 m/s^2
-  on the decided input (the paper: below 2e-2 m/s after "an initialization
-  phase of a few seconds"). The first steps from the scattered start are
-  far off (up to 5.1 m/s^2, 8 % in cost): that is the initialization phase.
-  Cold-started every step instead, the median gap is 38 % and |du| still
-  0.27 m/s^2 after 2 s: the warm start is what makes l_max = 5 enough.
-* rho = 1 (the paper's) is the best of {0.1, 0.3, 1, 3, 10, 100} here too.
-* Local OSQP: its own step size fixed at 1 needs at most 230 iterations;
-  OSQP's default 0.1 up to 2275 (3x the mean QP time); adaptive rho did not
-  fire in this run but refactorises when it does; eps 1e-4 is as close to
-  the optimum as 1e-5 or 1e-6 in fewer iterations. No local QP was
-  refactorised and none reached osqp_max_iter.
-
-Development measurements on captured local QPs (scripts not kept): with
-Remark 1 and the k = 1 soft rows kept, a drone already above v_max needed
-4375 OSQP iterations (OSQP rho 1), 50 without those rows (now left free, see
-:mod:`planners.dmpc.admm_ocp`). A drone started below ``pos_min_world`` (a
-violation no input can avoid at once) needed 1850 iterations with c = 1e4
-(150 with c = 1e3): the slack's multiplier 2 c s is large and OSQP, a
-first-order method, takes long to build it up. Only a start outside the box
-does this; a local QP past ``osqp_max_iter`` is used as it is and counted.
+Measured (Tables 2-3 analogue, distance to the optimum, sweep): docs/results/admm_formation.md.
 
 Left out: coupled constraints (1f) such as minimum distances (the paper's
 Sec. 5.2 needs dSQP for them); lost or late messages (Assumption 1 is
 assumed here, :func:`solve_admm_round` is the ideal network;
-:mod:`mpcde.agent_admm` flies over a lossy radio with
+:mod:`mpcde.onboard.admm` flies over a lossy radio with
 :meth:`AdmmFormationAgent.add_to_copy_multiplier`); the triple integrator.
 """
 
@@ -360,7 +274,7 @@ class AdmmFormationAgent:
     def add_to_copy_multiplier(self, j: int, delta_world: np.ndarray) -> None:
         """gamma_i's block of the copy w_ji += ``delta_world`` (K, 3): a Step 8 (4c) term applied late.
 
-        For a lossy network (:mod:`mpcde.agent_admm`): a drone that missed
+        For a lossy network (:mod:`mpcde.onboard.admm`): a drone that missed
         xbar_j^l left its copy's block out of Step 8 in iteration l (zbar = its
         own copy there); adding rho (w_ji^l - xbar_j^l) once it learns
         xbar_j^l restores Eq. (5) for j's trajectory. Allowed in any phase of

@@ -41,8 +41,7 @@ every step: their type never changes). Kept, they would do two harmful things:
 a violation at k = 1 (e.g. the drone is already faster than v_max) would force
 the ONE slack up and so relax every other state constraint of the horizon by
 as much, for free; and OSQP needed thousands of iterations for such a QP
-(measured: 4375 iterations with OSQP rho = 1 on a captured case, 50 without
-the k = 1 rows; see :mod:`planners.dmpc.admm_formation`).
+(measured: docs/results/admm_formation.md).
 
 Shared by the ADMM subproblem (:mod:`planners.dmpc.admm_local_qp`, which adds
 the copies' formation terms) and the centralized QP

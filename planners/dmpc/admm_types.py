@@ -15,7 +15,7 @@ t + k h, k = 1..K, of the MPC step that started at t.
 Over a broadcast radio a drone sends one :class:`AdmmBundle` per exchange: the
 copies of one iteration for all its neighbours (Step 4), or its mean for all
 of them (Step 6); each receiver takes the message addressed to it
-(:mod:`mpcde.agent_admm`).
+(:mod:`mpcde.onboard.admm`).
 """
 
 from __future__ import annotations
@@ -107,7 +107,7 @@ class AdmmBundle:
     neighbour. A bundle of means also says whose copies its mean averaged
     and repeats the sender's earlier means (for a lossy radio: a holder whose
     copy was not averaged, or that missed a mean, adjusts its multipliers,
-    :mod:`mpcde.agent_admm`).
+    :mod:`mpcde.onboard.admm`).
 
     Attributes:
         sender_id: the broadcasting drone i.

@@ -44,13 +44,12 @@ class DmpcConfig:
         weight_smoothness: q_Theta of the input-difference term, in
             [s^4/m^2] (double) or [s^6/m^2] (triple) (chosen: 1.0; against
             weight_goal = 100 it smooths the inputs without slowing the
-            8-drone swap, which finishes in about 6 s).
+            8-drone swap).
         weight_slack_quadratic: zeta, quadratic slack penalty in [1/m^2]
             (chosen: 1e4. online_dmpc uses ``quad_coll_penalty = 1``, but with
             OSQP that leaves the slack's curvature 1e4 times below its linear
-            price and ADMM then hit the iteration limit in 56 of 300 solves of
-            the 8-drone swap; 1e4 keeps the linear (exact-penalty) term and
-            converges).
+            price and ADMM then hits the iteration limit; 1e4 keeps the linear
+            (exact-penalty) term and converges; docs/results/dmpc_qp.md).
         weight_slack_linear: xi, linear slack penalty in [1/m]
             (online_dmpc ``lin_coll_penalty = -5e4`` on a non-positive slack).
         slack_max_m: upper bound on one slack (relaxation) in [m]
@@ -113,21 +112,20 @@ class DmpcConfig:
         vertical_obstacle_planes: every obstacle half-space has a horizontal
             normal (vertical planes, as the agent builds around trees and
             boxes); its rows then hold only the x, y input columns, a third
-            fewer entries in every KKT refactorisation (formation_square:
-            about 9 % faster rounds). A plane with a z component is then
+            fewer entries in every KKT refactorisation (measured:
+            docs/results/dmpc_qp.md). A plane with a z component is then
             rejected. Chosen default: False (general planes).
         terminal_halt: if true, v[K] = 0 (and a[K] = 0 for the triple
             integrator), DMPC-Swarm Eq. 13e; makes a shifted plan a feasible
             candidate, i.e. recursive feasibility of the BVC problem.
         osqp_eps_abs: OSQP absolute tolerance (chosen: 1e-4).
         osqp_eps_rel: OSQP relative tolerance (chosen: 1e-4).
-        osqp_max_iter: OSQP iteration limit (chosen: 10000; the hardest
-            on-demand rounds of the 8-drone swap, with large slacks, need ~2000).
+        osqp_max_iter: OSQP iteration limit (chosen: 10000, well above what
+            the hardest on-demand rounds of the 8-drone swap need;
+            docs/results/dmpc_qp.md).
         osqp_check_termination: OSQP checks its residuals every this many
             iterations (chosen: 5 instead of OSQP's 25: a warm-started round
-            typically converges in 5-10 iterations; measured in
-            benchmarks/bench_dmpc.py, on-demand median solve about 0.20 ->
-            0.15-0.17 ms, same ratio to BVC).
+            typically converges in 5-10 iterations; docs/results/dmpc_qp.md).
         osqp_polish: run OSQP's solution polishing (exact active-set solve).
         osqp_scaling: OSQP's Ruiz equilibration iterations (OSQP default 10).
             OSQP re-runs them on every matrix update, so they are part of

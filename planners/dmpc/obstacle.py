@@ -7,7 +7,7 @@ obstacle o and horizon step k (k = 1..K, index k-1 in the arrays)::
 
 e.g. the agent's tangent planes of the obstacle footprint at the point nearest
 to the previous plan, pushed out by the obstacle safety radius r_obs
-(:func:`mpcde.agent_dmpc.obstacle_half_spaces`). For such a plane, with n unit,
+(:func:`mpcde.onboard.dmpc.obstacle_half_spaces`). For such a plane, with n unit,
 
     clearance_ok = n_ok^T p̄[k] - c_ok = (surface distance of p̄[k]) - r_obs,
 
@@ -43,71 +43,7 @@ Two ways to put them into the QP (``DmpcConfig.obstacle_avoidance``):
 Both modes cull rows that the QP's own velocity and input limits already imply
 (:mod:`planners.dmpc.reach`): the feasible set is exactly the same.
 
-Measured (formation_square, seed 0, full physics; ``mpcde eval-dmpc``): no
-collision, minimum obstacle clearance 0.227 m beyond the robot radius on
-demand against 0.208 m every step (planned: 0.25 m); obstacle rows in 49 % of
-the rounds (138 of 284: while a drone passes an obstacle on its straight line
-the unconstrained optimum goes through it, so every such round needs its
-row). Those rounds refactorise and take several times the iterations of the
-others (why: below). Tried and dropped: rows at every step of the conflict run (median
-0.35 ms, 80 iterations in conflict rounds), keeping last round's rows at their
-absolute times (0.33 ms), ``first_conflict`` (obstacle clearance -0.008 m:
-the plane faces the drone and it slips round it).
-
-Where a conflict round's iterations come from (kinematic bench,
-formation_square seed 0, drone 0: median 50 iterations, 0.33-0.36 ms, plus
-0.09 ms of refactorisation): not from the solver's settings or the
-multiplier's warm start. Measured without effect on the conflict rounds'
-median of 45-60 iterations: Ruiz passes 0 / 10 (0 doubles them), rho 0.01 /
-1, sigma 1e-4, relaxation alpha 1.4 / 1.8, adaptive-rho interval 10, the
-obstacle row scaled by 0.1 / 10 / 100, and a warm start from the
-equality-constrained QP on the predicted active set. An oracle settles it:
-re-solving a conflict round warm-started with the optimal multiplier of the
-obstacle row still takes 45 iterations, with the optimal inputs 35, with
-both 5. The plan itself moves between rounds: one row at the deepest step
-leaves the other steps free to cut the disc (the previous plan's clearance
-at the next round's deepest step is down to -0.47 m when a conflict starts
-far ahead), so the new optimum lies far from the shifted previous one, and
-ADMM's linear convergence pays for the distance.
-
-Three ways round that, built and measured (kinematic bench, formation_square
-seed 0, medians over all drones' rounds), then dropped:
-
-* A wall held for the whole pass: on an obstacle's first conflict the plane
-  is frozen in world coordinates and applied (hard) at every step of the
-  previous plan within 0.3 m of the obstacle, K rows per slot whose
-  coefficients never change (the window moves through the bounds only), so
-  A changes once per pass. While the drone passes, rounds took about 20
-  iterations without refactorisation, as hoped; but while the window grows
-  on the approach they took 100-375, and the frozen plane is the wrong one
-  there: the deepest conflict step of a plan that ends inside the obstacle
-  is its end, so the tangent plane faces the drone (41 fallbacks, median
-  1.40 ms; single-row on demand 0.30 ms and BVC 0.64 ms in the same run).
-  Turned sideways (normal perpendicular to the plan's direction,
-  offset from the footprint's support function): no fallback, but median
-  0.89 ms, 80 iterations (single-row 0.36 ms, BVC 0.81 ms in the same run),
-  and the swarm had not arrived after 150 rounds.
-* Routing the carrot round the obstacles (shortest path on the visibility
-  graph of the footprints grown by the inflation + 0.3 m, carrot the
-  farthest path point in line of sight): rounds with an obstacle row fell
-  only from 49 % to 42 %, because formation keeping pulls each drone off its
-  own path towards its neighbours', back into the obstacles. With both
-  methods routed: median 0.28 ms on demand against 0.74 ms BVC (2.6x), mean
-  0.62 against 1.15 ms (1.9x, below the straight carrot's 2.5-2.8x in the
-  runs above), mission 86 rounds against 70 with the straight carrot.
-* Predicting the optimum instead of paying ADMM for the distance (the
-  oracle above, made real): before each solve, primal-dual active-set passes
-  (Nocedal & Wright Sec. 16.4-16.5) on the dense QP, started from the
-  shifted warm start's active rows and solved through the Schur complement
-  A_W P^-1 A_W^T, gave the exact optimum in 99 % of on-demand rounds and
-  94 % of BVC rounds (1 pass in about 80 %), and OSQP then certified it in
-  1 iteration (check_termination 1; median 20 -> 1 on demand, 30 -> 1 BVC).
-  But the passes cost about 0.13 ms each round in numpy (a dozen small
-  calls of 2-12 us per pass), more than the iterations they save in a round
-  without a conflict, and the refactorisation stays. Two flights each, same
-  process: on demand median 0.33 -> 0.41 ms, mean 0.43 -> 0.45 ms; BVC
-  median 0.76 -> 0.74 ms, mean 1.20 -> 1.07 ms. BVC gains more (its cost is
-  iterations), so the ratio fell: median 2.29x -> 1.79x, mean 2.76x -> 2.37x.
+Measured, with the variants tried and dropped: docs/results/dmpc_obstacles.md.
 """
 
 from __future__ import annotations

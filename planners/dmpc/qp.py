@@ -36,69 +36,20 @@ structural entries at value 0 with bounds (-inf, inf). Each round only
 changes) are updated and the solver is warm-started with the previous primal
 AND dual solution shifted by one step (:meth:`DmpcProblem._shifted_warm_start`).
 
-Speed (issue 6 goals; measured with ``benchmarks/bench_dmpc.py`` and replays of
-the QPs recorded in ``mpcde eval-dmpc``, OMP_NUM_THREADS=1, shared 2-core box):
-
-* Where the time goes. OSQP 1.1 (qdldl) on this size: about 7-10 us per ADMM
-  iteration, and any ``Ax``/``Px`` update costs a KKT refactorisation
-  (0.06-0.3 ms, of which OSQP's Ruiz re-equilibration is half at its default
-  of 10 passes, hence ``osqp_scaling = 4``). On-demand rows change only in
-  rounds with a conflict, so most on-demand rounds need no refactorisation;
-  BVC planes and every-step obstacle planes change every round. An unused
-  on-demand slot (neighbour or obstacle) keeps its last coefficients with
-  bounds (-inf, inf), so the round in which a conflict ends needs no
-  refactorisation either.
-* P's pattern holds only its structural nonzeros. The cost is separable by
-  axis (goal, formation and smoothness weigh x, y and z alike and apart),
-  so the U block of P has no cross-axis entry: 360 entries of the dense
-  triangle's 1035 at K = 15. Explicit zeros would enter qdldl's symbolic
-  factorisation and its fill. Measured against the dense triangle
-  (``mpcde eval-dmpc --seeds 6``, same machine, one after the other):
-  formation_square on demand median 0.179 -> 0.136 ms, mean 0.209 -> 0.160
-  ms; BVC median 0.346 -> 0.318 ms, mean 0.571 -> 0.520 ms; antipodal on
-  demand mean 0.592 -> 0.447 ms, BVC 2.040 -> 1.900 ms. (Why on-demand
-  gains more, a reading not measured apart: without BVC's K x M rows, which
-  couple the axes at every step, its KKT system is nearly three independent
-  axis blocks once the zeros are gone.)
-* One slack per on-demand row, as in the paper (on-demand DMPC Sec. 3.4,
-  alpha_ij per neighbour). An UNUSED slot's slack is pinned at 0 with price 0:
-  the same optimum, but without it the bound s >= 0 carried the multiplier
-  xi = 5e4 of the linear price in every round, which slowed ADMM
-  (formation_square: median 48 -> 30 iterations, mean 175 -> 71).
-* Condensed (dense in U) rather than sparse (states as variables with
-  dynamics equalities): a sparse prototype of the same QP (135 variables, 90
-  equalities) took 6-8.4 us per iteration against 7-10.5 us condensed, with a
-  cheaper refactorisation (0.12 vs 0.28 ms with 4 obstacles), but each
-  on-demand slot's row would need either a step-local pattern per step
-  (K x slots rows, the size of BVC) or a dense row across all states; neither
-  gained enough to pay for the change, so the condensed form stays.
-* Obstacle rows that the velocity and input limits already imply are culled
-  (:meth:`DmpcProblem._fill_obstacles`; exactly the same feasible set) for
-  both methods; in formation_square this leaves about two thirds of them.
-* OSQP's Python wrapper is bypassed for update/warm start/solve
-  (:meth:`DmpcProblem._run_osqp`, about 0.05 ms per round).
-* Kept at their values: ``eps_abs = eps_rel = 1e-4`` (1e-3 saved about 3 %
-  on formation_square, not worth a looser constraint tolerance),
-  ``check_termination = 5`` (1, 2 and 10 measured no better),
-  ``adaptive_rho_interval = 25`` (0 = OSQP's timing rule, 10 and 50 no better;
-  without adaptive rho ADMM needs thousands of iterations here), rho and
-  sigma (1, 0.01 / 1e-4 no better), no polishing.
-
-Floor: a round with no collision or obstacle row (nothing to refactorise,
-box constraints only) costs about 0.06 ms (``benchmarks/bench_dmpc.py``).
-With every-step obstacle rows, formation_square's obstacle planes change
-every round (a new tangent plane per step), so each of its rounds pays a
-refactorisation plus about 30 iterations: 0.24 ms median on demand, 0.32 ms
-BVC. With on-demand obstacle rows (the paper's mechanism) only rounds with
-a predicted obstacle conflict refactorise: about half of formation_square's
-rounds (the obstacles lie on the drones' straight lines; the unconstrained
-optimum of every round while passing one goes through it, so its row is
-needed every round), and those rounds take about 50 iterations (median
-0.19 ms against 0.06 ms without; kinematic bench); see
-:mod:`planners.dmpc.obstacle`. ``mpcde eval-dmpc --seeds 6`` (full physics):
-formation_square on demand median 0.136 ms, mean 0.160 ms; BVC 0.318 /
-0.520 ms: 2.33x on the median, 3.25x on the mean (the paper's "Average QP
-Solve Time", 12.91 / 3.94 ms = 3.28x); antipodal 3.36x / 4.25x.
+Speed. On-demand rows change only in rounds with a conflict, and an unused
+slot (neighbour or obstacle) keeps its last coefficients with bounds
+(-inf, inf), so most on-demand rounds need no KKT refactorisation; BVC planes
+and every-step obstacle planes change every round. P's pattern holds only its
+structural nonzeros (the cost is separable by axis: goal, formation and
+smoothness weigh x, y and z alike and apart), since explicit zeros would enter
+qdldl's factorisation. An unused on-demand slot's slack is pinned at 0 with
+price 0 (same optimum; otherwise its bound carries the multiplier xi of the
+linear price and slows ADMM). The QP stays condensed (dense in U); obstacle
+rows that the velocity and input limits already imply are culled
+(:meth:`DmpcProblem._fill_obstacles`); OSQP's Python wrapper is bypassed
+(:meth:`DmpcProblem._run_osqp`); ``osqp_scaling = 4`` because OSQP re-runs its
+Ruiz equilibration in every refactorisation.
+Measured, with the alternatives tried: docs/results/dmpc_qp.md.
 """
 
 from __future__ import annotations
@@ -401,7 +352,7 @@ class DmpcProblem:
             l[rs], u[rs] = 0.0, cfg.slack_max_m
             # An unused slot's slack is pinned to 0 (and priced 0 below): the same optimum, but
             # its bound no longer carries the multiplier xi = 5e4 that the linear price put on
-            # it, which slowed ADMM (formation_square: median 48 -> 30 iterations).
+            # it, which slowed ADMM (measured: docs/results/dmpc_qp.md).
             u[self._row_slack + n_coll : self._row_slack + M] = 0.0
         else:
             chosen = self._nearest(own_prev, nb_pos, M)
@@ -471,9 +422,9 @@ class DmpcProblem:
         one (osqp 1.x: ``OSQP._solver``) with the same arguments the Python
         wrapper passes it, because the wrapper's per-call work (clipping the
         bounds again, caching data for derivatives, building result
-        namespaces) measured about 0.05 ms per round, a sixth of the 0.3 ms
-        budget. Falls back to the public API otherwise. ``l``/``u`` here are
-        already within +-OSQP_INFTY.
+        namespaces) is a sizeable share of a round's budget (measured:
+        docs/results/dmpc_qp.md). Falls back to the public API otherwise.
+        ``l``/``u`` here are already within +-OSQP_INFTY.
         """
         core = getattr(self._osqp, "_solver", None)
         if core is None or not all(hasattr(core, f) for f in ("update_data_vec", "update_data_mat", "warm_start")):

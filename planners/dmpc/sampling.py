@@ -3,8 +3,8 @@
 Each DMPC round evaluates every neighbour's plan (a
 :class:`perception.types.NeighborPrediction`) and the drone's own previous plan
 (a :class:`planners.dmpc.types.DmpcPlan`) at the K S check times of the
-horizon. Calling ``NeighborPrediction.position`` once per neighbour cost about
-0.14 ms each (8-drone swap: about 1 ms of the round's Python time); here all
+horizon. Calling ``NeighborPrediction.position`` once per neighbour costs too
+much of the round's Python time (measured: docs/results/dmpc_qp.md); here all
 plans with the same number of samples are evaluated in one set of numpy
 operations.
 

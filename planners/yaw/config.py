@@ -110,17 +110,8 @@ class YawPlannerConfig:
             sideways into space it saw seconds ago therefore loses the
             exploring/observing regime and looks where it goes (MP-CDE Fig. 3,
             for neighbours that now fly where the camera saw free space).
-            Measured, denied stack on radio_outage seeds 0-5 (full physics and
-            rendering), 1.0 s against the default (then without the tracking
-            swing, tracking_sweep_deg 0): drone-drone collisions
-            1, 0, 1, 0, 2, 1 against 1, 0, 1, 1, 1, 1 (5 both), success 2 of 6
-            against 0 (all drones arrive in every seed; by default one drone of
-            seed 1 never does), worst minimum distance 0.169 against 0.139 m.
-            The remaining contacts are drones converging side by side, which
-            neither camera sees in any mode (``tracking_sweep_deg``). The
-            ``auto`` stack on seeds 0 and 5 flew to the same outcome as by
-            default (0 collisions; 1 at 0.185 m). Not the default on that
-            evidence: no fewer collisions.
+            Not the default: 1.0 s gave no fewer collisions on radio_outage
+            (measured: docs/results/yaw_planner.md).
         free_distance: how Eq. 1's d_free is measured: ``"horizontal"`` (in the
             plane of the drone's altitude slab; default) or ``"voxel"`` (the
             map's 3-D verified-free distance); see :mod:`planners.yaw.safety`.
@@ -146,29 +137,9 @@ class YawPlannerConfig:
             crossings shallower than 180 - fov_h = 95 deg, so in tracking mode
             it is never seen; the swing widens the watched arc to
             +-(fov_h/2 + sweep) while the direction of travel stays in view
-            (allowed below fov_h / 2). Chosen: 35 deg, the default since it
-            was measured on radio_outage seeds 0-11 (full physics and
-            rendering, commit 1aa8a08, the environment of 2026-11-22),
-            35 deg against 0: denied 2 collision events against 17, auto 0
-            against 3. Re-measured at dec0191 with the versions of
-            ``requirements-lock.txt`` (seeds 0-5 by ``mpcde compare``, the
-            rest by ``mpcde fly``), drone-drone and obstacle collision
-            events per seed, 35 deg against 0:
-            denied 0,0,0,1,0,0, 0,0,0,0,0,0 (1) against
-            1,0,1,1,2,1, 0,1,1,1,4,2 (15), success 11 of 12 against 2,
-            worst minimum distance 0.188 against 0.106 m, mean mission
-            25.5 s (12 runs) against 24.5 s (10 runs in which every drone
-            arrived; seeds 10 and 11 lost 2 and 1);
-            auto 0,1,0,0,0,1, 0,0,0,0,0,0 (2) against
-            0,0,0,0,1,1, 0,0,0,0,0,0 (2), success 10 of 12 both, worst
-            minimum distance 0.190 against 0.130 m, mean mission 19.8
-            against 20.2 s (seed 1's event with the swing is an obstacle
-            graze after the switch back to DMPC, ``mpcde/agent_auto.py``).
-            The counts are chaotic, a few per seed set either way (before
-            the denied agent's committed stop, f802920, and the
-            history-free renderer, 0f41624, seeds 0-5 had read auto 3
-            collisions with the swing against 1 without), so the 12-seed
-            totals decide: the swing for the denied stack, a tie for auto.
+            (allowed below fov_h / 2). Chosen: 35 deg: on radio_outage seeds
+            0-11 it cut the denied stack's collisions and tied for auto
+            (measured: docs/results/yaw_planner.md).
         tracking_sweep_period_s: period of that swing [s] (chosen 1.4 s: a
             35 deg swing then turns at 100 deg/s, within the 2 rad/s limit).
         still_speed_mps: in tracking mode, below this horizontal speed the

@@ -20,8 +20,7 @@ paper does not say):
   unobserved space just above and below the camera's 58 deg vertical field
   of view cap d_free near 1.5 m, so S(0) = d_free / v_max could never
   exceed tau_thr = 1.2 pi / 2 = 1.88 s at v_max = 1 m/s and the planner would
-  never leave the tracking mode (measured: forest_swarm, 6 drones, 205 of 205
-  plans in tracking mode with ``"voxel"``).
+  never leave the tracking mode (measured: docs/results/yaw_planner.md).
 * ``"voxel"``: the map's 3-D verified-free distance
   (:meth:`perception.types.OccupancySnapshot.free_distance`).
 

@@ -45,7 +45,7 @@ class MlrConfig:
             ``input_steps_per_round``. Chosen: 1 (T_c = 0.2 s); the gap
             between checks is covered by the margin of ``d_hat_min_m`` over
             the collision distance (Theorem 3, Delta d_min,cont; see
-            :mod:`mpcde.mlr_swarm`).
+            :mod:`mpcde.evals.mlr_swarm`).
         d_hat_min_m: d̂_min, minimum ellipsoidal distance between reference
             positions at the check times in [m] (Eq. 15; Sec. 5.1 uses 0.25 m
             for Crazyflies. Chosen: 0.45 m, so that straight-line motion at
@@ -63,10 +63,9 @@ class MlrConfig:
         weight_pos: Q on position error in [1/m^2] (Eq. 13a; chosen 1).
         weight_vel: Q on velocity (target velocity 0) in [s^2/m^2] (chosen 0.2).
         weight_acc: Q on acceleration in [s^4/m^2] (chosen 0.05).
-        weight_jerk: R on the jerk input in [s^6/m^2] (chosen 0.01). With
-            0.05 / 0.01 / 1e-3 for the three, OSQP needed 2-3x more
-            iterations on the same 16-UAV problems (275 against 100 on an
-            open one, 2400 against 1100 on a boxed-in one).
+        weight_jerk: R on the jerk input in [s^6/m^2] (chosen 0.01; smaller
+            weights on v, a and jerk need more OSQP iterations:
+            docs/results/mlr_dmpc.md).
         max_candidates: most trajectories a non-deprecated tracker can hold
             (old + new one: 2, Lemma 1); the QP is sized for
             (N - 1) x ``max_candidates`` x h_c BVC rows.
@@ -78,11 +77,10 @@ class MlrConfig:
         priority_scale_rr: one 8-bit priority unit of RR in rounds (chosen 1).
         priority_scale_db_m: one unit of DB in [m] (chosen 0.02: 255 = 5.1 m).
         priority_scale_ht: one unit of HT in [m x rounds] (chosen 0.1).
-        osqp_eps_abs: OSQP absolute tolerance (chosen 1e-3: on 44 QPs of the
-            16-UAV swap, median 225 iterations (4 ms) against 1275 (20 ms)
-            with 1e-4; BVC rows were then met to 5 mm, against d̂_min - d_min
-            = 0.2 m; the terminal halt is made exact afterwards, see
-            :class:`planners.dmpc.mlr.qp.MlrProblem`).
+        osqp_eps_abs: OSQP absolute tolerance (chosen 1e-3: several times
+            fewer iterations than 1e-4, and the BVC rows are still met well
+            within d̂_min - d_min; docs/results/mlr_dmpc.md; the terminal halt
+            is made exact afterwards, see :class:`planners.dmpc.mlr.qp.MlrProblem`).
         osqp_eps_rel: OSQP relative tolerance (chosen 1e-3).
         osqp_max_iter: OSQP iteration limit (chosen 20000).
         osqp_polish: OSQP polishing (chosen False).

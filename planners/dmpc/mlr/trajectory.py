@@ -118,7 +118,7 @@ def positions_at_each(trajectories: "list[ReferenceTrajectory]", times_s: np.nda
 
     The same Eq. 12 evaluation as :meth:`ReferenceTrajectory.positions_at`,
     batched across trajectories (the event trigger needs one position per UAV
-    each round; sixteen single-time calls cost about 1.5 ms, this about 0.05 ms).
+    each round; one call per UAV costs far more: docs/results/mlr_dmpc.md).
 
     Args:
         trajectories: n trajectories (any input steps and lengths).

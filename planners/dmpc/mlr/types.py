@@ -10,7 +10,7 @@ request, the CU stays silent and the requested UAV sends a
 are read in round k + 1's computation phase. Positions are world frame, z up, [m].
 
 :class:`MlrBundle` is what one drone broadcasts per round when the UAVs
-themselves host the CUs (:mod:`mpcde.agent_mlr`): a radio with one payload
+themselves host the CUs (:mod:`mpcde.onboard.mlr`): a radio with one payload
 per drone and round carries the UAV's messages and its CU's message together.
 """
 
