@@ -4,7 +4,8 @@ An agent receives only what the drone itself would have: its camera frames
 (:class:`sim.types.RgbdFrame`, no segmentation), its own pose estimate
 (:class:`sim.types.PoseEstimate`) and its radio inbox
 (:class:`sim.types.RadioMessage`). It never receives another drone's ground
-truth (tests/integration/test_onboard_interfaces.py holds this).
+truth: tests/unit/test_import_rules.py holds the onboard room's imports to
+this, and tests/integration/test_fly.py checks what the loop hands an agent.
 
 :class:`OnboardAgent` is the interface every stack implements. The stacks:
 :mod:`mpcde.onboard.placeholder` (a blind line), :mod:`mpcde.onboard.denied` (MP-CDE),

@@ -32,6 +32,7 @@ class SpyDenied(agent_denied.DeniedAgent):
         super().on_frame(frame, detections)
 
 
+@pytest.mark.slow  # a flight with cameras, detector and map: 5 s warm, about 30 s with a cold numba cache
 def test_each_denied_agent_gets_only_its_own_frame_and_its_own_detections(monkeypatch):
     monkeypatch.setattr(agents, "DeniedAgent", SpyDenied)  # the name make_agent builds the denied stack with
     SpyDenied.seen = []
