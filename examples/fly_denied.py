@@ -15,7 +15,7 @@ def main(duration_s: float = 4.0, out: str | None = None) -> dict:
     result = mpcde.fly("forest_swarm", mode="denied", seed=0, duration_s=duration_s, out=out, overwrite=True)
     m = result.metrics
     print(f"denied, {duration_s:g} s: collisions {m['collisions']}, min inter-drone {m['min_inter_drone_distance_m']} m, "
-          f"tracking RMSE {m.get('tracking_rmse_m')} m, real-time factor {m['real_time_factor']:.2f}")
+          f"tracking RMSE {m.get('tracking_pos_rmse_m')} m, real-time factor {m['real_time_factor']:.2f}")
     return m
 
 

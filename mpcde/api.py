@@ -3,7 +3,7 @@
     import mpcde
 
     result = mpcde.fly("forest_swarm", mode="denied", seed=3, duration_s=10.0, out="runs/denied-3")
-    print(result.metrics["success"], result.metrics["tracking_rmse_m"])
+    print(result.metrics["success"], result.metrics["tracking_pos_rmse_m"])
 
 :func:`fly` is what ``mpcde fly`` runs: the same checks (a bad field raises
 :class:`mpcde.errors.ConfigError` naming it, before anything is written), the

@@ -1,33 +1,18 @@
-"""The package's own exception types."""
+"""The package's exception types.
+
+:class:`ConfigError` (an invalid setting or option: field path, value, what
+is allowed; one line) is defined at the bottom layer, :mod:`sim.checks`, so
+that every layer raises the same type; it is re-exported here.
+:class:`MpcdeError` is the base of the integration layer's other errors. The
+command line turns both into one line on stderr and exit status 2.
+"""
 
 from __future__ import annotations
 
-import math
-from typing import Any
+from sim.checks import ConfigError
 
-__all__ = ["ConfigError", "MpcdeError", "require_finite_positive"]
+__all__ = ["ConfigError", "MpcdeError"]
 
 
 class MpcdeError(Exception):
     """Base class of mpcde's errors that the command line turns into exit status 2."""
-
-
-class ConfigError(MpcdeError, ValueError):
-    """An invalid scenario or option: names the field, the value and what is allowed.
-
-    The message is one line: ``<field>=<value!r>: <allowed>``.
-    """
-
-    def __init__(self, field: str, value: Any, allowed: str) -> None:
-        self.field = field
-        self.value = value
-        self.allowed = allowed
-        super().__init__(f"{field}={value!r}: {allowed}")
-
-
-def require_finite_positive(config: object, *names: str) -> None:
-    """Raise ConfigError ``<name>=<value>: a finite number > 0`` for the first attribute of ``config`` that is not one."""
-    for name in names:
-        v = getattr(config, name)
-        if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise ConfigError(name, v, "a finite number > 0")

@@ -63,6 +63,7 @@ import numpy as np
 
 from perception.tracker import Measurement
 from perception.types import Detection
+from sim.checks import ConfigError
 from sim.types import RgbdFrame
 
 __all__ = [
@@ -113,13 +114,13 @@ class BackprojectionConfig:
 
     def __post_init__(self) -> None:
         if not 0.0 < self.window_fraction <= 1.0:
-            raise ValueError(f"window_fraction={self.window_fraction!r}: in (0, 1]")
+            raise ConfigError("window_fraction", self.window_fraction, "in (0, 1]")
         if not 0.0 <= self.foreground_percentile <= 50.0:
-            raise ValueError(f"foreground_percentile={self.foreground_percentile!r}: in [0, 50]")
+            raise ConfigError("foreground_percentile", self.foreground_percentile, "in [0, 50]")
         for name in ("band_m", "surface_to_centre_m", "depth_noise_base_m", "depth_noise_quadratic_per_m", "model_std_m",
                      "centre_std_px", "centre_std_box_fraction", "across_floor_m", "pose_pos_std_m", "pose_yaw_std_rad"):
             if not getattr(self, name) >= 0.0:
-                raise ValueError(f"{name}={getattr(self, name)!r}: must be >= 0")
+                raise ConfigError(name, getattr(self, name), "must be >= 0")
 
 
 @dataclass(frozen=True)

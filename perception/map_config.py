@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.checks import ConfigError
+
 __all__ = ["MapConfig"]
 
 
@@ -106,38 +108,36 @@ class MapConfig:
 
     def __post_init__(self) -> None:
         if not 0.1 <= self.voxel_m <= 0.2:
-            raise ValueError(f"voxel_m={self.voxel_m!r}: allowed 0.1 to 0.2 m")
+            raise ConfigError("voxel_m", self.voxel_m, "allowed 0.1 to 0.2 m")
         w = tuple(self.window_size_m)
         if len(w) != 3 or not all(np.isfinite(x) and x >= 2 * self.voxel_m for x in w):
-            raise ValueError(f"window_size_m={self.window_size_m!r}: allowed three finite lengths >= 2 voxels")
+            raise ConfigError("window_size_m", self.window_size_m, "allowed three finite lengths >= 2 voxels")
         if not 0.0 <= self.min_range_m < self.max_range_m:
-            raise ValueError(f"min_range_m={self.min_range_m!r}: allowed 0 <= min_range_m < max_range_m")
+            raise ConfigError("min_range_m", self.min_range_m, "allowed 0 <= min_range_m < max_range_m")
         if not np.isfinite(self.max_range_m):
-            raise ValueError(f"max_range_m={self.max_range_m!r}: allowed finite > min_range_m")
+            raise ConfigError("max_range_m", self.max_range_m, "allowed finite > min_range_m")
         if not (np.isfinite(self.clear_invalid_m) and self.clear_invalid_m >= 0.0):
-            raise ValueError(f"clear_invalid_m={self.clear_invalid_m!r}: allowed finite >= 0 (0 = skip invalid pixels)")
+            raise ConfigError("clear_invalid_m", self.clear_invalid_m, "allowed finite >= 0 (0 = skip invalid pixels)")
         if not (isinstance(self.invalid_neighborhood_px, (int, np.integer)) and self.invalid_neighborhood_px >= 0):
-            raise ValueError(f"invalid_neighborhood_px={self.invalid_neighborhood_px!r}: allowed integer >= 0")
+            raise ConfigError("invalid_neighborhood_px", self.invalid_neighborhood_px, "allowed integer >= 0")
         if not (isinstance(self.pixel_stride, (int, np.integer)) and self.pixel_stride >= 1):
-            raise ValueError(f"pixel_stride={self.pixel_stride!r}: allowed integer >= 1")
+            raise ConfigError("pixel_stride", self.pixel_stride, "allowed integer >= 1")
         if not (isinstance(self.clear_stride, (int, np.integer)) and self.clear_stride >= 1):
-            raise ValueError(f"clear_stride={self.clear_stride!r}: allowed integer >= 1")
+            raise ConfigError("clear_stride", self.clear_stride, "allowed integer >= 1")
         if not (np.isfinite(self.clear_tail_voxels) and self.clear_tail_voxels >= 0.0):
-            raise ValueError(f"clear_tail_voxels={self.clear_tail_voxels!r}: allowed finite >= 0")
+            raise ConfigError("clear_tail_voxels", self.clear_tail_voxels, "allowed finite >= 0")
         if not (isinstance(self.detection_margin_px, (int, np.integer)) and self.detection_margin_px >= 0):
-            raise ValueError(f"detection_margin_px={self.detection_margin_px!r}: allowed integer >= 0")
+            raise ConfigError("detection_margin_px", self.detection_margin_px, "allowed integer >= 0")
         if not (np.isfinite(self.neighbour_exclusion_m) and self.neighbour_exclusion_m >= 0.0):
-            raise ValueError(f"neighbour_exclusion_m={self.neighbour_exclusion_m!r}: allowed finite >= 0 m")
+            raise ConfigError("neighbour_exclusion_m", self.neighbour_exclusion_m, "allowed finite >= 0 m")
         if not self.log_odds_hit > 0.0:
-            raise ValueError(f"log_odds_hit={self.log_odds_hit!r}: allowed > 0")
+            raise ConfigError("log_odds_hit", self.log_odds_hit, "allowed > 0")
         if not self.log_odds_miss < 0.0:
-            raise ValueError(f"log_odds_miss={self.log_odds_miss!r}: allowed < 0")
+            raise ConfigError("log_odds_miss", self.log_odds_miss, "allowed < 0")
         if not self.log_odds_min < self.log_odds_occupied < self.log_odds_max:
-            raise ValueError(
-                f"log_odds_occupied={self.log_odds_occupied!r}: allowed log_odds_min < log_odds_occupied < log_odds_max"
-            )
+            raise ConfigError("log_odds_occupied", self.log_odds_occupied, "allowed log_odds_min < log_odds_occupied < log_odds_max")
         if not self.esdf_max_m > 0.0:
-            raise ValueError(f"esdf_max_m={self.esdf_max_m!r}: allowed > 0")
+            raise ConfigError("esdf_max_m", self.esdf_max_m, "allowed > 0")
 
     @property
     def window_shape(self) -> tuple[int, int, int]:

@@ -13,15 +13,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from sim.checks import ConfigError, require_positive
+
 __all__ = ["FILTERS", "TrackerConfig"]
 
 FILTERS = ("akf", "kf")
 """Allowed values of :attr:`TrackerConfig.filter`."""
-
-
-def _check_positive(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise ValueError(f"{name}={value!r}: a finite number > 0")
 
 
 @dataclass(frozen=True)
@@ -120,9 +117,9 @@ class TrackerConfig:
 
     def __post_init__(self) -> None:
         if self.filter not in FILTERS:
-            raise ValueError(f"filter={self.filter!r}: one of {', '.join(repr(f) for f in FILTERS)}")
+            raise ConfigError("filter", self.filter, f"one of {', '.join(repr(f) for f in FILTERS)}")
         if not (isinstance(self.alpha_ema, (int, float)) and 0.0 < self.alpha_ema <= 1.0):
-            raise ValueError(f"alpha_ema={self.alpha_ema!r}: a number in (0, 1]")
+            raise ConfigError("alpha_ema", self.alpha_ema, "a number in (0, 1]")
         for name in (
             "sigma_acc_mps2",
             "adapt_scale",
@@ -134,25 +131,23 @@ class TrackerConfig:
             "t_drop_s",
             "tentative_drop_s",
         ):
-            _check_positive(name, getattr(self, name))
+            require_positive(name, getattr(self, name))
         if self.sigma_acc_max_mps2 < self.sigma_acc_mps2:
-            raise ValueError(
-                f"sigma_acc_max_mps2={self.sigma_acc_max_mps2!r}: >= sigma_acc_mps2 ({self.sigma_acc_mps2!r})"
-            )
+            raise ConfigError("sigma_acc_max_mps2", self.sigma_acc_max_mps2, f">= sigma_acc_mps2 ({self.sigma_acc_mps2!r})")
         if self.birth_gate_chi2 < self.gate_chi2:
-            raise ValueError(f"birth_gate_chi2={self.birth_gate_chi2!r}: >= gate_chi2 ({self.gate_chi2!r})")
+            raise ConfigError("birth_gate_chi2", self.birth_gate_chi2, f">= gate_chi2 ({self.gate_chi2!r})")
         if self.t_drop_s < self.t_hold_s:
-            raise ValueError(f"t_drop_s={self.t_drop_s!r}: >= t_hold_s ({self.t_hold_s!r})")
+            raise ConfigError("t_drop_s", self.t_drop_s, f">= t_hold_s ({self.t_hold_s!r})")
         for name in ("coast_pos_inflation_m2ps", "coast_vel_inflation_m2ps3", "meas_std_floor_m", "meas_std_per_range"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name}={value!r}: a finite number >= 0")
+                raise ConfigError(name, value, "a finite number >= 0")
         if self.meas_std_floor_m == 0 and self.meas_std_per_range == 0:
-            raise ValueError("meas_std_floor_m=0: > 0 when meas_std_per_range is 0 (measurement noise must be > 0)")
+            raise ConfigError("meas_std_floor_m", self.meas_std_floor_m, "> 0 when meas_std_per_range is 0 (measurement noise must be > 0)")
         for name in ("confirm_hits", "adapt_after_hits"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"{name}={value!r}: an integer >= 1")
+                raise ConfigError(name, value, "an integer >= 1")
 
     @property
     def adaptive(self) -> bool:

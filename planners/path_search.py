@@ -40,6 +40,7 @@ import numpy as np
 from numba import njit
 
 from perception.types import OccupancySnapshot
+from sim.checks import ConfigError
 
 __all__ = ["PathSearchConfig", "PathSearchResult", "search_path"]
 
@@ -83,17 +84,17 @@ class PathSearchConfig:
 
     def __post_init__(self) -> None:
         if not self.unknown_penalty >= 0.0:
-            raise ValueError(f"unknown_penalty={self.unknown_penalty!r}: allowed >= 0")
+            raise ConfigError("unknown_penalty", self.unknown_penalty, "allowed >= 0")
         if not self.heuristic_weight >= 1.0:
-            raise ValueError(f"heuristic_weight={self.heuristic_weight!r}: allowed >= 1")
+            raise ConfigError("heuristic_weight", self.heuristic_weight, "allowed >= 1")
         if not self.max_expansions >= 1:
-            raise ValueError(f"max_expansions={self.max_expansions!r}: allowed >= 1")
+            raise ConfigError("max_expansions", self.max_expansions, "allowed >= 1")
         if not self.goal_search_radius_m >= 0.0:
-            raise ValueError(f"goal_search_radius_m={self.goal_search_radius_m!r}: allowed >= 0")
+            raise ConfigError("goal_search_radius_m", self.goal_search_radius_m, "allowed >= 0")
         if not self.max_segment_m > 0.0:
-            raise ValueError(f"max_segment_m={self.max_segment_m!r}: allowed > 0")
+            raise ConfigError("max_segment_m", self.max_segment_m, "allowed > 0")
         if not self.min_altitude_m < self.max_altitude_m:
-            raise ValueError(f"max_altitude_m={self.max_altitude_m!r}: allowed > min_altitude_m")
+            raise ConfigError("max_altitude_m", self.max_altitude_m, "allowed > min_altitude_m")
 
 
 @dataclass(frozen=True)

@@ -50,6 +50,7 @@ import numpy as np
 from numba import njit
 
 from perception.types import DistanceField, NeighborPrediction, OccupancySnapshot
+from sim.checks import ConfigError
 
 __all__ = ["NeighborTable", "PenaltyParameters", "PenaltyTerms", "TrajectoryCost"]
 
@@ -98,7 +99,7 @@ class PenaltyParameters:
     def __post_init__(self) -> None:
         for name in ("v_max_mps", "a_max_mps2", "swarm_clearance_m"):
             if not getattr(self, name) > 0.0:
-                raise ValueError(f"{name}={getattr(self, name)!r}: must be > 0")
+                raise ConfigError(name, getattr(self, name), "must be > 0")
         for name in (
             "obstacle_clearance_m",
             "clearance_margin_m",
@@ -110,13 +111,13 @@ class PenaltyParameters:
             "weight_swarm",
         ):
             if not getattr(self, name) >= 0.0:
-                raise ValueError(f"{name}={getattr(self, name)!r}: must be >= 0")
+                raise ConfigError(name, getattr(self, name), "must be >= 0")
         if not self.swarm_recovery_mps > 0.0:  # inf allowed
-            raise ValueError(f"swarm_recovery_mps={self.swarm_recovery_mps!r}: must be > 0 (inf: no relaxation)")
+            raise ConfigError("swarm_recovery_mps", self.swarm_recovery_mps, "must be > 0 (inf: no relaxation)")
         if not self.swarm_z_scale >= 1.0:
-            raise ValueError(f"swarm_z_scale={self.swarm_z_scale!r}: must be >= 1")
+            raise ConfigError("swarm_z_scale", self.swarm_z_scale, "must be >= 1")
         if not (isinstance(self.samples_per_piece, int) and self.samples_per_piece >= 2):
-            raise ValueError(f"samples_per_piece={self.samples_per_piece!r}: must be an int >= 2")
+            raise ConfigError("samples_per_piece", self.samples_per_piece, "must be an int >= 2")
 
 
 class NeighborTable:

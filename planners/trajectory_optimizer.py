@@ -40,6 +40,7 @@ from planners.trajectory_cost import (
     _penalty_kernel,
     _sample_positions,
 )
+from sim.checks import ConfigError
 
 __all__ = [
     "TrajectoryOptimizationError",
@@ -112,19 +113,19 @@ class TrajectoryOptimizerConfig:
     def __post_init__(self) -> None:
         for name in ("weight_energy", "weight_time"):
             if not getattr(self, name) >= 0.0:
-                raise ValueError(f"{name}={getattr(self, name)!r}: must be >= 0")
+                raise ConfigError(name, getattr(self, name), "must be >= 0")
         for name in ("max_piece_length_m", "gradient_tolerance"):
             if not getattr(self, name) > 0.0:
-                raise ValueError(f"{name}={getattr(self, name)!r}: must be > 0")
+                raise ConfigError(name, getattr(self, name), "must be > 0")
         if not 0.0 < self.initial_speed_fraction <= 1.0:
-            raise ValueError(f"initial_speed_fraction={self.initial_speed_fraction!r}: must be in (0, 1]")
+            raise ConfigError("initial_speed_fraction", self.initial_speed_fraction, "must be in (0, 1]")
         if not self.relative_cost_tolerance >= 0.0:
-            raise ValueError(f"relative_cost_tolerance={self.relative_cost_tolerance!r}: must be >= 0")
+            raise ConfigError("relative_cost_tolerance", self.relative_cost_tolerance, "must be >= 0")
         for name in ("max_iterations", "lbfgs_memory", "min_pieces"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
-                raise ValueError(f"{name}={getattr(self, name)!r}: must be an int >= 1")
+                raise ConfigError(name, getattr(self, name), "must be an int >= 1")
         if self.solver not in ("lbfgs", "scipy"):
-            raise ValueError(f"solver={self.solver!r}: must be 'lbfgs' or 'scipy'")
+            raise ConfigError("solver", self.solver, "must be 'lbfgs' or 'scipy'")
         self.penalty_parameters()  # validates the penalty fields (ValueError, one line)
 
     def penalty_parameters(self) -> PenaltyParameters:

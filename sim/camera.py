@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.checks import ConfigError
+
 __all__ = [
     "CameraConfig",
     "apply_depth_sensor_model",
@@ -79,25 +81,26 @@ class CameraConfig:
         for name in ("width_px", "height_px"):
             v = getattr(self, name)
             if not (isinstance(v, int) and 16 <= v <= 4096):
-                raise ValueError(f"{name}={v!r}: an integer in [16, 4096]")
+                raise ConfigError(name, v, "an integer in [16, 4096]")
         for name in ("hfov_deg", "vfov_deg"):
             v = getattr(self, name)
             if not 1.0 <= v <= 170.0:
-                raise ValueError(f"{name}={v!r}: a field of view in [1, 170] deg")
+                raise ConfigError(name, v, "a field of view in [1, 170] deg")
         if not self.rate_hz > 0:
-            raise ValueError(f"rate_hz={self.rate_hz!r}: must be > 0")
+            raise ConfigError("rate_hz", self.rate_hz, "must be > 0")
         if not 0 < self.depth_min_m < self.depth_max_m:
-            raise ValueError(f"depth_max_m={self.depth_max_m!r}: must exceed depth_min_m={self.depth_min_m!r} > 0")
+            raise ConfigError("depth_max_m", self.depth_max_m, f"must exceed depth_min_m={self.depth_min_m!r} > 0")
         if self.render_far_m < self.depth_max_m:
-            raise ValueError(f"render_far_m={self.render_far_m!r}: must be >= depth_max_m={self.depth_max_m!r}")
+            raise ConfigError("render_far_m", self.render_far_m, f"must be >= depth_max_m={self.depth_max_m!r}")
         if self.depth_noise_base_m < 0 or self.depth_noise_quadratic_per_m < 0:
-            raise ValueError("depth noise coefficients must be >= 0")
+            bad = "depth_noise_base_m" if self.depth_noise_base_m < 0 else "depth_noise_quadratic_per_m"
+            raise ConfigError(bad, getattr(self, bad), "a number >= 0")
         if not 0.0 <= self.invalid_pixel_fraction < 1.0:
-            raise ValueError(f"invalid_pixel_fraction={self.invalid_pixel_fraction!r}: in [0, 1)")
+            raise ConfigError("invalid_pixel_fraction", self.invalid_pixel_fraction, "in [0, 1)")
         if self.latency_s < 0:
-            raise ValueError(f"latency_s={self.latency_s!r}: must be >= 0")
+            raise ConfigError("latency_s", self.latency_s, "must be >= 0")
         if self.renderer not in ("tiny", "raycast"):
-            raise ValueError(f"renderer={self.renderer!r}: allowed 'tiny' or 'raycast'")
+            raise ConfigError("renderer", self.renderer, "allowed 'tiny' or 'raycast'")
 
     @property
     def render_near_m(self) -> float:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from sim.checks import ConfigError
 from sim.controller import ControllerGains
 from sim.quadrotor_params import QuadrotorParams
 
@@ -29,5 +30,5 @@ class PhysicsConfig:
 
     def __post_init__(self) -> None:
         if not 50.0 <= self.physics_hz <= 2000.0:
-            raise ValueError(f"physics_hz={self.physics_hz!r}: in [50, 2000] Hz")
+            raise ConfigError("physics_hz", self.physics_hz, "in [50, 2000] Hz")
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.checks import ConfigError
 from sim.ground_truth import TrueState
 from sim.rotations import quat_xyzw_from_rotation
 from sim.types import PoseEstimate
@@ -44,7 +45,7 @@ class PoseEstimateConfig:
         for name in ("pos_noise_m", "vel_noise_mps", "yaw_noise_rad", "pos_drift_m_per_sqrt_s", "yaw_drift_rad_per_sqrt_s"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name}={v!r}: a finite value >= 0")
+                raise ConfigError(name, v, "a finite value >= 0")
 
 
 class PoseEstimator:

@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sim.checks import ConfigError
+
 __all__ = ["GRAVITY_MPS2", "QuadrotorParams"]
 
 GRAVITY_MPS2 = 9.81
@@ -54,11 +56,11 @@ class QuadrotorParams:
     def __post_init__(self) -> None:
         for name in ("mass_kg", "arm_length_m", "thrust_coeff", "torque_coeff", "motor_speed_max_radps"):
             if not getattr(self, name) > 0:
-                raise ValueError(f"{name}={getattr(self, name)!r}: must be > 0")
+                raise ConfigError(name, getattr(self, name), "must be > 0")
         if len(self.inertia_kgm2) != 3 or min(self.inertia_kgm2) <= 0:
-            raise ValueError(f"inertia_kgm2={self.inertia_kgm2!r}: three positive moments")
+            raise ConfigError("inertia_kgm2", self.inertia_kgm2, "three positive moments")
         if self.motor_time_constant_s < 0:
-            raise ValueError(f"motor_time_constant_s={self.motor_time_constant_s!r}: must be >= 0")
+            raise ConfigError("motor_time_constant_s", self.motor_time_constant_s, "must be >= 0")
 
     @property
     def max_thrust_per_motor_n(self) -> float:

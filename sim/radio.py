@@ -25,6 +25,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from sim.checks import ConfigError
 from sim.types import RadioMessage
 
 __all__ = ["Radio", "RadioConfig"]
@@ -66,20 +67,20 @@ class RadioConfig:
 
     def __post_init__(self) -> None:
         if not self.rate_hz > 0:
-            raise ValueError(f"rate_hz={self.rate_hz!r}: must be > 0")
+            raise ConfigError("rate_hz", self.rate_hz, "must be > 0")
         if not self.delay_s >= 0:
-            raise ValueError(f"delay_s={self.delay_s!r}: must be >= 0")
+            raise ConfigError("delay_s", self.delay_s, "must be >= 0")
         if self.loss_model not in ("none", "bernoulli", "gilbert_elliott"):
-            raise ValueError(f"loss_model={self.loss_model!r}: allowed 'none', 'bernoulli', 'gilbert_elliott'")
+            raise ConfigError("loss_model", self.loss_model, "allowed 'none', 'bernoulli', 'gilbert_elliott'")
         for name in ("loss_probability", "ge_p_good_to_bad", "ge_p_bad_to_good", "ge_loss_good", "ge_loss_bad"):
             v = getattr(self, name)
             if not 0.0 <= v <= 1.0:
-                raise ValueError(f"{name}={v!r}: a probability in [0, 1]")
+                raise ConfigError(name, v, "a probability in [0, 1]")
         if not self.range_m > 0:
-            raise ValueError(f"range_m={self.range_m!r}: must be > 0 (inf for no limit)")
+            raise ConfigError("range_m", self.range_m, "must be > 0 (inf for no limit)")
         for w in self.jamming_windows_s:
             if len(w) != 2 or not w[0] < w[1]:
-                raise ValueError(f"jamming_windows_s={self.jamming_windows_s!r}: pairs (t1, t2) with t1 < t2")
+                raise ConfigError("jamming_windows_s", self.jamming_windows_s, "pairs (t1, t2) with t1 < t2")
 
     def stationary_loss_rate(self) -> float:
         """Long-run drop probability of the loss model alone."""

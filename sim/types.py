@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from sim.checks import ConfigError
+
 __all__ = [
     "ObstacleSpec",
     "FlatOutputReference",
@@ -173,13 +175,13 @@ class ObstacleSpec:
 
     def __post_init__(self) -> None:
         if self.kind not in ("tree", "box"):
-            raise ValueError(f"kind={self.kind!r}: allowed 'tree' or 'box'")
+            raise ConfigError("kind", self.kind, "allowed 'tree' or 'box'")
         if self.height_m <= 0:
-            raise ValueError(f"height_m={self.height_m!r}: must be > 0")
+            raise ConfigError("height_m", self.height_m, "must be > 0")
         if self.kind == "tree" and self.radius_m <= 0:
-            raise ValueError(f"radius_m={self.radius_m!r}: a tree needs a radius > 0")
+            raise ConfigError("radius_m", self.radius_m, "a tree needs a radius > 0")
         if self.kind == "box" and min(self.half_extents_xy) <= 0:
-            raise ValueError(f"half_extents_xy={self.half_extents_xy!r}: a box needs positive half sizes")
+            raise ConfigError("half_extents_xy", self.half_extents_xy, "a box needs positive half sizes")
 
     @property
     def footprint_radius_m(self) -> float:

@@ -14,17 +14,16 @@ own fast state estimate); onboard planning reads the VIO-like pose estimate of
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
 import pybullet as pb
 
-from sim.controller import ControllerGains, SE3Controller
+from sim.controller import SE3Controller
 from sim.ground_truth import TrueState
 from sim.motors import MotorBank
 from sim.physics_config import PhysicsConfig
-from sim.quadrotor_params import GRAVITY_MPS2, QuadrotorParams
+from sim.quadrotor_params import GRAVITY_MPS2
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import SceneSpec, build_obstacles, load_drones
 from sim.types import FlatOutputReference

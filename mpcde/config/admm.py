@@ -11,7 +11,6 @@ planner's defaults.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Literal, get_args
 
@@ -20,6 +19,7 @@ import numpy as np
 from mpcde.errors import ConfigError
 from planners.dmpc.admm_config import AdmmFormationConfig
 from planners.dmpc.formation_graph import FormationGraph, complete_edges, ring_edges
+from sim.checks import is_finite_at_least, require_non_negative, require_positive
 
 __all__ = ["EXCHANGES_PER_ITERATION", "AdmmAgentConfig", "GraphKind"]
 
@@ -111,18 +111,16 @@ class AdmmAgentConfig:
             "max_start_offset_m": "m",
         }  # fmt: skip
         for name, unit in positive.items():
-            if not _finite_at_least(getattr(self, name), 0.0, strict=True):
-                raise ConfigError(name, getattr(self, name), "a finite number > 0" + (f" [{unit}]" if unit else ""))
+            require_positive(name, getattr(self, name), unit)
         non_negative = {
             "weight_formation": "1/m^2", "weight_tracking": "1/m^2", "weight_terminal_formation": "1/m^2",
             "weight_terminal_tracking": "1/m^2", "arena_margin_m": "m", "state_tolerance_m": "m",
             "state_tolerance_mps": "m/s",
         }  # fmt: skip
         for name, unit in non_negative.items():
-            if not _finite_at_least(getattr(self, name), 0.0):
-                raise ConfigError(name, getattr(self, name), f"a finite number >= 0 [{unit}]")
+            require_non_negative(name, getattr(self, name), unit)
         lo, hi = self.altitude_range_m
-        if not (_finite_at_least(lo, 0.0) and _finite_at_least(hi, 0.0) and lo < hi):
+        if not (is_finite_at_least(lo, 0.0) and is_finite_at_least(hi, 0.0) and lo < hi):
             allowed = "(lowest, highest) with 0 <= lowest < highest [m]"
             raise ConfigError("altitude_range_m", self.altitude_range_m, allowed)
         if self.graph not in get_args(GraphKind):  # from_dict checks the Literal; this catches replace()
@@ -177,9 +175,3 @@ class AdmmAgentConfig:
         n = goals.shape[0]
         edges = complete_edges(n) if self.graph == "complete" else ring_edges(n)
         return FormationGraph(goals - goals.mean(axis=0), edges)
-
-
-def _finite_at_least(value: object, low: float, strict: bool = False) -> bool:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        return False
-    return value > low if strict else value >= low

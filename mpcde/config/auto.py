@@ -5,7 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from mpcde.errors import ConfigError, require_finite_positive
+from mpcde.errors import ConfigError
+from sim.checks import require_instance, require_positive
 
 __all__ = ["AutoAgentConfig", "FusionConfig"]
 
@@ -28,7 +29,8 @@ class FusionConfig:
     gate_m: float = 1.0
 
     def __post_init__(self) -> None:
-        require_finite_positive(self, "stale_after_s", "gate_m")
+        require_positive("stale_after_s", self.stale_after_s, "s")
+        require_positive("gate_m", self.gate_m, "m")
 
 
 
@@ -62,7 +64,8 @@ class AutoAgentConfig:
     fusion: FusionConfig = field(default_factory=FusionConfig)
 
     def __post_init__(self) -> None:
-        require_finite_positive(self, "radio_silence_s")
+        require_positive("radio_silence_s", self.radio_silence_s, "s")
+        require_instance("fusion", self.fusion, FusionConfig)
         m = self.plan_memory_s
         if isinstance(m, bool) or not (isinstance(m, (int, float)) and math.isfinite(m) and m >= 0):
             raise ConfigError("plan_memory_s", m, "a finite number >= 0 [s] (0: no radio memory in denied mode)")

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
-
-from mpcde.errors import require_finite_positive
 from perception.map_config import MapConfig
-from planners.yaw import YawPlannerConfig
+from planners.yaw.config import YawPlannerConfig
+from sim.checks import require_at_least, require_boolean, require_instance, require_non_negative, require_positive
 
 __all__ = ["DeniedAgentConfig"]
 
@@ -53,6 +51,15 @@ class DeniedAgentConfig:
     yaw: YawPlannerConfig = field(default_factory=YawPlannerConfig)
 
     def __post_init__(self) -> None:
-        require_finite_positive(self, "swarm_clearance_m", "conflict_horizon_s")
-        if not (isinstance(self.swarm_z_scale, (int, float)) and np.isfinite(self.swarm_z_scale) and self.swarm_z_scale >= 1):
-            raise ValueError(f"swarm_z_scale={self.swarm_z_scale!r}: a finite number >= 1")
+        units = {
+            "v_max_mps": "m/s", "a_max_mps2": "m/s^2", "clearance_m": "m", "front_end_clearance_m": "m",
+            "replan_period_s": "s", "yaw_rate_max_radps": "rad/s", "swarm_clearance_m": "m", "conflict_horizon_s": "s",
+        }  # fmt: skip
+        for name, unit in units.items():
+            require_positive(name, getattr(self, name), unit)
+        require_non_negative("start_delay_s", self.start_delay_s, "s")
+        require_at_least("swarm_z_scale", self.swarm_z_scale, 1.0)
+        require_boolean("perceive_neighbours", self.perceive_neighbours)
+        require_boolean("active_yaw", self.active_yaw)
+        require_instance("map", self.map, MapConfig)
+        require_instance("yaw", self.yaw, YawPlannerConfig)

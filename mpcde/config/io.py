@@ -112,24 +112,8 @@ def from_dict(cls: type, data: Any, path: str = "") -> Any:
         kwargs[name] = _convert(value, hints[name], full)
     try:
         return cls(**kwargs)
-    except ConfigError as e:
-        if path and not e.field.startswith(path + "."):
-            raise ConfigError(f"{path}.{e.field}", e.value, e.allowed) from None
-        raise
-    except ValueError as e:  # components outside mpcde raise ValueError("field=value: allowed")
-        msg = str(e).splitlines()[0] if str(e) else "invalid value"
-        field, _, rest = msg.partition("=")
-        if rest and " " not in field:
-            value, _, allowed = rest.partition(": ")
-            raise ConfigError(f"{path}.{field}" if path else field, _Literal(value), allowed or "invalid") from None
-        raise ConfigError(where, data, msg) from None
-
-
-class _Literal(str):
-    """A value already rendered as text (repr returns it unchanged)."""
-
-    def __repr__(self) -> str:
-        return str(self)
+    except ConfigError as e:  # every settings class checks its fields with sim.checks
+        raise e.under(path) from None
 
 
 def to_dict(obj: Any) -> Any:

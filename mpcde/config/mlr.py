@@ -10,6 +10,7 @@ import numpy as np
 
 from mpcde.errors import ConfigError
 from planners.dmpc.mlr.config import MlrConfig
+from sim.checks import is_finite_at_least, require_at_least, require_non_negative, require_positive
 
 __all__ = ["MlrAgentConfig", "TriggerKind"]
 
@@ -74,14 +75,11 @@ class MlrAgentConfig:
             raise ConfigError("trigger", self.trigger, f"allowed: {', '.join(repr(a) for a in get_args(TriggerKind))}")
         units = {"round_s": "s", "d_hat_min_m": "m", "v_max": "m/s", "a_max": "m/s^2", "j_max": "m/s^3"}
         for name, unit in units.items():
-            if not _finite_at_least(getattr(self, name), 0.0, strict=True):
-                raise ConfigError(name, getattr(self, name), f"a finite number > 0 [{unit}]")
-        if not _finite_at_least(self.downwash, 1.0):
-            raise ConfigError("downwash", self.downwash, "a finite number >= 1")
-        if not _finite_at_least(self.arena_margin_m, 0.0):
-            raise ConfigError("arena_margin_m", self.arena_margin_m, "a finite number >= 0 [m]")
+            require_positive(name, getattr(self, name), unit)
+        require_at_least("downwash", self.downwash, 1.0)
+        require_non_negative("arena_margin_m", self.arena_margin_m, "m")
         lo, hi = self.altitude_range_m
-        if not (_finite_at_least(lo, 0.0) and math.isfinite(hi) and lo < hi):
+        if not (is_finite_at_least(lo, 0.0) and math.isfinite(hi) and lo < hi):
             allowed = "(lowest, highest) with 0 <= lowest < highest [m]"
             raise ConfigError("altitude_range_m", self.altitude_range_m, allowed)
         if not isinstance(self.ignore_message_loss, bool):
@@ -111,9 +109,3 @@ class MlrAgentConfig:
             j_max=self.j_max, pos_min_world=tuple(float(v) for v in lo), pos_max_world=tuple(float(v) for v in hi),
             trigger=self.trigger,
         )  # fmt: skip
-
-
-def _finite_at_least(value: object, low: float, strict: bool = False) -> bool:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        return False
-    return value > low if strict else value >= low

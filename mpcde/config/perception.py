@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 from perception.backprojection import BackprojectionConfig
 from perception.tracker_config import TrackerConfig
+from sim.checks import ConfigError
 
 __all__ = ["DetectorRequest", "PerceptionConfig"]
 
@@ -46,7 +47,7 @@ class PerceptionConfig:
     def __post_init__(self) -> None:
         thr = self.detector_score_threshold
         if thr is not None and not (isinstance(thr, (int, float)) and 0.0 <= thr <= 1.0):
-            raise ValueError(f"detector_score_threshold={thr!r}: a number in [0, 1] or null")
+            raise ConfigError("detector_score_threshold", thr, "a number in [0, 1] or null")
 
     def detector_request(self) -> DetectorRequest:
         """What the loop's batched detector loads for an agent with this perception."""

@@ -16,16 +16,7 @@ Experiments (16 UAVs; :mod:`mpcde.evals.mlr_swarm` for the model and metrics):
 * ``fig3c_triggers`` (Sec. 5.3, Fig. 3c): the same with 3 CUs and the RR, DB
   and HT triggers (the HT row is the 3-CU row of ``fig3b_cus``, reused).
 
-Measured (seeds 0-1, this code): in ``fig4_swap`` MLR-DMPC had no collision
-(min distance 0.446 / 0.448 m against d̂_min = 0.45 m); the ignore-loss
-baseline collided with seed 0 (one pair, 0.099 m) but not with seed 1 (min
-0.289 m, above d_min = 0.25 m), its references jumping by up to 0.85-1.16 m.
-Under 25 % Bernoulli loss MLR-DMPC stayed collision-free but spent almost
-every round in MLR (each CU misses one of the other two CU messages in 44 %
-of the rounds) and did not finish the swap in 40 s. Formation changes took
-30.4 / 18.7 / 15.3 s in all with 1 / 2 / 3 CUs (Fig. 3b: the gain from 1 to 2
-is the largest, as in the paper), and 18.0 (RR) / 20.3 (DB) / 15.3 (HT) s
-with 3 CUs: unlike the paper's Fig. 3c, RR was not the slowest here; DB was.
+Measured (seeds 0-1, against the paper's Fig. 3b, 3c and 4): docs/results/mlr_dmpc.md.
 
 Writes ``out_dir/results.json`` (``{"rows": [...]}``, one row per
 experiment, variant and seed) and ``out_dir/table.md``, and prints the table.

@@ -23,9 +23,9 @@ critically damped tracking transient, e'' + 2 w e' + w^2 e = 0 with w =
 switch: the actual position stays continuous and converges to the new
 reference (a stand-in for the low-level controller; Assumption 1 does not
 hold during it). MLR-DMPC's switches are always continuous (checked:
-``max_reference_jump_m``). In the Fig. 4 setting (:mod:`mpcde.evals.mlr`) the
-baseline collided with seed 0 but not with seed 1: in this kinematic model
-its failure is not certain, it depends on which stale beliefs meet.
+``max_reference_jump_m``). In this kinematic model the baseline's failure
+in the Fig. 4 setting (:mod:`mpcde.evals.mlr`) is not certain: it depends on
+which stale beliefs meet (per seed: docs/results/mlr_dmpc.md).
 
 Collisions are pairs whose ellipsoidal distance ||Theta^-1 (p_i - p_j)|| of
 the ACTUAL positions is below ``collision_distance_m`` at any time of a fine
@@ -44,12 +44,12 @@ from typing import Any
 
 import numpy as np
 
-from planners.checks import require_boolean, require_integer_at_least, require_non_negative, require_positive
 from planners.dmpc.collision import ellipsoidal_distance
 from planners.dmpc.mlr.compute_unit import ComputeUnit, CuStepReport, summarize_reports
 from planners.dmpc.mlr.config import MlrConfig
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory
 from planners.dmpc.mlr.uav import Uav, initial_trajectory
+from sim.checks import ConfigError, require_boolean, require_integer_at_least, require_non_negative, require_positive
 from sim.radio import Radio, RadioConfig
 
 __all__ = ["MlrRunResult", "MlrSwarmConfig", "run_mlr_swarm"]
@@ -102,17 +102,17 @@ class MlrSwarmConfig:
         require_boolean("ignore_message_loss", self.ignore_message_loss)
         for w in self.cu_deaf_windows_s:
             if len(w) != 2 or not w[0] < w[1]:
-                raise ValueError(f"cu_deaf_windows_s={self.cu_deaf_windows_s!r}: pairs (t1, t2) with t1 < t2")
+                raise ConfigError("cu_deaf_windows_s", self.cu_deaf_windows_s, "pairs (t1, t2) with t1 < t2")
         require_positive("calc_s", self.calc_s)
         if not self.calc_s + self.radio.delay_s < self.mlr.round_s:
-            raise ValueError(f"calc_s={self.calc_s!r}: calc_s + radio.delay_s < round_s={self.mlr.round_s}")
+            raise ConfigError("calc_s", self.calc_s, f"calc_s + radio.delay_s < round_s={self.mlr.round_s}")
         require_positive("collision_distance_m", self.collision_distance_m)
         require_positive("arrival_tolerance_m", self.arrival_tolerance_m)
         require_integer_at_least("fine_steps_per_round", self.fine_steps_per_round, 1)
         require_positive("tracking_natural_freq_rad_s", self.tracking_natural_freq_rad_s)
         require_non_negative("disturbance_m", self.disturbance_m)
         if self.cu_positions_world and np.shape(self.cu_positions_world) != (self.mlr.n_cus, 3):
-            raise ValueError(f"cu_positions_world={self.cu_positions_world!r}: n_cus={self.mlr.n_cus} (x, y, z) points")
+            raise ConfigError("cu_positions_world", self.cu_positions_world, f"n_cus={self.mlr.n_cus} (x, y, z) points")
 
     def cu_deaf(self, time_s: float) -> bool:
         """Whether CUs receive nothing at ``time_s`` [s]."""

@@ -47,6 +47,7 @@ from perception.backprojection import pose_noise_cov, ray_covariance
 from perception.tracker import COASTING, CONFIRMED, Measurement, MultiTargetTracker
 from perception.tracker_config import TrackerConfig
 from sim.camera import CameraConfig
+from sim.checks import ConfigError
 from sim.pose_estimate import PoseEstimateConfig, PoseEstimator
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 
@@ -97,27 +98,11 @@ class SyntheticMeasurements:
     ``along_std_base_m + along_std_quadratic_per_m * r^2`` (a stereo depth
     error grows with the square of range) and across it with std
     ``across_std_base_m + across_std_per_range * r`` (the box centre's pixel
-    error), ``r`` the range. Defaults: fitted to the ``"pipeline"`` source's
-    errors with a perfect pose estimate on the tuning seeds 100-104
-    (0.5 and 2 m/s, 30 s each, render -> detect -> back-project;
-    ``mpcde eval-tracking`` scores seeds 0-9): along-ray std 0.011 / 0.014 /
-    0.022 / 0.035 / 0.049 m and across-ray std per axis 0.010 / 0.009 /
-    0.010 / 0.011 / 0.011 m in the 1 m range bins from 2 to 7 m (the model
-    gives 0.011 / 0.017 / 0.025 / 0.035 / 0.047 and 0.008 / 0.009 / 0.010 /
-    0.010 / 0.011 m at the bin centres). The former default, an isotropic
-    ``0.02 m + 1 %`` of range per axis, was 3-6 times the pipeline's error
-    across the ray and 1.3-4 times along it.
-
-    Misses and false positives, calibrated the same way: on those runs (with
-    the default pose estimate) the pipeline missed 5.3 / 1.9 / 3.4 % of the
-    (frame, target) pairs in view at 0.5 / 1 / 2 m/s; runs of 5 or more
-    missed frames (a target hidden behind another) held 4.1 / 1.2 / 1.6 % of
-    them and two thirds of the miss runs were single frames; false positives
-    came at 0.003-0.004 per frame. Defaults: ``p_miss`` 0.02 per frame,
-    occlusions of 0.2-0.8 s starting with ``p_occlusion`` 0.002 per frame
-    (about 2.5 % of the frames), ``false_positive_rate`` 0.005. The former
-    defaults (0.1, 0.005, 0.05) were two to ten times harsher; pass them to
-    stress the tracker.
+    error), ``r`` the range; then random misses, occlusions and false
+    positives (Attributes). Defaults: fitted to the ``"pipeline"`` source's
+    measurements on the tuning seeds 100-104 (the noise with a perfect pose
+    estimate; ``mpcde eval-tracking`` scores seeds 0-9). The fit, and the
+    former, harsher defaults (to stress the tracker): docs/results/tracking_eval.md.
 
     Observer pose error: the observer's own position and heading estimate come
     from :class:`sim.pose_estimate.PoseEstimator` with ``pose_estimate`` (the
@@ -171,7 +156,7 @@ class SyntheticMeasurements:
         for name in ("along_std_base_m", "along_std_quadratic_per_m", "across_std_base_m", "across_std_per_range"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name}={value!r}: a finite number >= 0")
+                raise ConfigError(name, value, "a finite number >= 0")
         if self.along_std_base_m == 0 and self.along_std_quadratic_per_m == 0:
             raise ValueError("along_std_base_m=0: > 0 when along_std_quadratic_per_m is 0 (noise must be > 0)")
         if self.across_std_base_m == 0 and self.across_std_per_range == 0:
@@ -370,10 +355,8 @@ def run_eval_tracking(
             (:class:`mpcde.evals.tracking_pipeline.PipelineMeasurements`: render ->
             detect -> back-project; both filters see the same measurements).
         seeds: one run per seed; seed ``s`` has ``1 + s % 3`` targets. Ten by
-            default: at 0.5 m/s the AKF and the KF differ by about 1 mm of
-            position RMSE, less than the spread between 3-seed runs (seeds
-            0-2 gave the KF 0.057 m against the AKF's 0.058 m in pipeline
-            mode; seeds 0-9 give 0.050 against 0.049).
+            default: at 0.5 m/s the AKF-KF gap is within the spread of
+            3-seed runs (measured: docs/results/tracking_eval.md).
         duration_s: length of each run [s].
         progress: show a tqdm progress bar.
         tracker_config: base tracker settings (its ``filter`` is overridden).

@@ -45,6 +45,7 @@ from perception.backprojection import BackprojectionConfig, backproject
 from perception.tracker import Measurement
 from sim.camera import CameraConfig
 from sim.camera_rig import CameraRig
+from sim.checks import ConfigError
 from sim.pose_estimate import PoseEstimateConfig, PoseEstimator
 from sim.quadrotor_params import GRAVITY_MPS2
 from sim.rotations import quat_xyzw_from_rotation, rotation_from_thrust_axis_and_yaw
@@ -132,9 +133,9 @@ class PipelineMeasurements:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.n_background_trees, int) and self.n_background_trees >= 0):
-            raise ValueError(f"n_background_trees={self.n_background_trees!r}: an integer >= 0")
+            raise ConfigError("n_background_trees", self.n_background_trees, "an integer >= 0")
         if not (isinstance(self.batch_frames, int) and self.batch_frames >= 1):
-            raise ValueError(f"batch_frames={self.batch_frames!r}: an integer >= 1")
+            raise ConfigError("batch_frames", self.batch_frames, "an integer >= 1")
         from perception.detector.detector import DroneDetector
 
         # loaded once: a missing or corrupt checkpoint fails at construction, and every run reuses it

@@ -93,9 +93,8 @@ def make_scenario(
     (turn rate changed at 3 rad/s^2) and eases off to ``0.8 speed_mps``; once
     its course stays inside it flies straight at a new speed in
     ``[1.0, 1.3] * speed_mps``. At 2 m/s it still overshoots the region now
-    and then (seeds 0-4: 95-100 % of the time inside; mean speed about
-    0.93 ``speed_mps`` at 0.5 and 1 m/s, 0.81 ``speed_mps`` at 2 m/s because
-    it turns back often). Height follows a gentle climb and descent,
+    and then, and it turns back often (time inside and mean speed measured:
+    docs/results/tracking_eval.md). Height follows a gentle climb and descent,
     ``z = z_obs + c + A sin(0.5 t + phase)`` with ``|c| <= 0.2`` m and
     ``A = min(0.4 speed_mps, 0.55)`` m. Integrated at 10
     sub-steps per frame.

@@ -54,9 +54,9 @@ over :mod:`sim.radio`. Choices:
 radio). The rules keep the multipliers consistent, paper Eq. (5): for every
 drone j, the entries of gamma on p_j (j's own and every copy of it) sum to
 zero, which is what makes Steps 5-7 the exact consensus step (4b)
-(:mod:`planners.dmpc.admm_formation`); a rule that broke it (e.g. averaging
-with a neighbour's last received copy) left the multipliers a bias that
-never decays: with 20 % loss the formation stopped 0.8 m short of its goals.
+(:mod:`planners.dmpc.admm_formation`); a rule that breaks it (e.g. averaging
+with a neighbour's last received copy) leaves the multipliers a bias that
+never decays (what it did under loss: docs/results/admm_formation.md).
 
 1. A copy that did not reach its owner j is left out of j's average
    (xbar_j is the mean of p_j and the copies received), and j's means bundle
@@ -87,16 +87,7 @@ No collision avoidance and no obstacles: the OCP has neither, so the scenario
 check refuses obstacles and starts that are not in the goals' formation
 (:class:`mpcde.config.scenario.ScenarioConfig`).
 
-Measured on ``formation_open`` (four drones, a 1.6 m square from starts
-scattered by up to 0.36 m, 10 m at 1 m/s; cameras off), seed 0: the
-formation error chi is 5 cm after 1.05 s, 8-14 mm while cruising (the OCP's
-balance of the formation term against each drone's own line, which starts
-off the formation) and 0.3 mm at the end; all arrive in 10.48 s, min
-distance 1.298 m. The same with 20 % Bernoulli loss (750 copies and 701
-means missed, 700 resolved), 50 % (71 of 1778 missed means unresolved,
-chi 1.3 mm at the end, 10.51 s), Gilbert-Elliott loss, a 2 s jamming
-window, an 18 ms delay (1368 late messages): no collision, no aborted step.
-DMPC (``--mode comm``, 5 Hz) on the same file: 7.93 s, chi 0.6 mm at the end.
+Measured (``formation_open``, ideal and lossy radio, against DMPC): docs/results/admm_formation.md.
 """
 
 from __future__ import annotations

@@ -39,10 +39,7 @@ half the scenario's obstacle list (the on-demand DMPC paper's known
 obstacles), the denied half its own camera map. ``denied.perceive_neighbours:
 false`` turns the perception off for both halves (the blind-fallback ablation).
 
-Measured on radio_outage (forest_swarm, every receiver deaf from 3 s to
-15 s), seeds 0-5, against comm and denied: ``docs/results/radio_outage.md``
-(the per-seed table with its command and commit, and the history of what
-was tried: the radio memory, the tracking-mode swing, the diagnosed grazes).
+Measured (radio_outage, against comm and denied; what was tried): docs/results/radio_outage.md.
 """
 
 from __future__ import annotations

@@ -236,14 +236,8 @@ class DeniedAgent:
 
         ``distance`` maps (n, 3) points [m] to their obstacle distance (n,) [m]:
         :meth:`perception.occupancy_map.OccupancyMap.clearance` on the hot
-        path, the fresh snapshot's ESDF for a new plan.
-
-        Tried and dropped: the front end's escape rule here (a plan starting
-        inside that band, e.g. next to phantom voxels mapped off a neighbour's
-        body, is safe if it never comes closer than it starts). On
-        ``radio_outage`` seeds 0-5 (with the committed stop of :meth:`_brake`)
-        it moved auto's one collision from seed 5 to seed 3 and took denied
-        from 5 collisions to 7.
+        path, the fresh snapshot's ESDF for a new plan. No escape rule for a
+        plan starting inside the band (tried and dropped: docs/results/radio_outage.md).
         """
         tau = np.linspace(max(t - traj.t0_s, 0.0), traj.total_duration, 40)
         d = distance(traj.pos(tau))

@@ -4,10 +4,10 @@ Every drone runs the same shipped detector (:class:`perception.detector.detector
 on its OWN frame; nothing crosses between drones. The loop hands the frames of
 one camera tick to :meth:`BatchedDetector.detect` so that the network runs one
 forward pass over the batch (DESIGN.md: "Inference is batched across drones";
-``benchmarks/bench_detector.py``: 2.85 ms per frame batched over 6 against
-3.92 ms one at a time), then gives each agent its own frame's detections with
-its frame. Only agents that ask for detections (a ``detector_request`` that
-is not None) are served; with none, no detector is loaded.
+measured: docs/results/detector.md), then gives each agent its own frame's
+detections with its frame. Only agents that ask for detections (a
+``detector_request`` that is not None) are served; with none, no detector is
+loaded.
 
 Threads: in flight the detector shares the machine with the render workers,
 so :meth:`BatchedDetector.single_threaded` runs torch on one intra-op thread

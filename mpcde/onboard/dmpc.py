@@ -13,10 +13,9 @@ DESIGN.md section 3) the loop first hands the agent its inbox
    tracking the plan), x0 is the plan's state instead. Why: the goal cost
    acts on the last ``goal_steps`` only, so each plan moves slowly in its
    first steps; replanning every round from the estimate then feeds the
-   estimate's noise and the controller's lag into every first step, and in
-   the 8-drone swap (full physics, default pose noise) the drones drifted
-   off their goals (5 of 8 arrived within 20 s; from the plan's state: 8 of
-   8 in 5.4 s). Setting both tolerances to 0 always replans from the estimate.
+   estimate's noise and the controller's lag into every first step, and the
+   drones drift off their goals (measured: docs/results/dmpc_agent.md).
+   Setting both tolerances to 0 always replans from the estimate.
 2. turns the neighbours' latest received plans into
    :class:`perception.types.NeighborPrediction` (source ``"radio"``, stamped
    with the send time, so ``age_s`` is the plan's age). A neighbour with no new

@@ -14,31 +14,16 @@ yaw), so the commanded heading is continuous and never exceeds
 travel, rate-limited (the tracking mode alone: the ablation without active
 perception, and the behaviour before the yaw planner existed).
 
-Measured (``forest_swarm``, 6 drones crossing a forest through the centre,
-seed 0, 40 s, full physics and rendering; ``neighbours tracked`` is the share
-of neighbours within 3 m that had a track, :mod:`mpcde.flight.tracking_score`):
-
-=====================================  ==========  ============  =================
-denied stack                           collisions  min dist [m]  neighbours tracked
-=====================================  ==========  ============  =================
-blind (``perceive_neighbours: false``)  1          0.10          -- (2 drones stuck)
-tracks, heading along travel            1          0.10          0.15
-tracks + active yaw (default)           1          0.19          0.26
-=====================================  ==========  ============  =================
-
 Along travel, two drones converging side by side never enter each other's
-85 deg view. With active yaw the remaining contact is MP-CDE's Fig. 3 hazard: a
-drone observing a tracked neighbour sidesteps it into space verified free
-seconds earlier, where a drone neither had tracked now flies. The safety
-margin (Eq. 1) does not age verified-free space by default, so it cannot see
-that risk (``YawPlannerConfig.free_max_age_s`` ages it; measured there).
+85 deg view; ``YawPlannerConfig.tracking_sweep_deg`` swings the tracking-mode
+camera about the direction of travel for them. The safety margin (Eq. 1) does
+not age verified-free space by default (``YawPlannerConfig.free_max_age_s``
+ages it), so it cannot see MP-CDE's Fig. 3 hazard: a drone observing a
+tracked neighbour sidesteps it into space verified free seconds earlier,
+where a drone neither had tracked now flies.
 
-On radio_outage (seeds 0-5) every contact of the denied stack was between two
-drones with no track of each other, most of them converging side by side at
-78-94 deg bearings, which a forward camera in tracking mode never sees;
-``YawPlannerConfig.tracking_sweep_deg`` (35 deg by default; measured there on
-seeds 0-11: denied 15 collisions -> 1, ``auto`` 2 -> 2) swings the
-tracking-mode camera about the direction of travel.
+Measured (forest_swarm: blind, along travel, active yaw; radio_outage
+contacts): docs/results/yaw_planner.md.
 """
 
 from __future__ import annotations

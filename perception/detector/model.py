@@ -39,6 +39,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from sim.checks import ConfigError
+
 __all__ = ["STRIDE", "DEPTH_SCALE_M", "ModelConfig", "DetectorNet", "encode_frames", "fold_batchnorm"]
 
 STRIDE = 4
@@ -67,11 +69,11 @@ class ModelConfig:
 
     def __post_init__(self) -> None:
         if self.in_channels not in (3, 4):
-            raise ValueError(f"in_channels={self.in_channels!r}: 3 (RGB) or 4 (RGB-D)")
+            raise ConfigError("in_channels", self.in_channels, "3 (RGB) or 4 (RGB-D)")
         for name in ("c1", "c2", "c3", "c4"):
             v = getattr(self, name)
             if not (isinstance(v, int) and 4 <= v <= 256):
-                raise ValueError(f"{name}={v!r}: an integer in [4, 256]")
+                raise ConfigError(name, v, "an integer in [4, 256]")
 
     def to_dict(self) -> dict:
         """Plain dict (for the checkpoint)."""

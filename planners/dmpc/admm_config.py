@@ -16,8 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.checks import (
-    require_boolean, require_box, require_integer_at_least, require_non_negative, require_positive,
+from sim.checks import (
+    ConfigError,
+    require_boolean,
+    require_box,
+    require_integer_at_least,
+    require_non_negative,
+    require_positive,
 )
 
 __all__ = ["AdmmFormationConfig"]
@@ -131,7 +136,7 @@ class AdmmFormationConfig:
         require_integer_at_least("horizon_steps", self.horizon_steps, 2)
         require_positive("step_s", self.step_s)
         if self.model != "double":
-            raise ValueError(f"model={self.model!r}: only 'double' (the formation ADMM couples positions only)")
+            raise ConfigError("model", self.model, "only 'double' (the formation ADMM couples positions only)")
         for name in ("weight_formation", "weight_terminal_formation", "weight_tracking", "weight_terminal_tracking"):
             require_non_negative(name, getattr(self, name))
         require_positive("weight_input", self.weight_input)

@@ -16,8 +16,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.checks import (
-    require_at_least, require_boolean, require_box, require_integer_at_least, require_non_negative, require_positive,
+from sim.checks import (
+    ConfigError,
+    require_at_least,
+    require_boolean,
+    require_box,
+    require_integer_at_least,
+    require_non_negative,
+    require_positive,
 )
 
 __all__ = ["DmpcConfig"]
@@ -171,9 +177,9 @@ class DmpcConfig:
         require_integer_at_least("horizon_steps", self.horizon_steps, 2)
         require_positive("step_s", self.step_s)
         if self.model not in _MODELS:
-            raise ValueError(f"model={self.model!r}: one of {', '.join(_MODELS)}")
+            raise ConfigError("model", self.model, f"one of {', '.join(_MODELS)}")
         if not isinstance(self.goal_steps, (int, np.integer)) or not 1 <= self.goal_steps <= self.horizon_steps:
-            raise ValueError(f"goal_steps={self.goal_steps!r}: an integer in [1, horizon_steps={self.horizon_steps}]")
+            raise ConfigError("goal_steps", self.goal_steps, f"an integer in [1, horizon_steps={self.horizon_steps}]")
         require_positive("weight_goal", self.weight_goal)
         for name in ("weight_formation", "weight_smoothness", "weight_slack_linear"):
             require_non_negative(name, getattr(self, name))
@@ -184,17 +190,17 @@ class DmpcConfig:
             require_positive(name, getattr(self, name))
         require_at_least("downwash", self.downwash, 1.0)
         if self.collision_mode not in _COLLISION_MODES:
-            raise ValueError(f"collision_mode={self.collision_mode!r}: one of {', '.join(_COLLISION_MODES)}")
+            raise ConfigError("collision_mode", self.collision_mode, f"one of {', '.join(_COLLISION_MODES)}")
         if self.neighbourhood_factor < 1.0:
-            raise ValueError(f"neighbourhood_factor={self.neighbourhood_factor!r}: a number >= 1")
+            raise ConfigError("neighbourhood_factor", self.neighbourhood_factor, "a number >= 1")
         require_non_negative("conflict_margin_m", self.conflict_margin_m)
         if self.on_demand_time not in ("first_conflict", "closest_approach"):
-            raise ValueError(f"on_demand_time={self.on_demand_time!r}: one of first_conflict, closest_approach")
+            raise ConfigError("on_demand_time", self.on_demand_time, "one of first_conflict, closest_approach")
         require_integer_at_least("conflict_substeps", self.conflict_substeps, 1)
         require_integer_at_least("max_neighbours", self.max_neighbours, 1)
         require_integer_at_least("max_obstacle_planes", self.max_obstacle_planes, 0)
         if self.obstacle_avoidance not in _OBSTACLE_MODES:
-            raise ValueError(f"obstacle_avoidance={self.obstacle_avoidance!r}: one of {', '.join(_OBSTACLE_MODES)}")
+            raise ConfigError("obstacle_avoidance", self.obstacle_avoidance, f"one of {', '.join(_OBSTACLE_MODES)}")
         for name in ("vertical_obstacle_planes", "obstacle_culling", "terminal_halt"):
             require_boolean(name, getattr(self, name))
         require_positive("osqp_eps_abs", self.osqp_eps_abs)

@@ -4,9 +4,8 @@ Defaults come from MP-CDE (Table I and the text of Sec. IV-A: t_y = 0.1 s,
 n = 12, yaw_rate_max = 2.0 rad/s, eps = 1.2, 0.1 s hysteresis, alpha = 0.6,
 beta = 0.4, 72 rays, t_hold = 0.6 s) and from the camera (RealSense D435i,
 85 deg x 58 deg, DESIGN.md section 4). Values the paper does not give are
-marked "chosen" and say why. Validation raises ``ValueError`` with the one-line
-message ``"<field>=<value!r>: allowed ..."`` (planners/ may not import mpcde;
-mpcde turns these into its ``ConfigError``).
+marked "chosen" and say why. Validation raises :class:`sim.checks.ConfigError` with the one-line
+message ``"<field>=<value!r>: <allowed>"``.
 """
 
 from __future__ import annotations
@@ -14,25 +13,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from sim.checks import ConfigError, require_integer_at_least, require_non_negative, require_positive
+
 __all__ = ["YawPlannerConfig"]
-
-
-def _check_positive(name: str, value: object, inf_means: str = "") -> None:
-    """A finite number > 0; with ``inf_means`` (what inf stands for) inf is allowed too."""
-    finite = isinstance(value, (int, float)) and (math.isfinite(value) or (inf_means and value == math.inf))
-    if isinstance(value, bool) or not (finite and value > 0):
-        allowed = f"number > 0 (inf: {inf_means})" if inf_means else "finite number > 0"
-        raise ValueError(f"{name}={value!r}: allowed {allowed}")
-
-
-def _check_non_negative(name: str, value: object) -> None:
-    if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-        raise ValueError(f"{name}={value!r}: allowed finite number >= 0")
-
-
-def _check_int(name: str, value: object, minimum: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise ValueError(f"{name}={value!r}: allowed integer >= {minimum}")
 
 
 @dataclass(frozen=True)
@@ -192,42 +175,38 @@ class YawPlannerConfig:
             "distance_eps_m",
             "visibility_sigma_ref_m",
         ):
-            _check_positive(name, getattr(self, name))
+            require_positive(name, getattr(self, name))
         for name in ("hysteresis_s", "alpha", "beta", "turn_penalty", "t_hold_s", "window_s", "still_speed_mps"):
-            _check_non_negative(name, getattr(self, name))
+            require_non_negative(name, getattr(self, name))
         if self.alpha + self.beta <= 0.0:
-            raise ValueError(f"beta={self.beta!r}: allowed alpha + beta > 0 (alpha={self.alpha!r})")
-        _check_positive("free_max_age_s", self.free_max_age_s, inf_means="free space never ages")
+            raise ConfigError("beta", self.beta, f"allowed alpha + beta > 0 (alpha={self.alpha!r})")
+        require_positive("free_max_age_s", self.free_max_age_s, inf_means="free space never ages")
         if self.free_distance not in ("horizontal", "voxel"):
-            raise ValueError(f"free_distance={self.free_distance!r}: allowed 'horizontal' or 'voxel'")
-        _check_int("n_steps", self.n_steps, 1)
-        _check_int("n_rays", self.n_rays, 2)
+            raise ConfigError("free_distance", self.free_distance, "allowed 'horizontal' or 'voxel'")
+        require_integer_at_least("n_steps", self.n_steps, 1)
+        require_integer_at_least("n_rays", self.n_rays, 2)
         m_min = math.ceil(2.0 * math.pi / (self.yaw_rate_max_radps * self.period_s) - 1e-9)
-        _check_int("n_candidates", self.n_candidates, max(m_min, 3))
+        require_integer_at_least("n_candidates", self.n_candidates, max(m_min, 3))
         for name, upper in (("fov_h_deg", 360.0), ("fov_v_deg", 180.0)):
             value = getattr(self, name)
-            _check_positive(name, value)
+            require_positive(name, value)
             if not value < upper:
-                raise ValueError(f"{name}={value!r}: allowed 0 < {name} < {upper:g}")
+                raise ConfigError(name, value, f"allowed 0 < {name} < {upper:g}")
         if self.ray_step_m > self.sensing_range_m:
-            raise ValueError(f"ray_step_m={self.ray_step_m!r}: allowed <= sensing_range_m={self.sensing_range_m!r}")
+            raise ConfigError("ray_step_m", self.ray_step_m, f"allowed <= sensing_range_m={self.sensing_range_m!r}")
         if not self.fov_h_deg + math.degrees(self.max_step_rad) < 360.0:
-            raise ValueError(
-                f"fov_h_deg={self.fov_h_deg!r}: allowed < 360 - yaw_rate_max * t_y = "
-                f"{360.0 - math.degrees(self.max_step_rad):.1f} deg (a turn must not wrap the sector onto itself)"
-            )
-        _check_positive("tracking_sweep_period_s", self.tracking_sweep_period_s)
-        _check_non_negative("tracking_sweep_deg", self.tracking_sweep_deg)
+            allowed = f"allowed < 360 - yaw_rate_max * t_y = {360.0 - math.degrees(self.max_step_rad):.1f} deg (a turn must not wrap the sector onto itself)"
+            raise ConfigError("fov_h_deg", self.fov_h_deg, allowed)
+        require_positive("tracking_sweep_period_s", self.tracking_sweep_period_s)
+        require_non_negative("tracking_sweep_deg", self.tracking_sweep_deg)
         if not self.tracking_sweep_deg < self.fov_h_deg / 2:
-            raise ValueError(f"tracking_sweep_deg={self.tracking_sweep_deg!r}: allowed 0 <= sweep < fov_h_deg / 2")
-        _check_positive("visibility_weight_max", self.visibility_weight_max)
+            raise ConfigError("tracking_sweep_deg", self.tracking_sweep_deg, "allowed 0 <= sweep < fov_h_deg / 2")
+        require_positive("visibility_weight_max", self.visibility_weight_max)
         if self.visibility_weight_max < 1.0:
-            raise ValueError(f"visibility_weight_max={self.visibility_weight_max!r}: allowed >= 1")
+            raise ConfigError("visibility_weight_max", self.visibility_weight_max, "allowed >= 1")
         needed = self.tau_thr_s + self.hysteresis_s
         if not self.safety_horizon_s > needed:
-            raise ValueError(
-                f"safety_horizon_s={self.safety_horizon_s!r}: allowed > tau_thr + hysteresis_s = {needed:.3f} s"
-            )
+            raise ConfigError("safety_horizon_s", self.safety_horizon_s, f"allowed > tau_thr + hysteresis_s = {needed:.3f} s")
 
     @property
     def tau_thr_s(self) -> float:

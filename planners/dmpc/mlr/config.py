@@ -13,8 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.checks import (
-    require_at_least, require_boolean, require_box, require_integer_at_least, require_non_negative, require_positive,
+from sim.checks import (
+    ConfigError,
+    require_at_least,
+    require_boolean,
+    require_box,
+    require_integer_at_least,
+    require_non_negative,
+    require_positive,
 )
 
 __all__ = ["MlrConfig", "TRIGGERS"]
@@ -119,16 +125,14 @@ class MlrConfig:
         require_integer_at_least("n_uavs", self.n_uavs, 2)
         require_integer_at_least("n_cus", self.n_cus, 1)
         if self.n_cus >= self.n_uavs:
-            raise ValueError(f"n_cus={self.n_cus!r}: an integer < n_uavs={self.n_uavs} (M < N)")
+            raise ConfigError("n_cus", self.n_cus, f"an integer < n_uavs={self.n_uavs} (M < N)")
         require_positive("round_s", self.round_s)
         require_integer_at_least("horizon_rounds", self.horizon_rounds, 2)
         require_integer_at_least("input_steps_per_round", self.input_steps_per_round, 1)
         require_integer_at_least("collision_checks_per_round", self.collision_checks_per_round, 1)
         if self.collision_checks_per_round % self.input_steps_per_round:
-            raise ValueError(
-                f"collision_checks_per_round={self.collision_checks_per_round!r}: "
-                f"a multiple of input_steps_per_round={self.input_steps_per_round}"
-            )
+            allowed = f"a multiple of input_steps_per_round={self.input_steps_per_round}"
+            raise ConfigError("collision_checks_per_round", self.collision_checks_per_round, allowed)
         for name in ("d_hat_min_m", "v_max", "a_max", "j_max", "weight_pos"):
             require_positive(name, getattr(self, name))
         for name in ("weight_vel", "weight_acc", "weight_jerk", "bvc_margin_m"):
@@ -138,7 +142,7 @@ class MlrConfig:
         require_integer_at_least("max_candidates", self.max_candidates, 1)
         require_integer_at_least("max_kept_deprecated", self.max_kept_deprecated, 1)
         if self.trigger not in TRIGGERS:
-            raise ValueError(f"trigger={self.trigger!r}: one of {', '.join(TRIGGERS)}")
+            raise ConfigError("trigger", self.trigger, f"one of {', '.join(TRIGGERS)}")
         for name in ("priority_scale_rr", "priority_scale_db_m", "priority_scale_ht", "osqp_eps_abs", "osqp_eps_rel"):
             require_positive(name, getattr(self, name))
         require_integer_at_least("osqp_max_iter", self.osqp_max_iter, 1)
