@@ -228,8 +228,8 @@ class ScenarioConfig:
         mlr: the MLR-DMPC agent's settings.
         admm: the ADMM formation DMPC agent's settings. With ``planner.kind:
             admm`` and ``admm.radio_rate_from_step`` (default) the scenario's
-            ``radio.rate_hz`` becomes ``2 admm.l_max / admm.step_s`` (the
-            resolved config, written to the run folder, shows it).
+            ``radio.rate_hz`` is derived, ``2 admm.l_max / admm.step_s``
+            (:mod:`mpcde.config.resolve`, with the other derived fields).
         run: simulation options.
     """
 
@@ -264,8 +264,6 @@ class ScenarioConfig:
         if self.planner.kind == "mlr":
             _check_mlr(self)
         if self.planner.kind == "admm":
-            if self.admm.radio_rate_from_step:  # one radio sub-round per ADMM exchange
-                object.__setattr__(self, "radio", replace(self.radio, rate_hz=self.admm.radio_rate_hz))
             _check_admm(self)
 
 
@@ -309,7 +307,9 @@ def _check_mlr(cfg: ScenarioConfig) -> None:
 def _check_admm(cfg: ScenarioConfig) -> None:
     """The cross-field rules of ``planner.kind: admm`` (:mod:`mpcde.onboard.admm`); raises ConfigError."""
     admm, radio, world = cfg.admm, cfg.radio, cfg.world
-    if abs(radio.rate_hz * admm.step_s - admm.rounds_per_step) > 1e-6:
+    if admm.radio_rate_from_step:  # the rate resolve() gives the radio (mpcde/config/resolve.py)
+        radio = replace(radio, rate_hz=admm.radio_rate_hz)
+    elif abs(radio.rate_hz * admm.step_s - admm.rounds_per_step) > 1e-6:
         allowed = (
             f"must equal 2 x admm.l_max / admm.step_s = {admm.radio_rate_hz:g} Hz for planner.kind 'admm' (one "
             "radio sub-round per ADMM exchange), or set admm.radio_rate_from_step: true"
@@ -416,4 +416,6 @@ def load_scenario(
         if isinstance(planner, dict):  # anything else: from_dict names it
             data["planner"] = {**planner, "kind": planner_kind}
     data.setdefault("name", p.stem)
-    return from_dict(ScenarioConfig, data)
+    from mpcde.config.resolve import resolve
+
+    return resolve(from_dict(ScenarioConfig, data), data)

@@ -27,6 +27,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from mpcde.config.resolve import resolve
 from mpcde.config.scenario import ScenarioConfig, build_layout, check_layout, resolve_obstacles
 from mpcde.flight.metrics import MetricsAccumulator, formation_metrics
 from mpcde.flight.tracking_score import TrackingScore
@@ -91,7 +92,13 @@ class PreparedRun:
 
 
 def prepare_run(cfg: ScenarioConfig) -> PreparedRun:
-    """Resolve layout and obstacles and check them; raises ConfigError, writes nothing."""
+    """Derive the settings that follow from others, resolve layout and obstacles and check them.
+
+    Raises ConfigError, writes nothing. ``PreparedRun.config`` is the resolved
+    scenario (:func:`mpcde.config.resolve.resolve`), the one the run folder's
+    ``config.yaml`` holds.
+    """
+    cfg = resolve(cfg)
     starts, goals = build_layout(cfg.drones)
     obstacles = resolve_obstacles(cfg, starts, goals)
     check_layout(cfg, starts, goals, obstacles)

@@ -54,7 +54,7 @@ from mpcde.config.denied import DeniedAgentConfig
 from mpcde.config.perception import PerceptionConfig
 from mpcde.onboard.base import AgentCounters
 from mpcde.onboard.budget import ComputeBudget
-from mpcde.onboard.heading import ActiveYaw, yaw_config_for
+from mpcde.onboard.heading import ActiveYaw
 from mpcde.onboard.perception import NeighbourPerception, onboard_perception
 from perception.occupancy_map import OccupancyMap
 from perception.types import Detection, NeighborPrediction, OccupancySnapshot
@@ -89,7 +89,6 @@ class DeniedAgent:
         drone_id: index of the drone.
         goal_world: (3,) goal [m].
         config: the scenario's ``denied:`` settings.
-        fov_deg: the camera's (horizontal, vertical) field of view [deg], for the yaw planner.
         perception_config: the scenario's ``perception:`` settings (detector, tracker, back-projection).
         perception: a perception to share (the ``auto`` agent's DMPC half reads the same tracks);
             None: the agent makes its own when ``config.perceive_neighbours``.
@@ -97,8 +96,8 @@ class DeniedAgent:
     """
 
     def __init__(
-        self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig, fov_deg: tuple[float, float] = (85.0, 58.0),
-        perception_config: PerceptionConfig | None = None, perception: NeighbourPerception | None = None,
+        self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig, perception_config: PerceptionConfig | None = None,
+        perception: NeighbourPerception | None = None,
         budget: ComputeBudget | None = None,
     ) -> None:
         self.drone_id = drone_id
@@ -116,7 +115,7 @@ class DeniedAgent:
         self.heading: ActiveYaw | None = None  # made from the first pose estimate (its yaw)
         c = config
         self.t_hold_s = (perception_config or PerceptionConfig()).tracker.t_hold_s
-        self.yaw_config = yaw_config_for(c.yaw, c.v_max_mps, c.yaw_rate_max_radps, self.t_hold_s, *fov_deg)
+        self.yaw_config = c.yaw  # its speed and rate limits, t_hold and field of view derived at load (mpcde/config/resolve.py)
         self.optimizer = TrajectoryOptimizerConfig(
             v_max_mps=c.v_max_mps, a_max_mps2=c.a_max_mps2, obstacle_clearance_m=c.clearance_m,
             swarm_clearance_m=c.swarm_clearance_m, swarm_z_scale=c.swarm_z_scale,

@@ -52,17 +52,14 @@ def make_agent(
     if kind == "admm":  # the ADMM formation DMPC does not perceive either; the goals are its formation
         p = cfg.planner
         return AdmmAgent(drone_id, goals_world, cfg.admm, cfg.world.arena_size_m, p.start_delay_s, p.cruise_speed_mps)
-    # back-projection uncertainty includes the drone's own localisation noise (what its VIO reports)
-    pe, pc = cfg.pose_estimate, cfg.perception
-    bp = replace(pc.backprojection, pose_pos_std_m=pe.pos_noise_m, pose_yaw_std_rad=pe.yaw_noise_rad)
-    perception = replace(pc, backprojection=bp)
-    fov = (cfg.camera.hfov_deg, cfg.camera.vfov_deg)
+    # cfg is resolved (prepare_run): the back-projection's pose noise and the yaw planner's limits are derived
+    perception = cfg.perception
     if kind == "mpcde":
-        return DeniedAgent(drone_id, goal_world, cfg.denied, fov, perception, budget=budget)
+        return DeniedAgent(drone_id, goal_world, cfg.denied, perception, budget=budget)
     if kind == "dmpc":
         return _dmpc_agent(cfg, drone_id, goals_world, obstacles, perception, cfg.dmpc, budget=budget)
     if kind == "auto":
-        denied = DeniedAgent(drone_id, goal_world, cfg.denied, fov, perception, budget=budget)
+        denied = DeniedAgent(drone_id, goal_world, cfg.denied, perception, budget=budget)
         # one perception for both halves; denied.perceive_neighbours: false turns it off for both
         dmpc = replace(cfg.dmpc, perceive_neighbours=denied.perception is not None)
         comm = _dmpc_agent(cfg, drone_id, goals_world, obstacles, perception, dmpc, denied.perception, cfg.auto.fusion, budget)

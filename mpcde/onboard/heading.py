@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from dataclasses import replace
 from typing import Sequence
 
 import numpy as np
@@ -137,10 +136,3 @@ class ActiveYaw:
             "yaw_mode_fraction": {m: self.modes[m] / total for m in ("exploring", "observing", "tracking")} if total else None,
             "yaw_plan_ms_median": float(np.median(self.plan_ms)) if self.plan_ms else None,
         }
-
-
-def yaw_config_for(base: YawPlannerConfig, v_max_mps: float, yaw_rate_max_radps: float, t_hold_s: float, hfov_deg: float,
-                   vfov_deg: float) -> YawPlannerConfig:
-    """``base`` with the fields the agent owns elsewhere (speed limit, yaw rate, t_hold, camera FoV) made consistent."""
-    return replace(base, v_max_mps=v_max_mps, yaw_rate_max_radps=yaw_rate_max_radps, t_hold_s=t_hold_s, fov_h_deg=hfov_deg,
-                   fov_v_deg=vfov_deg)

@@ -1,0 +1,114 @@
+"""The one step that derives the settings that follow from others, at load time.
+
+A scenario sets each quantity once; the copies other components need are
+derived here, so the resolved config (what ``config.yaml`` in the run folder
+holds) is exactly what flies, and flying that file again gives the same
+flight. Derived fields (target <- source):
+
+* ``perception.backprojection.pose_pos_std_m`` <- ``pose_estimate.pos_noise_m``
+  and ``pose_yaw_std_rad`` <- ``pose_estimate.yaw_noise_rad``: a drone's
+  back-projection uncertainty includes its own localisation noise, what its
+  VIO reports (MP-CDE Eq. 8);
+* ``denied.yaw.v_max_mps`` <- ``denied.v_max_mps``, ``denied.yaw.yaw_rate_max_radps``
+  <- ``denied.yaw_rate_max_radps``, ``denied.yaw.t_hold_s`` <-
+  ``perception.tracker.t_hold_s``, ``denied.yaw.fov_h_deg`` / ``fov_v_deg`` <-
+  ``camera.hfov_deg`` / ``vfov_deg``: the yaw planner predicts with the
+  optimiser's speed limit, turns at the heading limit, calls a track recent
+  as the tracker does, and covers the camera's field of view (Alg. 1);
+* ``radio.rate_hz`` <- ``2 admm.l_max / admm.step_s`` with ``planner.kind: admm``
+  and ``admm.radio_rate_from_step``: one radio sub-round per ADMM exchange.
+
+A target that the file (or the code building the config) sets to another
+value than its derivation is refused with one line naming both, never
+silently replaced. Without the file's mapping, "set" means "differs from the
+field's default".
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable
+
+from mpcde.config.scenario import ScenarioConfig
+from mpcde.errors import ConfigError
+
+__all__ = ["DERIVED", "resolve"]
+
+_MISSING = object()
+
+# (target path, source named in errors, derivation, applies to this scenario)
+DERIVED: tuple[tuple[str, str, Callable[[ScenarioConfig], Any], Callable[[ScenarioConfig], bool]], ...] = (
+    ("perception.backprojection.pose_pos_std_m", "pose_estimate.pos_noise_m", lambda c: c.pose_estimate.pos_noise_m, lambda c: True),
+    ("perception.backprojection.pose_yaw_std_rad", "pose_estimate.yaw_noise_rad", lambda c: c.pose_estimate.yaw_noise_rad, lambda c: True),
+    ("denied.yaw.v_max_mps", "denied.v_max_mps", lambda c: c.denied.v_max_mps, lambda c: True),
+    ("denied.yaw.yaw_rate_max_radps", "denied.yaw_rate_max_radps", lambda c: c.denied.yaw_rate_max_radps, lambda c: True),
+    ("denied.yaw.t_hold_s", "perception.tracker.t_hold_s", lambda c: c.perception.tracker.t_hold_s, lambda c: True),
+    ("denied.yaw.fov_h_deg", "camera.hfov_deg", lambda c: c.camera.hfov_deg, lambda c: True),
+    ("denied.yaw.fov_v_deg", "camera.vfov_deg", lambda c: c.camera.vfov_deg, lambda c: True),
+    (
+        "radio.rate_hz", "2 admm.l_max / admm.step_s (admm.radio_rate_from_step: true)", lambda c: c.admm.radio_rate_hz,
+        lambda c: c.planner.kind == "admm" and c.admm.radio_rate_from_step,
+    ),
+)  # fmt: skip
+
+
+def _get(obj: Any, path: str) -> Any:
+    for name in path.split("."):
+        obj = getattr(obj, name)
+    return obj
+
+
+def _set(obj: Any, path: str, value: Any) -> Any:
+    head, _, rest = path.partition(".")
+    if not rest:
+        return dataclasses.replace(obj, **{head: value})
+    return dataclasses.replace(obj, **{head: _set(getattr(obj, head), rest, value)})
+
+
+def _written(data: Any, path: str) -> Any:
+    """The value the file's mapping gives for ``path``, or _MISSING."""
+    for name in path.split("."):
+        if not isinstance(data, dict) or name not in data:
+            return _MISSING
+        data = data[name]
+    return data
+
+
+def _default(path: str) -> Any:
+    return _get(ScenarioConfig(), path)
+
+
+def _same(a: Any, b: Any) -> bool:
+    try:
+        return a == b or abs(float(a) - float(b)) <= 1e-9 * max(1.0, abs(float(b)))
+    except (TypeError, ValueError):
+        return False
+
+
+def resolve(cfg: ScenarioConfig, written: dict | None = None) -> ScenarioConfig:
+    """``cfg`` with every derived field set from its source (idempotent).
+
+    Args:
+        cfg: a checked scenario.
+        written: the mapping the scenario was read from (YAML plus
+            overrides), to tell a field the user set from a default; None:
+            a field is "set" when it differs from its default.
+
+    Raises:
+        ConfigError: a derived field set to another value than its derivation.
+    """
+    out = cfg
+    for target, source, derive, applies in DERIVED:
+        if not applies(cfg):
+            continue
+        value = derive(cfg)
+        current = _get(cfg, target)
+        given = _written(written, target) if written is not None else (current if not _same(current, _default(target)) else _MISSING)
+        if given is not _MISSING and not _same(given, value):
+            raise ConfigError(target, given, f"derived from {source} = {value!r}; set that instead, or leave {target} out")
+        if not _same(current, value) or type(current) is not type(value):
+            try:
+                out = _set(out, target, value)
+            except ConfigError as e:  # the derived value breaks a rule of its section: name the section's path
+                raise e.under(target.rpartition(".")[0]) from None
+    return out
