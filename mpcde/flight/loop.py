@@ -192,6 +192,7 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
                     a.on_radio(radio.receive(a.drone_id, t))
                 for a in agents:
                     if not truth.failed[a.drone_id]:
+                        a.plan_round(t)
                         msg = a.outgoing(t)
                         if msg is not None:
                             radio.broadcast(a.drone_id, t, msg, truth.pos_world)
@@ -237,7 +238,7 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
     extra.update(track_score.result())
     if _flies_formation(cfg):
         extra.update(formation_metrics(log.arrays["pos_world"], goals))
-    agent_metrics = [a.extra_metrics() for a in agents if hasattr(a, "extra_metrics")]
+    agent_metrics = [m for m in (a.extra_metrics() for a in agents) if m is not None]
     if agent_metrics:
         extra["agents"] = agent_metrics
     result = metrics.result(wall, truth.failed, extra)
@@ -254,7 +255,7 @@ def _detect(detector: BatchedDetector | None, frames: list[RgbdFrame], agents: l
     """Each frame's detections for the agents that ask for them (one batch), None for the others."""
     if detector is None:
         return [None] * len(frames)
-    wanted = [getattr(agents[f.drone_id], "detector_request", None) is not None and not failed[f.drone_id] for f in frames]
+    wanted = [agents[f.drone_id].detector_request is not None and not failed[f.drone_id] for f in frames]
     return detector.detect(frames, wanted)
 
 
@@ -262,9 +263,8 @@ def _score_tracks(score: TrackingScore, agents: list, t: float, truth: TrueState
     """Score the perceiving agents' track predictions at ``t`` against the truth (metrics only)."""
     alive = ~np.asarray(truth.failed, bool)
     for a in agents:
-        perception = getattr(a, "perception", None)
-        if perception is not None and alive[a.drone_id]:
-            score.update(a.drone_id, perception.predictions(t), t, truth.pos_world, truth.vel_world, alive)
+        if a.perception is not None and alive[a.drone_id]:
+            score.update(a.drone_id, a.perception.predictions(t), t, truth.pos_world, truth.vel_world, alive)
 
 
 def _finish_frames(

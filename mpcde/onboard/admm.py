@@ -100,7 +100,7 @@ from typing import Any
 import numpy as np
 
 from mpcde.config.admm import AdmmAgentConfig
-from mpcde.onboard.base import AgentCounters
+from mpcde.onboard.base import AgentCounters, OnboardAgent
 from planners.dmpc.admm_formation import AdmmFormationAgent
 from planners.dmpc.admm_local_qp import AdmmLocalQpError
 from planners.dmpc.admm_ocp import shift_trajectory
@@ -170,7 +170,7 @@ class AdmmRoundStats:
     max_slack: float = 0.0
 
 
-class AdmmAgent:
+class AdmmAgent(OnboardAgent):
     """One drone of the ADMM formation swarm (an :class:`mpcde.onboard.base.OnboardAgent`); see the module docstring.
 
     Args:
@@ -239,7 +239,7 @@ class AdmmAgent:
         """n of the sub-round at ``time_s`` [s] (it falls at n h / (2 l_max), or the first physics tick after)."""
         return int(math.floor((time_s + _EPS_S) / self.config.sub_round_s))
 
-    def outgoing(self, time_s: float) -> AdmmBundle | None:
+    def _round_message(self, time_s: float) -> AdmmBundle | None:
         """Sub-round n at ``time_s`` [s]: the phase's ADMM work (module docstring) and the bundle to broadcast."""
         if self.latest_estimate is None:
             return None

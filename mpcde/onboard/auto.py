@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from mpcde.config.auto import AutoAgentConfig
-from mpcde.onboard.base import AgentCounters
+from mpcde.onboard.base import AgentCounters, OnboardAgent
 from mpcde.onboard.denied import DeniedAgent
 from mpcde.onboard.dmpc import DmpcAgent
 from mpcde.onboard.fusion import fuse_neighbours
@@ -62,7 +62,7 @@ __all__ = ["AutoAgent", "AutoAgentConfig"]
 COMM, DENIED = "comm", "denied"
 
 
-class AutoAgent:
+class AutoAgent(OnboardAgent):
     """One drone's ``auto`` stack (implements :class:`mpcde.onboard.base.OnboardAgent`; module docstring).
 
     Args:
@@ -113,7 +113,7 @@ class AutoAgent:
                 self.last_heard_s = max(self.last_heard_s or -np.inf, float(m.send_time_s))
 
     # round -------------------------------------------------------------------
-    def outgoing(self, time_s: float) -> PlanMessage | None:
+    def _round_message(self, time_s: float) -> PlanMessage | None:
         """Choose the mode at this round, then run it: the DMPC round, or broadcast the MINCO plan."""
         t = float(time_s)
         if self._last_round_s is not None:
@@ -121,6 +121,7 @@ class AutoAgent:
         self._last_round_s = t
         self._choose_mode(t)
         if self.mode == COMM:
+            self.comm.plan_round(t)
             return self.comm.outgoing(t)
         plan = self._denied_plan(t)
         if plan is None:

@@ -52,7 +52,7 @@ import numpy as np
 
 from mpcde.config.denied import DeniedAgentConfig
 from mpcde.config.perception import PerceptionConfig
-from mpcde.onboard.base import AgentCounters
+from mpcde.onboard.base import AgentCounters, OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
 from mpcde.onboard.heading import ActiveYaw
 from mpcde.onboard.perception import NeighbourPerception, onboard_perception
@@ -82,7 +82,7 @@ class PlanningStats:
     map_ms: list = field(default_factory=list)
 
 
-class DeniedAgent:
+class DeniedAgent(OnboardAgent):
     """One drone's MP-CDE stack (implements :class:`mpcde.onboard.base.OnboardAgent`).
 
     Args:
@@ -202,7 +202,7 @@ class DeniedAgent:
             return self.neighbour_source(t, count)
         return self.perception.predictions(t) if self.perception is not None else []
 
-    def outgoing(self, time_s: float) -> None:
+    def _round_message(self, time_s: float) -> None:
         """Denied: nothing is broadcast."""
         return None
 

@@ -57,7 +57,7 @@ import numpy as np
 from mpcde.config.auto import FusionConfig
 from mpcde.config.dmpc import DmpcAgentConfig
 from mpcde.config.perception import PerceptionConfig
-from mpcde.onboard.base import AgentCounters
+from mpcde.onboard.base import AgentCounters, OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
 from mpcde.onboard.fusion import fuse_neighbours
 from mpcde.onboard.perception import NeighbourPerception, onboard_perception
@@ -108,7 +108,7 @@ class DmpcRoundStats:
     unknown_tracks: int = 0
 
 
-class DmpcAgent:
+class DmpcAgent(OnboardAgent):
     """One drone's DMPC agent (implements :class:`mpcde.onboard.base.OnboardAgent`).
 
     Args:
@@ -258,7 +258,7 @@ class DmpcAgent:
         self._sampler = PlanSampler(plan)
         self.yaw = float(yaw)
 
-    def outgoing(self, time_s: float) -> PlanMessage | None:
+    def _round_message(self, time_s: float) -> PlanMessage | None:
         """Run this round's DMPC solve at ``time_s`` [s] and return the plan to broadcast (booked as ``dmpc_qp``)."""
         if self.latest_estimate is None:
             return None

@@ -64,7 +64,7 @@ from typing import Any
 import numpy as np
 
 from mpcde.config.mlr import MlrAgentConfig
-from mpcde.onboard.base import AgentCounters
+from mpcde.onboard.base import AgentCounters, OnboardAgent
 from planners.dmpc.mlr.compute_unit import ComputeUnit, CuStepReport, summarize_reports
 from planners.dmpc.mlr.config import MlrConfig
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory
@@ -99,7 +99,7 @@ class MlrRoundStats:
     cu_start_round: int | None = None
 
 
-class MlrAgent:
+class MlrAgent(OnboardAgent):
     """One drone of the MLR-DMPC swarm: its UAV and, on drones 0..M-1, a CU (an :class:`mpcde.onboard.base.OnboardAgent`).
 
     Args:
@@ -167,7 +167,7 @@ class MlrAgent:
         """k of the round at ``time_s`` [s] (the loop's radio rounds fall on kT)."""
         return int(round(time_s / self.config.round_s))
 
-    def outgoing(self, time_s: float) -> MlrBundle | None:
+    def _round_message(self, time_s: float) -> MlrBundle | None:
         """Round k at ``time_s`` = kT: the UAV's switch (Eq. 10), the hosted CU's Alg. 1, the bundle to broadcast."""
         if self.uav is None:
             return None

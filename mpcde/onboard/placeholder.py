@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mpcde.onboard.base import AgentCounters
+from mpcde.onboard.base import AgentCounters, OnboardAgent
 from perception.types import Detection
 from planners.min_jerk_line import MinJerkLine
 from sim.types import FlatOutputReference, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
@@ -20,7 +20,7 @@ __all__ = ["Agent"]
 
 
 @dataclass
-class Agent:
+class Agent(OnboardAgent):
     """One drone's onboard stack with the PLACEHOLDER planner (``planner.kind: min_jerk_line``).
 
     Attributes:
@@ -61,7 +61,7 @@ class Agent:
                     self.neighbour_plans[m.sender_id] = m.payload
                     self.counters.plans += 1
 
-    def outgoing(self, time_s: float, horizon_s: float = 3.0, n_samples: int = 16) -> PlanMessage | None:
+    def _round_message(self, time_s: float, horizon_s: float = 3.0, n_samples: int = 16) -> PlanMessage | None:
         """This drone's plan to broadcast: samples over ``horizon_s`` from ``time_s``."""
         if self.plan is None:
             return None

@@ -168,9 +168,9 @@ def test_onboard_agent_sees_only_its_frames_its_estimate_and_its_inbox(monkeypat
             assert all(type(m) is RadioMessage for m in value)
     # a frame carries no segmentation, only image, depth, intrinsics and the own pose estimate
     assert {f.name for f in fields(RgbdFrame)} == {"drone_id", "time_s", "rgb", "depth_m", "K", "transform_camera_to_world"}
-    # the only entry points of an onboard agent are these three inputs plus its two outputs
+    # the only entry points of an onboard agent: its three inputs, the round's planning verb, its two outputs, its metrics
     protocol = {n for n, _ in inspect.getmembers(agent_module.OnboardAgent, inspect.isfunction) if not n.startswith("_")}
-    assert protocol == {"on_pose_estimate", "on_frame", "on_radio", "outgoing", "reference"}
+    assert protocol == {"on_pose_estimate", "on_frame", "on_radio", "plan_round", "outgoing", "reference", "extra_metrics"}
     public = {n for n, _ in inspect.getmembers(placeholder_module.Agent, inspect.isfunction) if not n.startswith("_")}
     assert public == protocol
 

@@ -36,6 +36,12 @@ Drop = Callable[[int, int, int], bool]  # (sub-round, sender, receiver) -> lost
 Silent = Callable[[int, int], bool]  # (sub-round, drone) -> its outgoing is not called (as for a failed drone)
 
 
+def _round(agent, t: float):
+    """One radio round of ``agent`` at ``t``: plan, then what it broadcasts (what the loop does)."""
+    agent.plan_round(t)
+    return agent.outgoing(t)
+
+
 def _estimate(t: float, pos: np.ndarray, vel: np.ndarray) -> PoseEstimate:
     return PoseEstimate(t, np.asarray(pos, float), np.asarray(vel, float), quat_xyzw_from_yaw(START_YAW), np.zeros(3))
 
@@ -63,7 +69,7 @@ class _Radio:
                 pos, vel, _ = a.reference_state(t)
                 a.on_pose_estimate(_estimate(t, pos, vel))
                 a.on_radio(self.inbox[a.drone_id])
-            sent = [(a.drone_id, None if silent(n, a.drone_id) else a.outgoing(t)) for a in self.agents]
+            sent = [(a.drone_id, None if silent(n, a.drone_id) else _round(a, t)) for a in self.agents]
             log.append(sent)
             self.inbox = [
                 [RadioMessage(s, t, t, b) for s, b in sent if b is not None and s != r and not drop(n, s, r)]
@@ -192,7 +198,7 @@ def test_a_late_bundle_is_counted_and_not_used() -> None:
     log = _Radio(agents).fly(range(2))
     old = log[0][1][1]  # drone 1's copies of sub-round 0 arriving in sub-round 2 (drone 0 expects means)
     agents[0].on_radio([RadioMessage(1, 0.0, 2 * ROUND_S, old)])
-    agents[0].outgoing(2 * ROUND_S)
+    _round(agents[0], 2 * ROUND_S)
     assert agents[0].stats.late_messages == 1 and agents[0].stats.means_missing == 2
 
 

@@ -53,6 +53,7 @@ def _run(agent: AutoAgent, t_from: float, t_to: float, radio_on, behind=False) -
             heard = t > 0 and radio_on(t - ROUND)
             inbox = [_plan_message(t - ROUND)] + ([_plan_message(t - ROUND, 2, BEHIND)] if behind else [])
             agent.on_radio(inbox if heard else [])
+            agent.plan_round(t)
             agent.outgoing(t)
             modes.append((round(t, 2), agent.mode))
     return modes

@@ -31,6 +31,12 @@ START_YAW = 0.7
 Drop = Callable[[int, int, int], bool]  # (round, sender, receiver) -> lost
 
 
+def _round(agent, t: float):
+    """One radio round of ``agent`` at ``t``: plan, then what it broadcasts (what the loop does)."""
+    agent.plan_round(t)
+    return agent.outgoing(t)
+
+
 def _estimate(t: float, pos: np.ndarray, vel: np.ndarray | None = None) -> PoseEstimate:
     vel = np.zeros(3) if vel is None else vel
     return PoseEstimate(t, np.asarray(pos, float), np.asarray(vel, float), quat_xyzw_from_yaw(START_YAW), np.zeros(3))
@@ -62,7 +68,7 @@ class _Radio:
                 pos, vel, _ = a.reference_state(t)
                 a.on_pose_estimate(_estimate(t, pos, vel))
                 a.on_radio(self.inbox[a.drone_id])
-            sent = [(a.drone_id, a.outgoing(t)) for a in agents]
+            sent = [(a.drone_id, _round(a, t)) for a in agents]
             log.append(sent)
             self.inbox = [[RadioMessage(s, t, t, b) for s, b in sent if s != r and not drop(k, s, r)] for r in range(n)]
             refs = np.array([a.reference_state(t)[0] for a in agents])
@@ -134,7 +140,7 @@ def test_a_bundle_of_an_earlier_round_is_dropped_and_counted() -> None:
     log, _ = _fly(agents, range(2))
     stale = RadioMessage(1, 0.0, 0.0, log[0][1][1])  # drone 1's round-0 bundle arriving in round 2
     agents[0].on_radio([stale])
-    agents[0].outgoing(2 * ROUND_S)
+    _round(agents[0], 2 * ROUND_S)
     assert agents[0].stats.late_bundles == 1 and 1 not in {b.sender_id for b in agents[0]._received}
 
 
