@@ -5,7 +5,7 @@ Scenarios: N drones start scattered (uniform in 4 m x 4 m x 1 m around
 1 m) whose centre moves along +x at 0.5 m/s; graphs: 4 drones on a ring, 4 on
 the complete graph, 8 on a ring. Kinematic closed loop (double integrator,
 the applied input is ``AdmmStepResult.input_now``), 50 MPC steps of h = 0.2 s
-per seed, default :class:`planners.dmpc.admm_config.AdmmFormationConfig`
+per seed, default :class:`planners.dmpc.admm.config.AdmmFormationConfig`
 (l_max = 5, rho = 1, warm start, Remark 1).
 
 Printed per scenario:
@@ -53,10 +53,10 @@ from dataclasses import replace
 import numpy as np
 from timing import median_ms
 
-from planners.dmpc.admm_centralized import CentralizedFormationQp, formation_cost
-from planners.dmpc.admm_config import AdmmFormationConfig
-from planners.dmpc.admm_formation import AdmmFormationAgent, solve_admm_round
-from planners.dmpc.admm_ocp import DroneLayout, shift_decision, shift_dual
+from planners.dmpc.admm.centralized import CentralizedFormationQp, formation_cost
+from planners.dmpc.admm.config import AdmmFormationConfig
+from planners.dmpc.admm.formation import AdmmFormationAgent, solve_admm_round
+from planners.dmpc.admm.ocp import DroneLayout, shift_decision, shift_dual
 from planners.dmpc.formation_graph import FormationGraph, complete_edges, formation_error, polygon_slots, ring_edges
 from planners.dmpc.model import discrete_model
 

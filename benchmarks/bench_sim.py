@@ -34,8 +34,8 @@ from mpcde.flight.loop import prepare_run, run_scenario
 from mpcde.onboard.budget import COMPONENTS
 from sim.camera import CameraConfig
 from sim.camera_rig import CameraRig
-from sim.raycast_renderer import RaycastRenderer
-from sim.renderer import SceneRenderer
+from sim.rendering.raycast import RaycastRenderer
+from sim.rendering.tiny import SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import SceneSpec
 from sim.types import FlatOutputReference

@@ -8,7 +8,7 @@ there) are not timed.
 
 Why it is a fair peer: the same engine (PyBullet) and the same renderer. PyFlyt calls ``getCameraImage`` with no
 ``renderer=`` argument; in DIRECT mode there is no OpenGL context, so PyBullet draws with ER_TINY_RENDERER,
-the CPU rasteriser our sim/renderer.py names explicitly. Same drones count, obstacles, starts, goals and image
+the CPU rasteriser our sim/rendering/tiny.py names explicitly. Same drones count, obstacles, starts, goals and image
 size; vertical FOV 58 deg and a level camera like our D435i model (PyFlyt's defaults are 90 deg, tilted up 20 deg).
 
 What PyFlyt does per ``step()`` (one control period, 120 Hz; defaults kept): two 240 Hz physics ticks, each

@@ -55,8 +55,8 @@ class CameraConfig:
         render_far_m: far clipping plane of the RGB render [m] (objects
             beyond ``depth_max_m`` still show in colour).
         renderer: ``"raycast"`` (default: the analytic renderer of
-            :mod:`sim.raycast_renderer`, exact depth) or ``"tiny"``
-            (PyBullet's TinyRenderer, :mod:`sim.renderer`, whose images the
+            :mod:`sim.rendering.raycast`, exact depth) or ``"tiny"``
+            (PyBullet's TinyRenderer, :mod:`sim.rendering.tiny`, whose images the
             shipped detector was trained on); their cost and the detector's
             scores on each are in ``docs/results/realtime.md``.
     """

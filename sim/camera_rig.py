@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.camera import CameraConfig, apply_depth_sensor_model, intrinsics, rotation_camera_to_body
-from sim.renderer import RawRender
+from sim.rendering.tiny import RawRender
 from sim.rotations import rotation_from_quat_xyzw
 from sim.types import GroundTruthSegmentation, PoseEstimate, RgbdFrame
 

@@ -3,7 +3,7 @@
 The physics client and every render client build their bodies from one
 :class:`SceneSpec`, so a scene is rebuilt identically per seed and per process.
 The ground is a collision plane in the physics client only; renderers draw it
-analytically (see :mod:`sim.renderer`), which is exact and much cheaper than
+analytically (see :mod:`sim.rendering.tiny`), which is exact and much cheaper than
 rasterising a ground mesh in TinyRenderer.
 """
 

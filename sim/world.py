@@ -19,14 +19,14 @@ from typing import Sequence
 import numpy as np
 import pybullet as pb
 
-from sim.controller import SE3Controller
 from sim.ground_truth import TrueState
-from sim.motors import MotorBank
-from sim.physics_config import PhysicsConfig
-from sim.quadrotor_params import GRAVITY_MPS2
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import SceneSpec, build_obstacles, load_drones
 from sim.types import FlatOutputReference
+from sim.vehicle.controller import SE3Controller
+from sim.vehicle.motors import MotorBank
+from sim.vehicle.params import GRAVITY_MPS2
+from sim.vehicle.physics_config import PhysicsConfig
 
 __all__ = ["PhysicsConfig", "World"]
 

@@ -1,7 +1,7 @@
 """Settings of the ADMM formation DMPC in a scenario (the ``admm:`` mapping; :class:`AdmmAgentConfig`).
 
-The planner is :mod:`planners.dmpc.admm_formation` (Stomberg et al.,
-Algorithm 2) with its :class:`planners.dmpc.admm_config.AdmmFormationConfig`;
+The planner is :mod:`planners.dmpc.admm.formation` (Stomberg et al.,
+Algorithm 2) with its :class:`planners.dmpc.admm.config.AdmmFormationConfig`;
 this section exposes the settings a scenario may change, adds the coupling
 graph, the flying box in the arena and the onboard agent's own settings
 (:mod:`mpcde.onboard.admm`). OSQP's settings and Remark 1 (delay compensation,
@@ -17,7 +17,7 @@ from typing import Literal, get_args
 import numpy as np
 
 from mpcde.errors import ConfigError
-from planners.dmpc.admm_config import AdmmFormationConfig
+from planners.dmpc.admm.config import AdmmFormationConfig
 from planners.dmpc.formation_graph import FormationGraph, complete_edges, ring_edges
 from sim.checks import is_finite_at_least, require_non_negative, require_positive
 

@@ -27,7 +27,7 @@ from sim.obstacles import distance_to_obstacles, generate_obstacles
 from sim.pose_estimate import PoseEstimateConfig
 from sim.radio import RadioConfig
 from sim.types import ObstacleSpec
-from sim.physics_config import PhysicsConfig
+from sim.vehicle.physics_config import PhysicsConfig
 
 __all__ = [
     "SCENARIO_DIR",

@@ -286,7 +286,7 @@ def run_compare(
         jobs: flights run at once, each in its own process (1: one after the
             other in this process). A flight's metrics do not depend on it
             (everything is seeded and stepped in simulated time, and a render
-            does not depend on which worker made it: sim/renderer.py) except the
+            does not depend on which worker made it: sim/rendering/tiny.py) except the
             wall-clock ones (``real_time_factor``, compute times). With more
             than one job, a flight whose ``run.render_workers`` is automatic
             (-1) renders with ``max(1, cpu_count // jobs)`` workers (at most 16), so the

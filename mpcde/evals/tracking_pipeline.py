@@ -2,7 +2,7 @@
 
 For one :class:`mpcde.evals.tracking.TrackingScenario` this renders, at every
 frame time, the observer's forward RGB-D camera (:class:`sim.camera.CameraConfig`,
-the renderer ``camera.renderer`` names, :func:`sim.render_pool.make_renderer`),
+the renderer ``camera.renderer`` names, :func:`sim.rendering.pool.make_renderer`),
 applies the depth sensor model (:func:`sim.camera_rig.sensor_depth`), runs the
 shipped detector (:class:`perception.detector.detector.DroneDetector`, batched
 over ``batch_frames`` frames) on the RGB-D frame alone and back-projects every
@@ -47,10 +47,10 @@ from sim.camera import CameraConfig
 from sim.camera_rig import CameraRig
 from sim.checks import ConfigError
 from sim.pose_estimate import PoseEstimateConfig, PoseEstimator
-from sim.quadrotor_params import GRAVITY_MPS2
 from sim.rotations import quat_xyzw_from_rotation, rotation_from_thrust_axis_and_yaw
 from sim.scene import SceneSpec
 from sim.types import ObstacleSpec
+from sim.vehicle.params import GRAVITY_MPS2
 
 __all__ = ["PipelineMeasurements", "PipelineRun", "background_trees", "flat_attitudes"]
 
@@ -147,7 +147,7 @@ class PipelineMeasurements:
 
     def run(self, scenario: TrackingScenario, seed: int) -> PipelineRun:
         """:meth:`measure` with the run's detection counts."""
-        from sim.render_pool import make_renderer
+        from sim.rendering.pool import make_renderer
 
         detector = self._detector
         times = np.asarray(scenario.times_s, float)

@@ -38,7 +38,7 @@ from sim.camera_rig import CameraRig
 from sim.ground_truth import TrueState
 from sim.pose_estimate import PoseEstimator
 from sim.radio import Radio
-from sim.render_pool import RenderPool
+from sim.rendering.pool import RenderPool
 from sim.rotations import yaw_from_rotation
 from sim.scene import SceneSpec
 from sim.types import GroundTruthSegmentation, ObstacleSpec, RgbdFrame

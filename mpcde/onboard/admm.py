@@ -1,8 +1,8 @@
 """ADMM formation DMPC in the physics loop (``planner.kind: admm``, ``mpcde fly --mode admm``; Stomberg et al.).
 
-The planner is :mod:`planners.dmpc.admm_formation` (Algorithm 2: per MPC step
+The planner is :mod:`planners.dmpc.admm.formation` (Algorithm 2: per MPC step
 ``l_max`` ADMM iterations, each a local QP, copies sent to the neighbours,
-means sent back); :func:`planners.dmpc.admm_formation.solve_admm_round` runs
+means sent back); :func:`planners.dmpc.admm.formation.solve_admm_round` runs
 it over an ideal network. This module flies it on the simulated quadrotors,
 over :mod:`sim.radio`. Choices:
 
@@ -24,7 +24,7 @@ over :mod:`sim.radio`. Choices:
   - r even > 0: Steps 7-8 with the means of iteration r / 2, then Steps 3-4 of
     iteration r / 2 + 1.
 
-  One :class:`planners.dmpc.admm_types.AdmmBundle` per drone and sub-round
+  One :class:`planners.dmpc.admm.types.AdmmBundle` per drone and sub-round
   holds the copies (one per neighbour) or the means.
 * **Delay compensation (paper Remark 1).** The plan of step s is ready at
   (s + 1) h; it fixes u[0] to the input already applied on [s h, (s + 1) h)
@@ -54,7 +54,7 @@ over :mod:`sim.radio`. Choices:
 radio). The rules keep the multipliers consistent, paper Eq. (5): for every
 drone j, the entries of gamma on p_j (j's own and every copy of it) sum to
 zero, which is what makes Steps 5-7 the exact consensus step (4b)
-(:mod:`planners.dmpc.admm_formation`); a rule that breaks it (e.g. averaging
+(:mod:`planners.dmpc.admm.formation`); a rule that breaks it (e.g. averaging
 with a neighbour's last received copy) leaves the multipliers a bias that
 never decays (what it did under loss: docs/results/admm_formation.md).
 
@@ -101,10 +101,10 @@ import numpy as np
 
 from mpcde.config.admm import AdmmAgentConfig
 from mpcde.onboard.base import AgentCounters, OnboardAgent
-from planners.dmpc.admm_formation import AdmmFormationAgent
-from planners.dmpc.admm_local_qp import AdmmLocalQpError
-from planners.dmpc.admm_ocp import shift_trajectory
-from planners.dmpc.admm_types import AdmmBundle, AdmmStepResult, CopyMessage, MeanMessage, MeanRecord
+from planners.dmpc.admm.formation import AdmmFormationAgent
+from planners.dmpc.admm.local_qp import AdmmLocalQpError
+from planners.dmpc.admm.ocp import shift_trajectory
+from planners.dmpc.admm.types import AdmmBundle, AdmmStepResult, CopyMessage, MeanMessage, MeanRecord
 from planners.dmpc.plan_sampler import PlanSampler, sample_or_hover
 from sim.rotations import rotation_from_quat_xyzw, yaw_from_rotation
 from sim.types import FlatOutputReference, PoseEstimate, RadioMessage, RgbdFrame

@@ -15,8 +15,8 @@ fallback between them); :mod:`mpcde.onboard.factory` picks one per ``planner.kin
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 from typing import Any
 
 from mpcde.config.perception import DetectorRequest

@@ -1,7 +1,7 @@
 """Domain-randomised detector dataset rendered by sim/ (labels from the segmentation).
 
 Each *scene seed* builds one world (obstacles with random colours, up to
-``n_drones_max`` quadrotors) in the renderer ``camera.renderer`` names (:func:`sim.render_pool.make_renderer`) and
+``n_drones_max`` quadrotors) in the renderer ``camera.renderer`` names (:func:`sim.rendering.pool.make_renderer`) and
 renders ``frames_per_scene`` frames from it. Per frame it draws:
 
 * the camera: position in the arena (0.5-3 m high), any heading, roll and
@@ -51,8 +51,8 @@ import numpy as np
 from mpcde.errors import ConfigError
 from sim.camera import CameraConfig, apply_depth_sensor_model, intrinsics, rotation_camera_to_body
 from sim.obstacles import distance_to_obstacles, generate_obstacles
-from sim.render_pool import make_renderer
-from sim.renderer import PARKED_POS
+from sim.rendering.pool import make_renderer
+from sim.rendering.tiny import PARKED_POS
 from sim.rotations import quat_xyzw_from_rotation
 from sim.scene import RenderStyle, SceneSpec
 from sim.spawn import main_module_hidden

@@ -7,7 +7,7 @@ the relative position
     d_ij = c_i - c_j = desired (p_i - p_j)        [m],   d_ji = -d_ij,
 
 which is the offset of the formation cost q_f ||(p_i - p_j) - d_ij||^2
-(:mod:`planners.dmpc.admm_ocp`). NOTE the sign: :class:`DmpcConfig`'s
+(:mod:`planners.dmpc.admm.ocp`). NOTE the sign: :class:`DmpcConfig`'s
 ``formation_offsets`` are p_j - p_i; here d_ij is p_i - p_j, as the formation
 term is written.
 

@@ -36,7 +36,7 @@ def test_same_seed_gives_identical_metrics_and_another_seed_differs():
 @pytest.mark.slow
 def test_rendering_in_worker_processes_gives_the_same_frames_as_in_process():
     from sim.camera import CameraConfig
-    from sim.render_pool import RenderPool
+    from sim.rendering.pool import RenderPool
     from sim.rotations import quat_xyzw_from_yaw
     from sim.scene import SceneSpec
 
@@ -65,10 +65,10 @@ def test_a_render_does_not_depend_on_what_the_client_rendered_before():
     """A pose where PyBullet's TinyRenderer gave one pixel 1 off on odd getCameraImage calls.
 
     Found in ``radio_outage`` (seed 0 layout; drones near their starts): camera 2 rendered
-    right after camera 0 differed from camera 2 rendered first (sim/renderer.py docstring).
+    right after camera 0 differed from camera 2 rendered first (sim/rendering/tiny.py docstring).
     """
     from sim.camera_rig import CameraRig
-    from sim.renderer import SceneRenderer
+    from sim.rendering.tiny import SceneRenderer
     from sim.rotations import rotation_from_quat_xyzw
     from sim.scene import SceneSpec
 
@@ -178,7 +178,7 @@ def test_onboard_agent_sees_only_its_frames_its_estimate_and_its_inbox(monkeypat
 def test_closing_a_pool_with_an_uncollected_batch_and_idle_workers_returns():
     """A run that fails mid-render must not hang in close() (one camera, two workers)."""
     from sim.camera import CameraConfig
-    from sim.render_pool import RenderPool
+    from sim.rendering.pool import RenderPool
     from sim.scene import SceneSpec
 
     pool = RenderPool(SceneSpec(obstacles=(), n_drones=1), CameraConfig(width_px=32, height_px=24), 2)

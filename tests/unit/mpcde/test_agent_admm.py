@@ -19,9 +19,9 @@ from mpcde.errors import ConfigError
 from mpcde.flight.metrics import formation_metrics
 from mpcde.onboard.admm import AdmmAgent
 from mpcde.onboard.factory import make_agent
-from planners.dmpc.admm_formation import AdmmFormationAgent, solve_admm_round
-from planners.dmpc.admm_local_qp import AdmmLocalQpError
-from planners.dmpc.admm_types import AdmmBundle
+from planners.dmpc.admm.formation import AdmmFormationAgent, solve_admm_round
+from planners.dmpc.admm.local_qp import AdmmLocalQpError
+from planners.dmpc.admm.types import AdmmBundle
 from sim.rotations import quat_xyzw_from_yaw
 from sim.types import PoseEstimate, RadioMessage
 

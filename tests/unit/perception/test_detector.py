@@ -10,7 +10,7 @@ from perception.detector import DEFAULT_WEIGHTS, DroneDetector, box_iou_xyxy, de
 from perception.detector.model import DetectorNet, ModelConfig, fold_batchnorm
 from sim.camera import CameraConfig, apply_depth_sensor_model, intrinsics
 from sim.camera_rig import CameraRig
-from sim.renderer import PARKED_POS, SceneRenderer
+from sim.rendering.tiny import PARKED_POS, SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import RenderStyle, SceneSpec
 from sim.types import GroundTruthSegmentation, ObstacleSpec, RgbdFrame

@@ -7,11 +7,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from planners.dmpc.admm_centralized import centralized_formation_qp, formation_cost
-from planners.dmpc.admm_config import AdmmFormationConfig
-from planners.dmpc.admm_formation import AdmmFormationAgent, solve_admm_round
-from planners.dmpc.admm_local_qp import _WrapperCore
-from planners.dmpc.admm_types import CopyMessage
+from planners.dmpc.admm.centralized import centralized_formation_qp, formation_cost
+from planners.dmpc.admm.config import AdmmFormationConfig
+from planners.dmpc.admm.formation import AdmmFormationAgent, solve_admm_round
+from planners.dmpc.admm.local_qp import _WrapperCore
+from planners.dmpc.admm.types import CopyMessage
 from planners.dmpc.formation_graph import (
     FormationGraph,
     complete_edges,

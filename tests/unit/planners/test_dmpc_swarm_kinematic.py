@@ -16,7 +16,7 @@ Distances are ellipsoidal (the constraints' metric). Two figures are checked:
   neighbour that also moves; BVC meets r_min to OSQP's tolerance (checked
   separately at 1 mm).
 * continuously (every h/20): no collision, i.e. >= 2 robot radii = 0.2 m
-  (``sim.quadrotor_params`` robot_radius_m = 0.10 m, DESIGN.md metrics).
+  (``sim.vehicle.params`` robot_radius_m = 0.10 m, DESIGN.md metrics).
   Neither method constrains between its instants: at 2 v_max = 4 m/s two
   drones move 0.8 m relative in one step of 0.2 s, so a step can cut a corner.
 
@@ -35,7 +35,7 @@ import pytest
 from planners.dmpc import DmpcConfig, DmpcPlan, DmpcProblem, DmpcSolveError
 
 MIN_DISTANCE_TOLERANCE_M = 0.05  # at round times, see the module docstring
-COLLISION_DISTANCE_M = 0.2  # 2 x robot_radius_m (sim.quadrotor_params), DESIGN.md metrics
+COLLISION_DISTANCE_M = 0.2  # 2 x robot_radius_m (sim.vehicle.params), DESIGN.md metrics
 
 
 @dataclass(frozen=True)

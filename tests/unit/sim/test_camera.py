@@ -5,7 +5,7 @@ import pytest
 
 from sim.camera import CameraConfig, apply_depth_sensor_model, depth_buffer_to_depth_m, intrinsics
 from sim.camera_rig import CameraRig
-from sim.renderer import SceneRenderer
+from sim.rendering.tiny import SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import SceneSpec
 from sim.types import ObstacleSpec
@@ -162,7 +162,7 @@ def test_a_render_leaves_every_drone_where_it_was_set_bit_for_bit():
 def test_compose_equals_the_buffer_conversions_it_fuses():
     """The renderer's one-pass composition gives what the separate conversions give (depth formula, mask LUT, ground/sky)."""
     from sim.camera import depth_buffer_to_depth_m
-    from sim.renderer import _compose
+    from sim.rendering.tiny import _compose
 
     rng = np.random.default_rng(2)
     H, W = 24, 32

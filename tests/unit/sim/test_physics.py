@@ -5,8 +5,8 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from sim.motors import MotorBank, allocation_matrix
-from sim.quadrotor_params import GRAVITY_MPS2, QuadrotorParams
+from sim.vehicle.motors import MotorBank, allocation_matrix
+from sim.vehicle.params import GRAVITY_MPS2, QuadrotorParams
 from sim.scene import DRONE_URDF, SceneSpec
 from sim.types import FlatOutputReference
 from sim.world import World

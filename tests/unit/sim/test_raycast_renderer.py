@@ -7,8 +7,8 @@ import pytest
 
 from sim.camera import CameraConfig
 from sim.camera_rig import CameraRig
-from sim.raycast_renderer import BOX, CYLINDER, RaycastRenderer, drone_primitives
-from sim.renderer import SceneRenderer
+from sim.rendering.raycast import BOX, CYLINDER, RaycastRenderer, drone_primitives
+from sim.rendering.tiny import SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import DRONE_URDF, SceneSpec
 from sim.types import ObstacleSpec
@@ -78,7 +78,7 @@ def test_colours_are_close_to_tinyrenderer(renders) -> None:
 
 
 def test_the_renderer_is_chosen_by_the_camera_config() -> None:
-    from sim.render_pool import make_renderer
+    from sim.rendering.pool import make_renderer
 
     spec = SceneSpec(obstacles=OBSTACLES[:1], n_drones=1)
     assert isinstance(make_renderer(spec, CameraConfig()), RaycastRenderer)  # the default

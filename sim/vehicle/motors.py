@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.quadrotor_params import QuadrotorParams
+from sim.vehicle.params import QuadrotorParams
 
 __all__ = ["MotorBank", "allocation_matrix"]
 

@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from sim.camera import CameraConfig, intrinsics
-from sim.renderer import RawRender, ground_distance, ground_tile, style_lighting
+from sim.rendering.tiny import RawRender, ground_distance, ground_tile, style_lighting
 from sim.rotations import rotation_from_quat_xyzw
 from sim.scene import RenderStyle, SceneSpec
 
@@ -86,7 +86,7 @@ def drone_primitives(urdf: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
 
 
 class RaycastRenderer:
-    """Renders the forward cameras of a scene analytically (same interface as :class:`sim.renderer.SceneRenderer`)."""
+    """Renders the forward cameras of a scene analytically (same interface as :class:`sim.rendering.tiny.SceneRenderer`)."""
 
     def __init__(self, spec: SceneSpec, camera: CameraConfig) -> None:
         self.spec = spec
@@ -115,7 +115,7 @@ class RaycastRenderer:
         self.set_drone_poses(np.tile([0.0, 0.0, -100.0], (n, 1)), np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)))
 
     def close(self) -> None:
-        """Nothing to release (for the interface of :class:`sim.renderer.SceneRenderer`)."""
+        """Nothing to release (for the interface of :class:`sim.rendering.tiny.SceneRenderer`)."""
 
     def set_drone_poses(self, pos_world: np.ndarray, quat_xyzw: np.ndarray) -> None:
         """Place all drones: (N, 3) positions [m], (N, 4) quaternions."""
@@ -127,7 +127,7 @@ class RaycastRenderer:
             self.rot[k + i * m : k + (i + 1) * m] = R[i] @ self._body_R
 
     def render(self, transform_camera_to_world: np.ndarray, own_drone: int | None, style: RenderStyle | None = None) -> RawRender:
-        """Render one camera at its true pose, its own drone hidden (see :meth:`sim.renderer.SceneRenderer.render`)."""
+        """Render one camera at its true pose, its own drone hidden (see :meth:`sim.rendering.tiny.SceneRenderer.render`)."""
         style = style or self.spec.style
         cam = self.camera
         T = np.asarray(transform_camera_to_world, float)

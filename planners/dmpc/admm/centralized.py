@@ -1,7 +1,7 @@
 """The formation OCP (Stomberg et al. Eq. 1) for all drones as ONE QP: the reference ADMM must converge to.
 
 Decision variables: every drone's own part (p_i, v_i, u_i, s_i) of
-:mod:`planners.dmpc.admm_ocp` stacked, without copies. Cost (1a), with
+:mod:`planners.dmpc.admm.ocp` stacked, without copies. Cost (1a), with
 w_g, w_f the stage/terminal weights of :class:`AdmmFormationConfig`::
 
     J = sum_i [ sum_{k=1}^{K} w_g[k] ||p_i[k] - r_i[k]||^2 + r sum_{k=0}^{K-1} ||u_i[k]||^2 + c s_i^2 ]
@@ -29,8 +29,8 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from planners.dmpc.admm_config import AdmmFormationConfig
-from planners.dmpc.admm_ocp import DroneLayout, own_bounds, own_constraint_matrix, own_cost
+from planners.dmpc.admm.config import AdmmFormationConfig
+from planners.dmpc.admm.ocp import DroneLayout, own_bounds, own_constraint_matrix, own_cost
 from planners.dmpc.formation_graph import FormationGraph
 
 __all__ = [
@@ -75,7 +75,7 @@ class CentralizedFormationSolution:
             and OSQP's setup, i.e. its KKT factorisation).
         solve_s: wall time [s] of OSQP's solve.
         primal: (N, 9K+1) OSQP's solution, per drone (p, v, u, s) as in
-            :class:`planners.dmpc.admm_ocp.DroneLayout` (for a warm start).
+            :class:`planners.dmpc.admm.ocp.DroneLayout` (for a warm start).
         dual: (N, 21K+1) OSQP's dual solution per drone's rows (for a warm start).
     """
 

@@ -26,7 +26,7 @@ projection replaces each position trajectory and all its copies by their
 mean (Step 5) and leaves every other component (v, u, s) as it is.
 
 **Warm start** (paper Sec. 5.1). zbar^0 and gamma^0 are the previous step's
-final zbar and gamma shifted by one step (:func:`planners.dmpc.admm_ocp.shift_decision`;
+final zbar and gamma shifted by one step (:func:`planners.dmpc.admm.ocp.shift_decision`;
 the new last step of zbar's position trajectories is extrapolated linearly,
 of everything else, gamma included, repeated). Every holder of a
 trajectory shifts it the same way, so each group of gamma entries (a p_j and
@@ -61,10 +61,10 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from planners.dmpc.admm_config import AdmmFormationConfig
-from planners.dmpc.admm_local_qp import LocalAdmmQp
-from planners.dmpc.admm_ocp import DroneLayout, shift_decision, shift_dual
-from planners.dmpc.admm_types import AdmmStepResult, CopyMessage, MeanMessage
+from planners.dmpc.admm.config import AdmmFormationConfig
+from planners.dmpc.admm.local_qp import LocalAdmmQp
+from planners.dmpc.admm.ocp import DroneLayout, shift_decision, shift_dual
+from planners.dmpc.admm.types import AdmmStepResult, CopyMessage, MeanMessage
 from planners.dmpc.model import rollout
 
 __all__ = ["AdmmFormationAgent", "solve_admm_round"]

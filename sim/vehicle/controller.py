@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.quadrotor_params import GRAVITY_MPS2, QuadrotorParams
 from sim.rotations import cross_rows, rotation_from_thrust_axis_and_yaw, vee
+from sim.vehicle.params import GRAVITY_MPS2, QuadrotorParams
 
 __all__ = ["ControllerGains", "SE3Controller"]
 

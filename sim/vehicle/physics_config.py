@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from sim.checks import ConfigError
-from sim.controller import ControllerGains
-from sim.quadrotor_params import QuadrotorParams
+from sim.vehicle.controller import ControllerGains
+from sim.vehicle.params import QuadrotorParams
 
 __all__ = ["PhysicsConfig"]
 

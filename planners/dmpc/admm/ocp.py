@@ -43,9 +43,9 @@ the ONE slack up and so relax every other state constraint of the horizon by
 as much, for free; and OSQP needed thousands of iterations for such a QP
 (measured: docs/results/admm_formation.md).
 
-Shared by the ADMM subproblem (:mod:`planners.dmpc.admm_local_qp`, which adds
+Shared by the ADMM subproblem (:mod:`planners.dmpc.admm.local_qp`, which adds
 the copies' formation terms) and the centralized QP
-(:mod:`planners.dmpc.admm_centralized`, which adds each edge once), so both
+(:mod:`planners.dmpc.admm.centralized`, which adds each edge once), so both
 solve the same OCP.
 """
 
@@ -56,7 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from planners.dmpc.admm_config import AdmmFormationConfig
+from planners.dmpc.admm.config import AdmmFormationConfig
 from planners.dmpc.model import discrete_model
 
 __all__ = [

@@ -1,7 +1,7 @@
 """Drone i's ADMM subproblem (Stomberg et al. Eq. 4a, Algorithm 2 Step 3), set up in OSQP once.
 
 With the drone's share f_i(z_i) = 1/2 z_i' H_i z_i + g_i' z_i + c_i of the OCP and
-its constraints Z_i (:mod:`planners.dmpc.admm_ocp`, which also lays out z_i)
+its constraints Z_i (:mod:`planners.dmpc.admm.ocp`, which also lays out z_i)
 and the ADMM penalty rho:
 
     z_i^{l+1} = argmin_{z in Z_i} f_i(z) + gamma_i' (z - zbar_i) + rho/2 ||z - zbar_i||^2
@@ -9,7 +9,7 @@ and the ADMM penalty rho:
 
 H_i holds, besides the own tracking, input and slack terms, half of each
 edge's formation term against the copy (see the edge split in
-:mod:`planners.dmpc.admm_ocp`): (w_f/2) ||p - w_ji - d_ij||^2, Hessian
+:mod:`planners.dmpc.admm.ocp`): (w_f/2) ||p - w_ji - d_ij||^2, Hessian
 w_f [I, -I; -I, I] on (p_i, w_ji).
 
 **No refactorisation.** OSQP's P = H_i + rho I and A = A_i are set up ONCE per
@@ -33,8 +33,8 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from planners.dmpc.admm_config import AdmmFormationConfig
-from planners.dmpc.admm_ocp import DroneLayout, own_bounds, own_constraint_matrix, own_cost
+from planners.dmpc.admm.config import AdmmFormationConfig
+from planners.dmpc.admm.ocp import DroneLayout, own_bounds, own_constraint_matrix, own_cost
 
 __all__ = ["AdmmLocalQpError", "LocalAdmmQp", "LocalSolve"]
 

@@ -25,8 +25,8 @@ import numpy as np
 
 from sim.camera import CameraConfig
 from sim.camera_rig import sensor_depth
-from sim.raycast_renderer import RaycastRenderer
-from sim.renderer import RawRender, SceneRenderer
+from sim.rendering.raycast import RaycastRenderer
+from sim.rendering.tiny import RawRender, SceneRenderer
 from sim.scene import RenderStyle, SceneSpec
 from sim.spawn import main_module_hidden
 

@@ -39,7 +39,7 @@ class AdmmFormationConfig:
         + sum_{edges (i,j)} sum_k w_f[k] ||(p_i[k] - p_j[k]) - d_ij||^2
 
     with w_g[k] = ``weight_tracking`` (k < K), ``weight_terminal_tracking``
-    (k = K), and w_f likewise; see :mod:`planners.dmpc.admm_ocp`.
+    (k = K), and w_f likewise; see :mod:`planners.dmpc.admm.ocp`.
 
     Attributes:
         horizon_steps: K, number of prediction steps (our DMPC: 15; the paper
