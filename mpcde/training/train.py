@@ -35,7 +35,8 @@ import torch
 import torch.nn.functional as F
 
 from mpcde.errors import ConfigError
-from mpcde.training.dataset import LABEL_RULE, MIN_BOX_HEIGHT_PX, MIN_BOX_WIDTH_PX, DatasetConfig, load_dataset, write_dataset
+from mpcde.training.dataset import LABEL_RULE, MIN_BOX_HEIGHT_PX, MIN_BOX_WIDTH_PX, DatasetConfig
+from mpcde.training.dataset_files import load_dataset, write_dataset
 from perception.detector.decode import decode_outputs
 from perception.detector.detector import CHECKPOINT_FORMAT
 from perception.detector.model import STRIDE, DetectorNet, ModelConfig, encode_frames

@@ -28,13 +28,11 @@ If more neighbours are given than ``max_neighbours`` slots, the nearest are
 kept (on demand: nearest at the conflict; BVC: nearest over the horizon).
 Written for OSQP as  min 1/2 z^T P z + q^T z  s.t.  l <= A z <= u.
 
-Build, then solve: :class:`DmpcProblem` sets OSQP up once with a FIXED
-sparsity pattern sized for the maximum number of collision rows
-(``max_neighbours``; K x ``max_neighbours`` for BVC); an unused row keeps its
-structural entries at value 0 with bounds (-inf, inf). Each round only
-``q``, ``l``, ``u`` and ``Ax`` (``Px`` when the number of formation neighbours
-changes) are updated and the solver is warm-started with the previous primal
-AND dual solution shifted by one step (:meth:`DmpcProblem._shifted_warm_start`).
+Build, then solve: :class:`DmpcProblem` sets OSQP up once with a FIXED sparsity
+pattern sized for every row it may need (:mod:`planners.dmpc.qp_layout`; an unused
+row keeps its entries at 0 with bounds (-inf, inf)). Each round updates only ``q``,
+``l``, ``u`` and ``Ax`` (``Px`` when the number of formation neighbours changes) and
+warm-starts from the previous primal and dual solution shifted by one step.
 
 Speed. On-demand rows change only in rounds with a conflict, and an unused
 slot (neighbour or obstacle) keeps its last coefficients with bounds
@@ -47,7 +45,7 @@ price 0 (same optimum; otherwise its bound carries the multiplier xi of the
 linear price and slows ADMM). The QP stays condensed (dense in U); obstacle
 rows that the velocity and input limits already imply are culled
 (:meth:`DmpcProblem._fill_obstacles`); OSQP's Python wrapper is bypassed
-(:meth:`DmpcProblem._run_osqp`); ``osqp_scaling = 4`` because OSQP re-runs its
+(:mod:`planners.dmpc.osqp_core`); ``osqp_scaling = 4`` because OSQP re-runs its
 Ruiz equilibration in every refactorisation.
 Measured, with the alternatives tried: docs/results/dmpc_qp.md.
 """
@@ -67,7 +65,9 @@ from planners.dmpc.collision import bvc_planes, ellipsoidal_distance, on_demand_
 from planners.dmpc.config import DmpcConfig
 from planners.dmpc.model import fine_position_matrices, prediction_matrices, stacked_state_matrices
 from planners.dmpc.obstacle import ObstacleConflicts, obstacle_rows
+from planners.dmpc.osqp_core import solver_core
 from planners.dmpc.pattern import SparsePattern
+from planners.dmpc.qp_layout import qp_rows
 from planners.dmpc.qp_result import DmpcResult, DmpcSolveError, QpSnapshot
 from planners.dmpc.sampling import hermite_positions, sample_predictions
 from planners.dmpc.types import DmpcPlan
@@ -101,56 +101,9 @@ class DmpcProblem:
         A0_fine, Lambda_fine = fine_position_matrices(cfg.model, cfg.step_s, K, S)
         self._A0_fine_blocks = A0_fine.reshape(K * S, 3, -1)  # p(t_now + j h / S), j = 1..K S
         self._Lambda_fine_blocks = Lambda_fine.reshape(K * S, 3, 3 * K)
-        lower = np.arange(3 * K)[None, :] < 3 * (np.arange(K)[:, None] + 1)  # (K, 3K): inputs 0..k-1 reach p[k]
-        self._lower_mask = lower
-
-        pat = SparsePattern()
-        row = 0
-
-        def add_dense(block: np.ndarray, col0: int = 0) -> int:
-            nonlocal row
-            r, c = np.nonzero(np.abs(block) > 0)
-            pat.add(row + r, col0 + c, block[r, c])
-            row += block.shape[0]
-            return row - block.shape[0]
-
-        self._row_pos = add_dense(mats.Lambda_pos)
-        self._row_vel = add_dense(mats.Lambda_vel)
-        self._row_acc = add_dense(mats.Lambda_acc)
-        self._row_jerk = add_dense(np.eye(3 * K)) if cfg.model == "triple" else -1
-        # Collision rows (dynamic values).
-        self._row_coll = row
-        if cfg.collision_mode == "on_demand":
-            r = np.repeat(np.arange(M), 3 * K)
-            c = np.tile(np.arange(3 * K), M)
-            self._coll_slice = pat.add(row + r, c, np.zeros(r.size))
-            self._slack_coef_slice = pat.add(row + np.arange(M), self._n_u + np.arange(M), np.zeros(M))
-            row += M
-            self._row_slack = row
-            pat.add(row + np.arange(M), self._n_u + np.arange(M), np.ones(M))
-            row += M
-            self._n_coll_rows = M
-        else:
-            kk, cc = np.nonzero(lower)
-            r = (np.arange(M)[:, None] * K + kk[None, :]).ravel()
-            c = np.tile(cc, M)
-            self._coll_slice = pat.add(row + r, c, np.zeros(r.size))
-            row += M * K
-            self._n_coll_rows = M * K
-        # Obstacle half-spaces (dynamic values).
-        self._row_obs = row
-        # Obstacle rows: x, y input columns only for vertical planes (a third fewer entries to factorise);
-        # every_step: one row per obstacle and step (lower-triangular), on_demand: one dense row per slot.
-        xy = (np.arange(3 * K) % 3 != 2)[None, :] if cfg.vertical_obstacle_planes else True
-        self._obs_steps = K if cfg.obstacle_mode == "every_step" else 1
-        self._obs_mask = (lower if self._obs_steps == K else np.ones((1, 3 * K), bool)) & xy
-        if O:
-            kk, cc = np.nonzero(self._obs_mask)
-            r = (np.arange(O)[:, None] * self._obs_steps + kk[None, :]).ravel()
-            self._obs_slice = pat.add(row + r, np.tile(cc, O), np.zeros(r.size))
-            row += O * self._obs_steps
-        self._n_rows = row
-        A, self._A_coo_to_csc = pat.to_csc((row, n))
+        self._lower_mask = np.arange(3 * K)[None, :] < 3 * (np.arange(K)[:, None] + 1)  # (K, 3K): inputs 0..k-1 reach p[k]
+        self._rows = rows = qp_rows(cfg, mats, self._n_slack)
+        A, row = rows.A, rows.n
         self._Ax = A.data.copy()
         self._Ax_sent = A.data.copy()  # what OSQP holds
 
@@ -187,17 +140,10 @@ class DmpcProblem:
             scaling=cfg.osqp_scaling,
         )  # fmt: skip
         self._P, self._A = P, A
+        self._core = solver_core(self._osqp)
         self._q = np.zeros(n)
         self._x_last: np.ndarray | None = None  # previous primal solution (None after a failure)
         self._y_last: np.ndarray | None = None  # previous dual solution
-        # Row blocks that are indexed by horizon step: (first row, number of blocks, rows per step).
-        self._step_blocks = [(self._row_pos, 1, 3), (self._row_vel, 1, 3), (self._row_acc, 1, 3)]
-        if cfg.model == "triple":
-            self._step_blocks.append((self._row_jerk, 1, 3))
-        if cfg.collision_mode == "bvc":
-            self._step_blocks.append((self._row_coll, M, 1))
-        if O and self._obs_steps == K:
-            self._step_blocks.append((self._row_obs, O, 1))
         self._snapshot: QpSnapshot | None = None
         self._obstacle_conflicts: ObstacleConflicts | None = None
         self._coll_coef, self._slack_coef = np.zeros((M, 3 * K)), np.zeros(M)  # on-demand slot values
@@ -217,7 +163,7 @@ class DmpcProblem:
         return sp.csc_matrix((data, pat.indices, pat.indptr), shape=pat.shape)
 
     def _set_dynamic(self, sl: slice, values: np.ndarray) -> None:
-        self._Ax[self._A_coo_to_csc[sl]] = values
+        self._Ax[self._rows.coo_to_csc[sl]] = values
 
     @property
     def obstacle_conflicts(self) -> ObstacleConflicts | None:
@@ -303,29 +249,29 @@ class DmpcProblem:
         free_pos = (mats.A0_pos @ x0).reshape(K, 3)  # A0_p x0
         l, u = self._l, self._u
         # Box constraints (on-demand DMPC Sec. 3.4 (1)): P_min - A0 x0 <= Lambda U <= P_max - A0 x0.
-        rp = slice(self._row_pos, self._row_pos + 3 * K)
+        rp = slice(self._rows.pos, self._rows.pos + 3 * K)
         l[rp] = (np.asarray(cfg.pos_min_world)[None] - free_pos).ravel()
         u[rp] = (np.asarray(cfg.pos_max_world)[None] - free_pos).ravel()
-        rv = slice(self._row_vel, self._row_vel + 3 * K)
+        rv = slice(self._rows.vel, self._rows.vel + 3 * K)
         free_vel = mats.A0_vel @ x0
         l[rv], u[rv] = -cfg.v_max - free_vel, cfg.v_max - free_vel
-        ra = slice(self._row_acc, self._row_acc + 3 * K)
+        ra = slice(self._rows.acc, self._rows.acc + 3 * K)
         free_acc = mats.A0_acc @ x0
         l[ra], u[ra] = -cfg.a_max - free_acc, cfg.a_max - free_acc
         if cfg.terminal_halt:  # v[K] = 0 (a[K] = 0): DMPC-Swarm Eq. 13e
-            last = slice(self._row_vel + 3 * K - 3, self._row_vel + 3 * K)
+            last = slice(self._rows.vel + 3 * K - 3, self._rows.vel + 3 * K)
             l[last] = u[last] = -free_vel[-3:]
             if cfg.model == "triple":
-                last = slice(self._row_acc + 3 * K - 3, self._row_acc + 3 * K)
+                last = slice(self._rows.acc + 3 * K - 3, self._rows.acc + 3 * K)
                 l[last] = u[last] = -free_acc[-3:]
         if cfg.model == "triple":
-            rj = slice(self._row_jerk, self._row_jerk + 3 * K)
+            rj = slice(self._rows.jerk, self._rows.jerk + 3 * K)
             l[rj], u[rj] = -cfg.j_max, cfg.j_max
 
         # Collision rows.
         slack_cols = np.arange(self._n_slack)
         n_coll, conflict_time_s = 0, float("nan")
-        rc = slice(self._row_coll, self._row_coll + self._n_coll_rows)
+        rc = slice(self._rows.coll, self._rows.coll + self._rows.n_coll)
         l[rc], u[rc] = -_INF, _INF
         if cfg.collision_mode == "on_demand":
             cons = on_demand_constraints(
@@ -345,15 +291,15 @@ class DmpcProblem:
                 slack_coef[:n_coll] = cons.sigma[keep]  # + sigma s  (s = -alpha)
                 free_c = self._A0_fine_blocks[j_c] @ x0  # A0_p(t_c) x0, (n, 3)
                 # a^T Lambda U + s >= b - a^T A0 x0   (on-demand DMPC Sec. 3.4)
-                l[self._row_coll : self._row_coll + n_coll] = cons.offset[keep] - np.einsum("nd,nd->n", a, free_c)
-            self._set_dynamic(self._coll_slice, coef.ravel())
-            self._set_dynamic(self._slack_coef_slice, slack_coef)
-            rs = slice(self._row_slack, self._row_slack + M)
+                l[self._rows.coll : self._rows.coll + n_coll] = cons.offset[keep] - np.einsum("nd,nd->n", a, free_c)
+            self._set_dynamic(self._rows.coll_entries, coef.ravel())
+            self._set_dynamic(self._rows.slack_coef_entries, slack_coef)
+            rs = slice(self._rows.slack, self._rows.slack + M)
             l[rs], u[rs] = 0.0, cfg.slack_max_m
             # An unused slot's slack is pinned to 0 (and priced 0 below): the same optimum, but
             # its bound no longer carries the multiplier xi = 5e4 that the linear price put on
             # it, which slowed ADMM (measured: docs/results/dmpc_qp.md).
-            u[self._row_slack + n_coll : self._row_slack + M] = 0.0
+            u[self._rows.slack + n_coll : self._rows.slack + M] = 0.0
         else:
             chosen = self._nearest(own_prev, nb_pos, M)
             coef = np.zeros((M, K, 3 * K))
@@ -362,9 +308,9 @@ class DmpcProblem:
                 m = chosen.size
                 coef[:m] = np.einsum("mkd,kdc->mkc", planes.normal, self._Lambda_pos_blocks)
                 rhs = planes.offset - np.einsum("mkd,kd->mk", planes.normal, free_pos)  # b - a^T A0 x0, Eq. 15
-                l[self._row_coll : self._row_coll + m * K] = rhs.ravel()
+                l[self._rows.coll : self._rows.coll + m * K] = rhs.ravel()
                 n_coll = m * K
-            self._set_dynamic(self._coll_slice, coef[:, self._lower_mask].ravel())
+            self._set_dynamic(self._rows.coll_entries, coef[:, self._lower_mask].ravel())
 
         n_obs = 0
         if cfg.max_obstacle_planes:
@@ -398,9 +344,9 @@ class DmpcProblem:
             update["Px"] = self._P.data
         t_solve = time.perf_counter()
         if self._x_last is not None:
-            x_ws, y_ws = self._shifted_warm_start(n_coll, n_obs)
+            x_ws, y_ws = self._rows.shifted_warm_start(self._x_last, self._y_last, n_coll, n_obs)
         else:
-            x_ws, y_ws = np.zeros(self._P.shape[0]), np.zeros(self._n_rows)
+            x_ws, y_ws = np.zeros(self._P.shape[0]), np.zeros(self._rows.n)
         res = self._run_osqp(update, x_ws, y_ws)
         t_end = time.perf_counter()
         A = sp.csc_matrix((self._Ax.copy(), self._A.indices, self._A.indptr), shape=self._A.shape)
@@ -416,55 +362,14 @@ class DmpcProblem:
         )  # fmt: skip
 
     def _run_osqp(self, update: dict[str, np.ndarray], x_ws: np.ndarray, y_ws: np.ndarray) -> SimpleNamespace:
-        """Update OSQP's data, warm-start and solve; returns ``x``, ``y`` (copies) and ``info``.
-
-        Calls the compiled solver object under :class:`osqp.OSQP` when it has
-        one (osqp 1.x: ``OSQP._solver``) with the same arguments the Python
-        wrapper passes it, because the wrapper's per-call work (clipping the
-        bounds again, caching data for derivatives, building result
-        namespaces) is a sizeable share of a round's budget (measured:
-        docs/results/dmpc_qp.md). Falls back to the public API otherwise.
-        ``l``/``u`` here are already within +-OSQP_INFTY.
-        """
-        core = getattr(self._osqp, "_solver", None)
-        if core is None or not all(hasattr(core, f) for f in ("update_data_vec", "update_data_mat", "warm_start")):
-            self._osqp.update(**update)
-            self._osqp.warm_start(x=x_ws, y=y_ws)
-            res = self._osqp.solve(raise_error=False)
-            return SimpleNamespace(x=np.array(res.x), y=np.array(res.y), info=res.info)
+        """Update OSQP's data, warm-start and solve (:mod:`planners.dmpc.osqp_core`); returns ``x``, ``y`` (copies) and ``info``."""
+        core = self._core
         core.update_data_vec(q=update["q"], l=update["l"], u=update["u"])
         if "Ax" in update or "Px" in update:
             core.update_data_mat(P_x=update.get("Px"), P_i=None, A_x=update.get("Ax"), A_i=None)
         core.warm_start(x_ws, y_ws)
         core.solve()
         return SimpleNamespace(x=np.array(core.solution.x), y=np.array(core.solution.y), info=core.info)
-
-    def _shifted_warm_start(self, n_coll: int, n_obs: int) -> tuple[np.ndarray, np.ndarray]:
-        """Previous primal and dual solutions shifted by one step (the receding horizon).
-
-        Inputs u[1..K-1] become u[0..K-2] and u[K-1] is repeated; the
-        multipliers of every step-indexed row block (position, velocity and
-        acceleration boxes, BVC planes, obstacle planes) shift the same way.
-        On-demand rows (one per neighbour or obstacle slot, not per step) keep
-        their multipliers; unused on-demand slots (the first ``n_coll``
-        neighbour and ``n_obs`` obstacle slots are used) start at 0.
-
-        Returns:
-            x (n,) and y (m,) for OSQP's warm start.
-        """
-        K, n_u = self.config.horizon_steps, self._n_u
-        x = self._x_last.copy()
-        x[: n_u - 3] = self._x_last[3:n_u]  # u[k] <- u[k+1]; u[K-1] kept
-        y = self._y_last.copy()
-        for row0, blocks, per_step in self._step_blocks:
-            block = y[row0 : row0 + blocks * K * per_step].reshape(blocks, K * per_step)
-            block[:, :-per_step] = block[:, per_step:].copy()  # step k <- step k+1; step K kept
-        if self.config.collision_mode == "on_demand":
-            x[n_u + n_coll :] = 0.0
-            y[self._row_coll + n_coll : self._row_coll + self._n_coll_rows] = 0.0
-        if self._obs_steps == 1:
-            y[self._row_obs + n_obs : self._n_rows] = 0.0
-        return x, y
 
     def _nearest(self, own_prev: np.ndarray, nb_pos: np.ndarray, count: int) -> np.ndarray:
         """Indices of the ``count`` neighbours closest (over the horizon) to the own previous plan."""
@@ -497,13 +402,13 @@ class DmpcProblem:
         rows = obstacle_rows(self.config, obstacles, x0, free_pos, self._Lambda_pos_blocks, own_prev, _CULL_MARGIN_M)
         self._obstacle_conflicts = rows.conflicts
         coef = rows.coef
-        if self._obs_steps == 1:  # on demand: unused slots keep their last coefficients (bounds -inf..inf),
+        if self._rows.obs_steps == 1:  # on demand: unused slots keep their last coefficients (bounds -inf..inf),
             self._obs_coef[: rows.count] = coef[: rows.count]  # so a round whose conflicts end leaves A unchanged
             coef = self._obs_coef
-        mask = np.broadcast_to(self._obs_mask, (self.config.max_obstacle_planes,) + self._obs_mask.shape)
-        self._set_dynamic(self._obs_slice, coef.reshape(mask.shape)[mask])
-        self._l[self._row_obs : self._n_rows] = rows.lower
-        self._u[self._row_obs : self._n_rows] = _INF
+        mask = np.broadcast_to(self._rows.obs_mask, (self.config.max_obstacle_planes,) + self._rows.obs_mask.shape)
+        self._set_dynamic(self._rows.obs_entries, coef.reshape(mask.shape)[mask])
+        self._l[self._rows.obs : self._rows.n] = rows.lower
+        self._u[self._rows.obs : self._rows.n] = _INF
         return rows.count
 
     def _result(

@@ -35,6 +35,7 @@ import scipy.sparse as sp
 
 from planners.dmpc.admm.config import AdmmFormationConfig
 from planners.dmpc.admm.ocp import DroneLayout, own_bounds, own_constraint_matrix, own_cost
+from planners.dmpc.osqp_core import solver_core
 
 __all__ = ["AdmmLocalQpError", "LocalAdmmQp", "LocalSolve"]
 
@@ -127,8 +128,7 @@ class LocalAdmmQp:
         )  # fmt: skip; residuals checked every 5 OSQP iterations: a warm-started local QP takes about 5
         # The compiled solver object (osqp 1.x) is called directly, as in planners.dmpc.qp: the Python
         # wrapper's per-call bookkeeping costs more than a warm-started solve of this size.
-        core = getattr(solver, "_solver", None)
-        self._core = core if core is not None and hasattr(core, "update_data_vec") else _WrapperCore(solver)
+        self._core = solver_core(solver)
         self._osqp = solver
 
     # ---------------------------------------------------------------- per MPC step
@@ -195,31 +195,3 @@ class LocalAdmmQp:
     def objective(self, z: np.ndarray) -> float:
         """f_i(z) (n_i,) = 1/2 z' H_i z + g_i' z + c_i, the drone's share of the cost (1a)."""
         return float(0.5 * z @ (self.H @ z) + self.g @ z + self.cost_constant)
-
-
-class _WrapperCore:
-    """The compiled-solver calls this module makes, through osqp's public wrapper (if it has no ``_solver``)."""
-
-    def __init__(self, solver: osqp.OSQP) -> None:
-        self._solver = solver
-        self._res = None
-
-    def update_data_vec(self, q: np.ndarray, l: np.ndarray | None, u: np.ndarray | None) -> None:
-        kwargs = {"q": q}
-        if l is not None:
-            kwargs.update(l=l, u=u)
-        self._solver.update(**kwargs)
-
-    def warm_start(self, x: np.ndarray, y: np.ndarray) -> None:
-        self._solver.warm_start(x=x, y=y)
-
-    def solve(self) -> None:
-        self._res = self._solver.solve(raise_error=False)
-
-    @property
-    def info(self):  # osqp's info namespace
-        return self._res.info
-
-    @property
-    def solution(self):  # osqp's result (x, y)
-        return self._res

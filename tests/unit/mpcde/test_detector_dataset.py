@@ -14,10 +14,10 @@ from mpcde.training.dataset import (
     SPLIT_SEED_BASE,
     DatasetConfig,
     boxes_from_mask,
-    load_dataset,
     render_scene,
     split_seeds,
 )
+from mpcde.training.dataset_files import load_dataset
 from sim.camera import CameraConfig
 
 FIXTURE = Path(__file__).resolve().parents[3] / "data" / "detector" / "fixture" / "test"

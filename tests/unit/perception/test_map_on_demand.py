@@ -104,7 +104,7 @@ def test_clear_stride_is_validated() -> None:
 
 @pytest.mark.parametrize("dets", [(), ((100.0, 60.0, 180.0, 120.0),), ((0.0, 0.0, 40.0, 30.0), (250.0, 150.0, 319.0, 239.0))])
 def test_compiled_rays_equal_the_numpy_reference(dets) -> None:
-    from perception.occupancy_map import rays_camera_numpy
+    from perception.ray_integration import rays_camera_numpy
     from perception.types import Detection
 
     K = intrinsics()

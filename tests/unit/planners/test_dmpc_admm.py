@@ -10,7 +10,7 @@ import pytest
 from planners.dmpc.admm.centralized import centralized_formation_qp, formation_cost
 from planners.dmpc.admm.config import AdmmFormationConfig
 from planners.dmpc.admm.formation import AdmmFormationAgent, solve_admm_round
-from planners.dmpc.admm.local_qp import _WrapperCore
+from planners.dmpc.osqp_core import WrapperCore
 from planners.dmpc.admm.types import CopyMessage
 from planners.dmpc.formation_graph import (
     FormationGraph,
@@ -356,7 +356,7 @@ def test_the_public_osqp_wrapper_fallback_gives_the_same_round(rng):
         agents = _agents(graph, CONFIG)
         if wrapped:
             for a in agents:
-                a.local_qp._core = _WrapperCore(a.local_qp._osqp)
+                a.local_qp._core = WrapperCore(a.local_qp._osqp)
         _start(agents, states, refs)
         plans.append(np.stack([r.acc_world for r in solve_admm_round(agents)]))
     assert np.allclose(plans[0], plans[1], atol=1e-9)

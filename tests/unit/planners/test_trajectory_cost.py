@@ -7,7 +7,8 @@ import pytest
 
 from perception.types import NeighborPrediction, OccupancySnapshot
 from planners.minco import MincoS3
-from planners.trajectory_cost import NeighborTable, PenaltyParameters, TrajectoryCost, _neighbor_state
+from planners.trajectory_cost import NeighborTable, PenaltyParameters, TrajectoryCost
+from planners.trajectory_penalty import _neighbor_state
 
 
 class CylinderField:

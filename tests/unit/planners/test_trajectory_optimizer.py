@@ -9,12 +9,10 @@ from perception.types import NeighborPrediction, OccupancySnapshot
 from planners.trajectory_optimizer import (
     TrajectoryOptimizationError,
     TrajectoryOptimizerConfig,
-    _dtime_dtau,
-    _tau_to_time,
-    _time_to_tau,
     build_trajectory_problem,
     solve,
 )
+from planners.trajectory_variables import _dtime_dtau, _tau_to_time, _time_to_tau
 
 
 class CylinderField:
