@@ -24,7 +24,6 @@ import os
 from dataclasses import replace
 
 import numpy as np
-import pybullet as pb
 from peer_pyflyt import pyflyt_available, pyflyt_peer_rtf
 from timing import median_ms
 
@@ -32,6 +31,7 @@ from mpcde.config.modes import MODES
 from mpcde.config.scenario import load_scenario
 from mpcde.flight.loop import prepare_run, run_scenario
 from mpcde.onboard.budget import COMPONENTS
+from sim.bullet import pb
 from sim.camera import CameraConfig
 from sim.camera_rig import CameraRig
 from sim.rendering.raycast import RaycastRenderer

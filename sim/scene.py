@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pybullet as pb
 
+from sim.bullet import pb
 from sim.types import ObstacleSpec
 
 __all__ = ["DRONE_URDF", "RenderStyle", "SceneSpec", "build_obstacles", "load_drones"]

@@ -17,8 +17,8 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
-import pybullet as pb
 
+from sim.bullet import pb
 from sim.ground_truth import TrueState
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import SceneSpec, build_obstacles, load_drones

@@ -28,7 +28,8 @@ from typing import Any, Callable
 import numpy as np
 
 from mpcde.config.resolve import resolve
-from mpcde.config.scenario import ScenarioConfig, build_layout, check_layout, resolve_obstacles
+from mpcde.config.layout import build_layout, check_layout, resolve_obstacles
+from mpcde.config.scenario import ScenarioConfig
 from mpcde.flight.metrics import MetricsAccumulator, formation_metrics
 from mpcde.flight.tracking_score import TrackingScore
 from mpcde.onboard.budget import ComputeBudget
@@ -283,7 +284,7 @@ def _finish_frames(
 
 def _line_of_sight(world: World, a: np.ndarray, b: np.ndarray) -> bool:
     """Whether the segment a-b (3,) misses every static obstacle (PyBullet ray test)."""
-    import pybullet as pb
+    from sim.bullet import pb
 
     d = b - a
     length = float(np.linalg.norm(d))

@@ -29,9 +29,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pybullet as pb
 from numba import njit
 
+from sim.bullet import pb
 from sim.camera import (
     CameraConfig,
     intrinsics,

@@ -138,7 +138,7 @@ def test_a_render_leaves_every_drone_where_it_was_set_bit_for_bit():
     the centre-of-mass frame); restoring from it made a render depend on which
     cameras the client had rendered before, hence flights on the worker count.
     """
-    import pybullet as pb
+    from sim.bullet import pb
 
     rng = np.random.default_rng(4)
     n = 4
