@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import reprlib
 from typing import Any, Iterable
 
 import numpy as np
@@ -28,20 +29,50 @@ __all__ = [
 class ConfigError(ValueError):
     """An invalid setting: the field (a dotted path), the value and what is allowed.
 
-    The message is one line: ``<field>=<value!r>: <allowed>``.
+    The message is one line: ``<field>=<value!r>: <allowed>``, whatever the
+    input: control characters in the field (a key from a file) are escaped as
+    ``repr`` escapes them, and the field, the value's repr and the allowed text
+    are each cut to :data:`MESSAGE_PART_CHARS` characters (a value's repr is
+    built with :mod:`reprlib`'s limits, so a huge value costs no more).
     """
 
     def __init__(self, field: str, value: Any, allowed: str) -> None:
         self.field = field
         self.value = value
         self.allowed = allowed
-        super().__init__(f"{field}={value!r}: {allowed}")
+        super().__init__(f"{_one_line(str(field))}={_short_repr(value)}: {_one_line(str(allowed))}")
 
     def under(self, section: str) -> "ConfigError":
         """The same error with its field inside ``section`` (``"denied"`` + ``"yaw.v_max_mps"``)."""
         if not section or self.field == section or self.field.startswith(section + "."):
             return self
         return ConfigError(f"{section}.{self.field}", self.value, self.allowed)
+
+
+MESSAGE_PART_CHARS = 200
+"""Longest field, value or allowed text in a :class:`ConfigError` message [characters]."""
+
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxdict, _REPR.maxlist, _REPR.maxtuple, _REPR.maxset = 3, 6, 6, 6, 6
+_REPR.maxstring, _REPR.maxother, _REPR.maxlong = 120, 120, 40
+
+
+def _cut(text: str) -> str:
+    return text if len(text) <= MESSAGE_PART_CHARS else text[: MESSAGE_PART_CHARS - 3] + "..."
+
+
+def _one_line(text: str) -> str:
+    """``text`` with control characters escaped (a newline as ``\\n``, ESC as ``\\x1b``), cut to length."""
+    if text.isprintable():
+        return _cut(text)
+    return _cut("".join(c if c.isprintable() else repr(c)[1:-1] for c in text))
+
+
+def _short_repr(value: Any) -> str:
+    try:
+        return _one_line(_REPR.repr(value))
+    except Exception:  # a repr that fails (an int past Python's digit limit, a broken object)
+        return f"<{type(value).__name__}>"
 
 
 def _is_real(value: object) -> bool:

@@ -1,10 +1,13 @@
 """Typed, validated construction of frozen config dataclasses from plain dicts.
 
-The one place where YAML becomes config. Each dataclass field's type is
+The one place where YAML becomes config. The file is read by the strict
+reader (:mod:`mpcde.config.yaml_reader`); each dataclass field's type is
 checked (bool, int, float, str, tuples of numbers, nested dataclasses,
-``Literal`` choices); unknown keys are rejected; the dataclass's own
-``__post_init__`` checks ranges. Every failure is a :class:`ConfigError` whose
-one-line message names the dotted field path, the value and what is allowed.
+``Literal`` choices); unknown keys are rejected; with ``ranges`` every number
+is checked against its physical range (:mod:`mpcde.config.bounds`) before its
+class is built, and the dataclass's own ``__post_init__`` checks consistency.
+Every failure is a :class:`ConfigError` whose one-line message names the
+dotted field path, the value and what is allowed.
 """
 
 from __future__ import annotations
@@ -16,8 +19,8 @@ import typing
 from pathlib import Path
 from typing import Any, get_args, get_origin
 
-import yaml
-
+from mpcde.config.bounds import Ranges, check_value
+from mpcde.config.yaml_reader import read_yaml
 from mpcde.errors import ConfigError
 
 __all__ = ["from_dict", "load_yaml", "to_dict"]
@@ -41,12 +44,12 @@ def _type_name(tp: Any) -> str:
     return {bool: "true/false", int: "an integer", float: "a number", str: "a string", type(None): "null"}.get(tp, str(tp))
 
 
-def _convert(value: Any, tp: Any, path: str) -> Any:
+def _convert(value: Any, tp: Any, path: str, ranges: Ranges | None = None) -> Any:
     origin = get_origin(tp)
     if origin in _UNIONS:
         for arg in get_args(tp):
             try:
-                return _convert(value, arg, path)
+                return _convert(value, arg, path, ranges)
             except ConfigError:
                 continue
         raise ConfigError(path, value, f"must be {_type_name(tp)}")
@@ -59,12 +62,12 @@ def _convert(value: Any, tp: Any, path: str) -> Any:
             raise ConfigError(path, value, f"must be {_type_name(tp)}")
         args = get_args(tp)
         if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_convert(v, args[0], f"{path}[{i}]") for i, v in enumerate(value))
+            return tuple(_convert(v, args[0], f"{path}[{i}]", ranges) for i, v in enumerate(value))
         if len(value) != len(args):
             raise ConfigError(path, value, f"must be {_type_name(tp)}")
-        return tuple(_convert(v, a, f"{path}[{i}]") for i, (v, a) in enumerate(zip(value, args)))
+        return tuple(_convert(v, a, f"{path}[{i}]", ranges) for i, (v, a) in enumerate(zip(value, args)))
     if dataclasses.is_dataclass(tp):
-        return from_dict(tp, value, path)
+        return from_dict(tp, value, path, ranges)
     if tp is type(None):
         if value is None:
             return None
@@ -81,9 +84,13 @@ def _convert(value: Any, tp: Any, path: str) -> Any:
         if isinstance(value, str) and value.strip().lower() in ("inf", ".inf", "infinity"):
             return math.inf
         if isinstance(value, (int, float)) and not isinstance(value, bool):
-            if math.isnan(float(value)):
+            try:
+                number = float(value)
+            except OverflowError:  # an integer past the float range
+                raise ConfigError(path, value, "must be a number within the float range") from None
+            if math.isnan(number):
                 raise ConfigError(path, value, "must be a number, not NaN")
-            return float(value)
+            return number
         raise ConfigError(path, value, "must be a number")
     if tp is str:
         if isinstance(value, str):
@@ -92,8 +99,12 @@ def _convert(value: Any, tp: Any, path: str) -> Any:
     return value
 
 
-def from_dict(cls: type, data: Any, path: str = "") -> Any:
-    """Build dataclass ``cls`` from mapping ``data``; ``path`` prefixes field names in errors."""
+def from_dict(cls: type, data: Any, path: str = "", ranges: Ranges | None = None) -> Any:
+    """Build dataclass ``cls`` from mapping ``data``; ``path`` prefixes field names in errors.
+
+    With ``ranges`` (:data:`mpcde.config.scenario.SCENARIO_RANGES`), every
+    number of every field is checked against its range before ``cls`` is built.
+    """
     where = path or cls.__name__
     if data is None:
         data = {}
@@ -101,19 +112,32 @@ def from_dict(cls: type, data: Any, path: str = "") -> Any:
         raise ConfigError(where, data, "must be a mapping of fields")
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
-    unknown = sorted(set(data) - set(fields))
+    unknown = sorted(set(data) - set(fields), key=str)
     if unknown:
         key = unknown[0]
         name = f"{path}.{key}" if path else key
         raise ConfigError(name, data[key], f"unknown key; allowed keys: {', '.join(sorted(fields))}")
-    kwargs = {}
-    for name, value in data.items():
-        full = f"{path}.{name}" if path else name
-        kwargs[name] = _convert(value, hints[name], full)
+    kwargs = {name: _convert(value, hints[name], f"{path}.{name}" if path else name, ranges) for name, value in data.items()}
+    out_of_range: list[ConfigError] = []
+    for name, value in kwargs.items():
+        try:
+            check_value(name, value, (ranges or {}).get(cls, {}).get(name))
+        except ConfigError as e:
+            out_of_range.append(e)
     try:
-        return cls(**kwargs)
+        built = cls(**kwargs)
     except ConfigError as e:  # every settings class checks its fields with sim.checks
+        blamed = e.field.split(".")[0].split("[")[0]
+        if out_of_range and all(blamed != r.field.split("[")[0] for r in out_of_range):
+            raise out_of_range[0].under(path) from None  # the class blamed a sibling of the value out of range
         raise e.under(path) from None
+    except (ArithmeticError, ValueError, TypeError, MemoryError) as e:  # an extreme value a check computed with
+        if out_of_range:
+            raise out_of_range[0].under(path) from None
+        raise ConfigError(path or cls.__name__, "...", f"refused by its checks ({type(e).__name__})") from None
+    if out_of_range:
+        raise out_of_range[0].under(path) from None
+    return built
 
 
 def to_dict(obj: Any) -> Any:
@@ -128,14 +152,5 @@ def to_dict(obj: Any) -> Any:
 
 
 def load_yaml(path: Path) -> Any:
-    """Parse a YAML file; unreadable or malformed files raise :class:`ConfigError`."""
-    try:
-        text = Path(path).read_text()
-    except OSError as e:
-        raise ConfigError("scenario", str(path), f"cannot read file ({e.strerror})") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark else ""
-        raise ConfigError("scenario", str(path), f"not valid YAML{where}") from None
+    """Parse a YAML file strictly (:func:`mpcde.config.yaml_reader.read_yaml`); refusals raise :class:`ConfigError`."""
+    return read_yaml(path)

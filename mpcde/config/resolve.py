@@ -29,7 +29,8 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable
 
-from mpcde.config.scenario import ScenarioConfig
+from mpcde.config.bounds import check_ranges
+from mpcde.config.scenario import SCENARIO_RANGES, ScenarioConfig
 from mpcde.errors import ConfigError
 
 __all__ = ["DERIVED", "resolve"]
@@ -95,8 +96,11 @@ def resolve(cfg: ScenarioConfig, written: dict | None = None) -> ScenarioConfig:
             a field is "set" when it differs from its default.
 
     Raises:
-        ConfigError: a derived field set to another value than its derivation.
+        ConfigError: a number outside its range (:data:`mpcde.config.scenario.SCENARIO_RANGES`;
+            a config built in code meets them here), or a derived field set to
+            another value than its derivation.
     """
+    check_ranges(cfg, SCENARIO_RANGES)
     out = cfg
     for target, source, derive, applies in DERIVED:
         if not applies(cfg):

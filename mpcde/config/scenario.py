@@ -8,22 +8,24 @@ pose estimate, physics) so there is one definition of each field.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+import dataclasses
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, get_args
-
-import numpy as np
+from typing import Literal, get_args
 
 from mpcde.config.admm import AdmmAgentConfig
 from mpcde.config.auto import AutoAgentConfig
+from mpcde.config.bounds import Bound, check_ranges
 from mpcde.config.denied import DeniedAgentConfig
 from mpcde.config.dmpc import DmpcAgentConfig
 from mpcde.config.io import from_dict, load_yaml
+from mpcde.config.layout import build_layout, resolve_obstacles
 from mpcde.config.mlr import MlrAgentConfig
 from mpcde.config.perception import PerceptionConfig
+from mpcde.config.ranges import RANGES
+from mpcde.config.stack_rules import check_admm, check_mlr
 from mpcde.errors import ConfigError
 from sim.camera import CameraConfig
-from sim.obstacles import distance_to_obstacles, generate_obstacles
 from sim.pose_estimate import PoseEstimateConfig
 from sim.radio import RadioConfig
 from sim.types import ObstacleSpec
@@ -43,6 +45,12 @@ __all__ = [
 ]
 
 SCENARIO_DIR = Path(__file__).resolve().parents[2] / "data" / "scenarios"
+MAX_DRONES = 32
+"""Most drones in a scenario (every layout)."""
+MAX_OBSTACLES = 500
+"""Most obstacles in a world, hand-placed plus random (the random placement is quadratic in their number)."""
+MAX_NAME_CHARS = 100
+"""Longest scenario name [characters]."""
 
 
 @dataclass(frozen=True)
@@ -97,6 +105,14 @@ class WorldConfig:
             raise ConfigError("box_fraction", self.box_fraction, "in [0, 1]")
         if self.clear_radius_m < 0:
             raise ConfigError("clear_radius_m", self.clear_radius_m, ">= 0 [m]")
+        n_random = round(self.obstacle_density_per_100m2 * self.arena_size_m[0] * self.arena_size_m[1] / 100.0)
+        if len(self.obstacles) + n_random > MAX_OBSTACLES:
+            allowed = f"at most {MAX_OBSTACLES} obstacles in all: {len(self.obstacles)} placed + {n_random} random (density x arena area / 100)"
+            raise ConfigError("obstacle_density_per_100m2", self.obstacle_density_per_100m2, allowed)
+        half = [a / 2 for a in self.arena_size_m]
+        for i, o in enumerate(self.obstacles):
+            if abs(o.center_xy[0]) > half[0] or abs(o.center_xy[1]) > half[1]:
+                raise ConfigError(f"obstacles[{i}].center_xy", o.center_xy, f"inside the arena, |x| <= {half[0]:g} and |y| <= {half[1]:g} m")
 
 
 @dataclass(frozen=True)
@@ -127,10 +143,12 @@ class DronesConfig:
 
     def __post_init__(self) -> None:
         if self.layout == "explicit":
-            if not self.starts or len(self.starts) != len(self.goals):
-                raise ConfigError("goals", self.goals, f"one goal per start ({len(self.starts)} starts), at least one")
-        elif not 1 <= self.count <= 32:
-            raise ConfigError("count", self.count, "an integer in [1, 32]")
+            if not 1 <= len(self.starts) <= MAX_DRONES:
+                raise ConfigError("starts", f"{len(self.starts)} starts", f"1 to {MAX_DRONES} start positions")
+            if len(self.starts) != len(self.goals):
+                raise ConfigError("goals", f"{len(self.goals)} goals", f"one goal per start ({len(self.starts)} starts)")
+        elif not 1 <= self.count <= MAX_DRONES:
+            raise ConfigError("count", self.count, f"an integer in [1, {MAX_DRONES}]")
         if self.radius_m <= 0 or self.spacing_m <= 0:
             raise ConfigError("radius_m", self.radius_m, "radius_m and spacing_m must be > 0 [m]")
         if not 0.3 <= self.altitude_m <= 20:
@@ -252,6 +270,8 @@ class ScenarioConfig:
     run: RunOptions = field(default_factory=RunOptions)
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.name, str) and 1 <= len(self.name) <= MAX_NAME_CHARS and self.name.isprintable()):
+            raise ConfigError("name", self.name, f"1 to {MAX_NAME_CHARS} printable characters")
         if not 0 < self.duration_s <= 3600:
             raise ConfigError("duration_s", self.duration_s, "in (0, 3600] s")
         if not 0 <= self.seed < 2**32:
@@ -261,129 +281,47 @@ class ScenarioConfig:
             raise ConfigError("run.cameras", self.run.cameras, allowed)
         if self.planner.kind in ("dmpc", "auto") and abs(self.dmpc.qp.step_s * self.radio.rate_hz - 1.0) > 1e-6:
             raise ConfigError("dmpc.qp.step_s", self.dmpc.qp.step_s, f"must equal 1 / radio.rate_hz = {1.0 / self.radio.rate_hz:g} s (one DMPC round per step)")
+        if self.run.cameras and (self.camera.width_px % 16 or self.camera.height_px % 16):
+            bad = "width_px" if self.camera.width_px % 16 else "height_px"
+            allowed = "a multiple of 16 px with run.cameras: true (the detector's stride-16 level)"
+            raise ConfigError(f"camera.{bad}", getattr(self.camera, bad), allowed)
+        _require_inside_arena(self)
         if self.planner.kind == "mlr":
-            _check_mlr(self)
+            check_mlr(self)
         if self.planner.kind == "admm":
-            _check_admm(self)
+            check_admm(self)
 
 
-def _refuse_obstacles(world: WorldConfig, kind: str, why: str) -> None:
-    """ConfigError if the world has static obstacles: planner.kind ``kind`` cannot avoid them (``why``)."""
-    why = f"{why}; fly obstacles with planner.kind 'dmpc' (--mode comm)"
-    if world.obstacles:
-        raise ConfigError("world.obstacles", [o.kind for o in world.obstacles], f"none for planner.kind {kind!r}: {why}")
-    if world.obstacle_density_per_100m2 > 0:
-        density = world.obstacle_density_per_100m2
-        raise ConfigError("world.obstacle_density_per_100m2", density, f"0 for planner.kind {kind!r}: {why}")
-
-
-def _require_inside_box(starts: np.ndarray, goals: np.ndarray, planner: Any, box_name: str, section: str) -> None:
-    """ConfigError naming the first start or goal (n, 3) [m] outside ``planner``'s pos_min_world..pos_max_world."""
-    lo, hi = np.asarray(planner.pos_min_world), np.asarray(planner.pos_max_world)
-    for name, pts in (("drones.starts", starts), ("drones.goals", goals)):
-        outside = np.flatnonzero(np.any((pts < lo) | (pts > hi), axis=1))
-        if outside.size:
-            i = int(outside[0])
-            box = f"[{', '.join(f'{v:g}' for v in lo)}] to [{', '.join(f'{v:g}' for v in hi)}] m"
-            allowed = f"inside {box_name} {box} (the arena less {section}.arena_margin_m, {section}.altitude_range_m)"
-            raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], allowed)
-
-
-def _check_mlr(cfg: ScenarioConfig) -> None:
-    """The cross-field rules of ``planner.kind: mlr`` (:mod:`mpcde.onboard.mlr`); raises ConfigError."""
-    mlr, radio, world = cfg.mlr, cfg.radio, cfg.world
-    if abs(mlr.round_s * radio.rate_hz - 1.0) > 1e-6:
-        allowed = f"must equal 1 / radio.rate_hz = {1.0 / radio.rate_hz:g} s (one MLR round per radio round)"
-        raise ConfigError("mlr.round_s", mlr.round_s, allowed)
-    if not radio.delay_s < mlr.round_s:
-        allowed = f"< mlr.round_s = {mlr.round_s:g} s for planner.kind 'mlr' (messages are read in the next round)"
-        raise ConfigError("radio.delay_s", radio.delay_s, allowed)
-    _refuse_obstacles(world, "mlr", "MLR-DMPC has no obstacle constraints")
+def _require_inside_arena(cfg: ScenarioConfig) -> None:
+    """ConfigError naming the first start or goal outside the arena or above the altitude limit."""
     starts, goals = build_layout(cfg.drones)
-    planner = mlr.planner_config(len(starts), world.arena_size_m)  # M < N and the flying box
-    _require_inside_box(starts, goals, planner, "MLR-DMPC's flying box", "mlr")
-
-
-def _check_admm(cfg: ScenarioConfig) -> None:
-    """The cross-field rules of ``planner.kind: admm`` (:mod:`mpcde.onboard.admm`); raises ConfigError."""
-    admm, radio, world = cfg.admm, cfg.radio, cfg.world
-    if admm.radio_rate_from_step:  # the rate resolve() gives the radio (mpcde/config/resolve.py)
-        radio = replace(radio, rate_hz=admm.radio_rate_hz)
-    elif abs(radio.rate_hz * admm.step_s - admm.rounds_per_step) > 1e-6:
-        allowed = (
-            f"must equal 2 x admm.l_max / admm.step_s = {admm.radio_rate_hz:g} Hz for planner.kind 'admm' (one "
-            "radio sub-round per ADMM exchange), or set admm.radio_rate_from_step: true"
-        )
-        raise ConfigError("radio.rate_hz", radio.rate_hz, allowed)
-    if not radio.delay_s < admm.sub_round_s:
-        allowed = f"< one ADMM sub-round admm.step_s / (2 admm.l_max) = {admm.sub_round_s:g} s for planner.kind 'admm'"
-        raise ConfigError("radio.delay_s", radio.delay_s, allowed)
-    if cfg.physics.physics_hz < radio.rate_hz - 1e-9:
-        allowed = f">= the ADMM radio rate {radio.rate_hz:g} Hz for planner.kind 'admm' (a tick per sub-round)"
-        raise ConfigError("physics.physics_hz", cfg.physics.physics_hz, allowed)
-    _refuse_obstacles(world, "admm", "the ADMM formation OCP has no obstacle constraints")
-    if cfg.planner.cruise_speed_mps > admm.v_max:
-        allowed = f"<= admm.v_max = {admm.v_max:g} m/s for planner.kind 'admm' (the own reference's speed)"
-        raise ConfigError("planner.cruise_speed_mps", cfg.planner.cruise_speed_mps, allowed)
-    starts, goals = build_layout(cfg.drones)
-    planner = admm.planner_config(cfg.world.arena_size_m)  # the soft position box fits the arena
-    _require_inside_box(starts, goals, planner, "the ADMM position box", "admm")
-    # no collision avoidance: the drones must start in the goals' formation (moved to the starts' centroid)
-    slots = goals - goals.mean(axis=0) + starts.mean(axis=0)
-    offset = np.linalg.norm(starts - slots, axis=1)
-    if np.any(offset > admm.max_start_offset_m):
-        i = int(np.argmax(offset))
-        allowed = (
-            f"within admm.max_start_offset_m = {admm.max_start_offset_m:g} m of its slot in the goals' formation "
-            f"({offset[i]:.2f} m off) for planner.kind 'admm': it has no collision avoidance"
-        )
-        raise ConfigError(f"drones.starts[{i}]", [round(float(v), 3) for v in starts[i]], allowed)
-
-
-def build_layout(drones: DronesConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Start and goal positions, (N, 3) each [m]."""
-    if drones.layout == "explicit":
-        return np.asarray(drones.starts, float), np.asarray(drones.goals, float)
-    n, r, z = drones.count, drones.radius_m, drones.altitude_m
-    if drones.layout == "antipodal":
-        a = 2 * np.pi * np.arange(n) / n
-        starts = np.stack([r * np.cos(a), r * np.sin(a), np.full(n, z)], axis=1)
-        return starts, starts * np.array([-1.0, -1.0, 1.0])
-    y = (np.arange(n) - (n - 1) / 2) * drones.spacing_m
-    starts = np.stack([np.full(n, -r), y, np.full(n, z)], axis=1)
-    return starts, starts * np.array([-1.0, -1.0, 1.0])
-
-
-def resolve_obstacles(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> tuple[ObstacleSpec, ...]:
-    """Hand-placed plus seeded random obstacles, clear of starts and goals."""
-    explicit = [o.to_spec() for o in cfg.world.obstacles]
-    rng = np.random.default_rng([cfg.seed, 0x0B57])
-    keep = np.concatenate([starts[:, :2], goals[:, :2]])
-    placed = generate_obstacles(
-        rng, cfg.world.arena_size_m, cfg.world.obstacle_density_per_100m2, keep, cfg.world.clear_radius_m, box_fraction=cfg.world.box_fraction
-    )
-    # drop random obstacles that overlap hand-placed ones
-    placed = [p for p in placed if all(np.hypot(*np.subtract(p.center_xy, e.center_xy)) > p.footprint_radius_m + e.footprint_radius_m + 0.5 for e in explicit)]
-    return tuple(explicit + placed)
-
-
-def check_layout(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray, obstacles: tuple[ObstacleSpec, ...]) -> None:
-    """Reject starts or goals inside obstacles and goals or starts closer than the safety distance."""
-    r = cfg.physics.quadrotor.robot_radius_m
+    hx, hy = (a / 2 for a in cfg.world.arena_size_m)
     for name, pts in (("drones.starts", starts), ("drones.goals", goals)):
-        if obstacles:
-            d = distance_to_obstacles(pts, obstacles)
-            bad = np.flatnonzero(d < r)
-            if bad.size:
-                i = int(bad[0])
-                raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], f"inside or within {r} m of an obstacle")
-        if np.any(pts[:, 2] < r):
-            i = int(np.flatnonzero(pts[:, 2] < r)[0])
-            raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], f"z must be >= robot radius {r} m")
-        dist = np.linalg.norm(pts[:, None] - pts[None], axis=-1) + np.eye(len(pts)) * 1e9
-        if np.any(dist < 2 * r + 0.1):
-            i, j = np.unravel_index(np.argmin(dist), dist.shape)
-            raise ConfigError(f"{name}[{j}]", [round(float(v), 3) for v in pts[j]], f"closer than the safety distance {2 * r + 0.1:.2f} m to {name}[{i}]")
+        for i, (x, y, z) in enumerate(pts):
+            if not (abs(x) <= hx and abs(y) <= hy and 0 <= z <= 20):
+                allowed = f"inside the arena, |x| <= {hx:g} m, |y| <= {hy:g} m, 0 <= z <= 20 m"
+                raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in (x, y, z)], allowed)
+
+
+SCENARIO_RANGES = {
+    **RANGES,
+    ScenarioConfig: {"seed": Bound(0, 2**32 - 1), "duration_s": Bound(0.01, 3600, "s")},
+    WorldConfig: {
+        "arena_size_m": Bound(1, 200, "m"), "obstacle_density_per_100m2": Bound(0, 40, "per 100 m^2"), "box_fraction": Bound(0, 1),
+        "clear_radius_m": Bound(0, 10, "m"),
+    },
+    ObstacleEntry: {
+        "center_xy": Bound(-100, 100, "m"), "height_m": Bound(0.1, 100, "m"), "radius_m": Bound(0.01, 20, "m"),
+        "half_extents_xy": Bound(0.01, 50, "m"), "yaw": Bound(-7, 7, "rad"),
+    },
+    DronesConfig: {
+        "count": Bound(1, MAX_DRONES), "radius_m": Bound(0.1, 100, "m"), "spacing_m": Bound(0.1, 50, "m"), "altitude_m": Bound(0.3, 20, "m"),
+        "starts": Bound(-100, 100, "m"), "goals": Bound(-100, 100, "m"),
+    },
+    PlannerConfig: {"cruise_speed_mps": Bound(0.01, 10, "m/s"), "start_delay_s": Bound(0, 60, "s")},
+    RunOptions: {"render_workers": Bound(-1, 16), "log_rate_hz": Bound(0.1, 240, "Hz"), "goal_tolerance_m": Bound(0.01, 10, "m")},
+}
+"""The range of every number a scenario may hold (:mod:`mpcde.config.bounds`): the components' plus the scenario's own sections."""
 
 
 def load_scenario(
@@ -406,9 +344,10 @@ def load_scenario(
         raise ConfigError("scenario", str(path_or_name), f"no such file; built-in scenarios: {builtins}")
     data = load_yaml(p)
     if data is None:
-        data = {}
+        raise ConfigError("scenario", str(p), "an empty file (a scenario is a YAML mapping of fields; see data/scenarios/)")
     if not isinstance(data, dict):
         raise ConfigError("scenario", str(p), "must be a YAML mapping of fields")
+    _refuse_ignored(data)
     data = {**data, **(overrides or {})}
     if planner_kind is not None:
         planner = data.get("planner")
@@ -418,4 +357,47 @@ def load_scenario(
     data.setdefault("name", p.stem)
     from mpcde.config.resolve import resolve
 
-    return resolve(from_dict(ScenarioConfig, data), data)
+    return resolve(from_dict(ScenarioConfig, data, ranges=SCENARIO_RANGES), data)
+
+
+def _is_default(cls: type, key: str, value: object) -> bool:
+    default = next(f.default for f in dataclasses.fields(cls) if f.name == key)
+    try:
+        return bool(value == default or (isinstance(value, list) and tuple(map(tuple, value)) == tuple(map(tuple, default))))
+    except TypeError:
+        return False
+
+
+_LAYOUT_FIELDS = {"explicit": {"starts", "goals"}, "antipodal": {"count", "radius_m", "altitude_m"}, "mirror": {"count", "radius_m", "spacing_m", "altitude_m"}}
+_OBSTACLE_FIELDS = {"tree": {"radius_m"}, "box": {"half_extents_xy", "yaw"}}
+
+
+def _refuse_ignored(data: dict) -> None:
+    """Refuse a field the file sets that its choice would ignore: a layout's or an obstacle kind's fields set for another.
+
+    ``count`` without ``layout: antipodal`` or ``mirror`` (the default layout is
+    explicit), ``starts`` with a generated layout, a tree's ``half_extents_xy``
+    or a box's ``radius_m`` would otherwise be read and silently not used. A
+    field at its default is let through: a run folder's ``config.yaml`` holds
+    every field, and flying it again must work.
+    """
+    drones = data.get("drones")
+    if isinstance(drones, dict):
+        layout = drones.get("layout", "explicit")
+        layout = layout if isinstance(layout, str) else None  # any other type: from_dict names it
+        used = _LAYOUT_FIELDS.get(layout, set())
+        for key in sorted(set().union(*_LAYOUT_FIELDS.values()) - used, key=str):
+            if key in drones and layout in _LAYOUT_FIELDS and not _is_default(DronesConfig, key, drones[key]):
+                readers = " or ".join(repr(k) for k, v in _LAYOUT_FIELDS.items() if key in v)
+                raise ConfigError(f"drones.{key}", drones[key], f"read only with drones.layout {readers} (layout is {layout!r}): set the layout or leave it out")
+    world = data.get("world")
+    obstacles = world.get("obstacles") if isinstance(world, dict) else None
+    for i, o in enumerate(obstacles if isinstance(obstacles, list) else []):
+        kind = o.get("kind", "tree") if isinstance(o, dict) else None
+        if not isinstance(kind, str) or kind not in _OBSTACLE_FIELDS:
+            continue
+        for other, keys in _OBSTACLE_FIELDS.items():
+            for key in sorted(keys & set(o) if other != kind else set()):
+                if _is_default(ObstacleEntry, key, o[key]):
+                    continue
+                raise ConfigError(f"world.obstacles[{i}].{key}", o[key], f"read only for kind {other!r} (kind is {kind!r}): set kind: {other} or leave it out")

@@ -1,0 +1,93 @@
+"""The cross-field rules of the stacks that fly without obstacles in a fixed box: ``mlr`` and ``admm``.
+
+:meth:`mpcde.config.scenario.ScenarioConfig.__post_init__` calls
+:func:`check_mlr` or :func:`check_admm` for the scenario's ``planner.kind``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from mpcde.config.layout import build_layout
+from mpcde.errors import ConfigError
+
+if TYPE_CHECKING:
+    from mpcde.config.scenario import ScenarioConfig, WorldConfig
+
+__all__ = ["check_admm", "check_mlr"]
+
+
+def _refuse_obstacles(world: WorldConfig, kind: str, why: str) -> None:
+    """ConfigError if the world has static obstacles: planner.kind ``kind`` cannot avoid them (``why``)."""
+    why = f"{why}; fly obstacles with planner.kind 'dmpc' (--mode comm)"
+    if world.obstacles:
+        raise ConfigError("world.obstacles", [o.kind for o in world.obstacles], f"none for planner.kind {kind!r}: {why}")
+    if world.obstacle_density_per_100m2 > 0:
+        density = world.obstacle_density_per_100m2
+        raise ConfigError("world.obstacle_density_per_100m2", density, f"0 for planner.kind {kind!r}: {why}")
+
+
+def _require_inside_box(starts: np.ndarray, goals: np.ndarray, planner: Any, box_name: str, section: str) -> None:
+    """ConfigError naming the first start or goal (n, 3) [m] outside ``planner``'s pos_min_world..pos_max_world."""
+    lo, hi = np.asarray(planner.pos_min_world), np.asarray(planner.pos_max_world)
+    for name, pts in (("drones.starts", starts), ("drones.goals", goals)):
+        outside = np.flatnonzero(np.any((pts < lo) | (pts > hi), axis=1))
+        if outside.size:
+            i = int(outside[0])
+            box = f"[{', '.join(f'{v:g}' for v in lo)}] to [{', '.join(f'{v:g}' for v in hi)}] m"
+            allowed = f"inside {box_name} {box} (the arena less {section}.arena_margin_m, {section}.altitude_range_m)"
+            raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], allowed)
+
+
+def check_mlr(cfg: ScenarioConfig) -> None:
+    """The cross-field rules of ``planner.kind: mlr`` (:mod:`mpcde.onboard.mlr`); raises ConfigError."""
+    mlr, radio, world = cfg.mlr, cfg.radio, cfg.world
+    if abs(mlr.round_s * radio.rate_hz - 1.0) > 1e-6:
+        allowed = f"must equal 1 / radio.rate_hz = {1.0 / radio.rate_hz:g} s (one MLR round per radio round)"
+        raise ConfigError("mlr.round_s", mlr.round_s, allowed)
+    if not radio.delay_s < mlr.round_s:
+        allowed = f"< mlr.round_s = {mlr.round_s:g} s for planner.kind 'mlr' (messages are read in the next round)"
+        raise ConfigError("radio.delay_s", radio.delay_s, allowed)
+    _refuse_obstacles(world, "mlr", "MLR-DMPC has no obstacle constraints")
+    starts, goals = build_layout(cfg.drones)
+    planner = mlr.planner_config(len(starts), world.arena_size_m)  # M < N and the flying box
+    _require_inside_box(starts, goals, planner, "MLR-DMPC's flying box", "mlr")
+
+
+def check_admm(cfg: ScenarioConfig) -> None:
+    """The cross-field rules of ``planner.kind: admm`` (:mod:`mpcde.onboard.admm`); raises ConfigError."""
+    admm, radio, world = cfg.admm, cfg.radio, cfg.world
+    if admm.radio_rate_from_step:  # the rate resolve() gives the radio (mpcde/config/resolve.py)
+        radio = replace(radio, rate_hz=admm.radio_rate_hz)
+    elif abs(radio.rate_hz * admm.step_s - admm.rounds_per_step) > 1e-6:
+        allowed = (
+            f"must equal 2 x admm.l_max / admm.step_s = {admm.radio_rate_hz:g} Hz for planner.kind 'admm' (one "
+            "radio sub-round per ADMM exchange), or set admm.radio_rate_from_step: true"
+        )
+        raise ConfigError("radio.rate_hz", radio.rate_hz, allowed)
+    if not radio.delay_s < admm.sub_round_s:
+        allowed = f"< one ADMM sub-round admm.step_s / (2 admm.l_max) = {admm.sub_round_s:g} s for planner.kind 'admm'"
+        raise ConfigError("radio.delay_s", radio.delay_s, allowed)
+    if cfg.physics.physics_hz < radio.rate_hz - 1e-9:
+        allowed = f">= the ADMM radio rate {radio.rate_hz:g} Hz for planner.kind 'admm' (a tick per sub-round)"
+        raise ConfigError("physics.physics_hz", cfg.physics.physics_hz, allowed)
+    _refuse_obstacles(world, "admm", "the ADMM formation OCP has no obstacle constraints")
+    if cfg.planner.cruise_speed_mps > admm.v_max:
+        allowed = f"<= admm.v_max = {admm.v_max:g} m/s for planner.kind 'admm' (the own reference's speed)"
+        raise ConfigError("planner.cruise_speed_mps", cfg.planner.cruise_speed_mps, allowed)
+    starts, goals = build_layout(cfg.drones)
+    planner = admm.planner_config(cfg.world.arena_size_m)  # the soft position box fits the arena
+    _require_inside_box(starts, goals, planner, "the ADMM position box", "admm")
+    # no collision avoidance: the drones must start in the goals' formation (moved to the starts' centroid)
+    slots = goals - goals.mean(axis=0) + starts.mean(axis=0)
+    offset = np.linalg.norm(starts - slots, axis=1)
+    if np.any(offset > admm.max_start_offset_m):
+        i = int(np.argmax(offset))
+        allowed = (
+            f"within admm.max_start_offset_m = {admm.max_start_offset_m:g} m of its slot in the goals' formation "
+            f"({offset[i]:.2f} m off) for planner.kind 'admm': it has no collision avoidance"
+        )
+        raise ConfigError(f"drones.starts[{i}]", [round(float(v), 3) for v in starts[i]], allowed)
