@@ -15,7 +15,7 @@ from typing import Literal, get_args
 
 from mpcde.config.admm import AdmmAgentConfig
 from mpcde.config.auto import AutoAgentConfig
-from mpcde.config.bounds import Bound, check_ranges
+from mpcde.config.bounds import Bound
 from mpcde.config.denied import DeniedAgentConfig
 from mpcde.config.dmpc import DmpcAgentConfig
 from mpcde.config.io import from_dict, load_yaml
@@ -25,6 +25,7 @@ from mpcde.config.perception import PerceptionConfig
 from mpcde.config.ranges import RANGES
 from mpcde.config.stack_rules import check_admm, check_mlr
 from mpcde.errors import ConfigError
+from planners.yaw.config import YawPlannerConfig
 from sim.camera import CameraConfig
 from sim.pose_estimate import PoseEstimateConfig
 from sim.radio import RadioConfig
@@ -376,8 +377,9 @@ def _refuse_ignored(data: dict) -> None:
     """Refuse a field the file sets that its choice would ignore: a layout's or an obstacle kind's fields set for another.
 
     ``count`` without ``layout: antipodal`` or ``mirror`` (the default layout is
-    explicit), ``starts`` with a generated layout, a tree's ``half_extents_xy``
-    or a box's ``radius_m`` would otherwise be read and silently not used. A
+    explicit), ``starts`` with a generated layout, a tree's ``half_extents_xy``,
+    a box's ``radius_m`` or a ``denied.yaw`` setting with ``denied.active_yaw:
+    false`` would otherwise be read and silently not used. A
     field at its default is let through: a run folder's ``config.yaml`` holds
     every field, and flying it again must work.
     """
@@ -390,6 +392,15 @@ def _refuse_ignored(data: dict) -> None:
             if key in drones and layout in _LAYOUT_FIELDS and not _is_default(DronesConfig, key, drones[key]):
                 readers = " or ".join(repr(k) for k, v in _LAYOUT_FIELDS.items() if key in v)
                 raise ConfigError(f"drones.{key}", drones[key], f"read only with drones.layout {readers} (layout is {layout!r}): set the layout or leave it out")
+    denied = data.get("denied")
+    yaw = denied.get("yaw") if isinstance(denied, dict) else None
+    if isinstance(yaw, dict) and denied.get("active_yaw") is False:
+        from mpcde.config.resolve import DERIVED  # the yaw fields resolve() sets are written to every run folder
+
+        derived = {target.rpartition(".")[2] for target, *_ in DERIVED if target.startswith("denied.yaw.")}
+        for key in sorted(set(yaw) - derived, key=str):
+            if isinstance(key, str) and key in {f.name for f in dataclasses.fields(YawPlannerConfig)} and not _is_default(YawPlannerConfig, key, yaw[key]):
+                raise ConfigError(f"denied.yaw.{key}", yaw[key], "read only with denied.active_yaw: true (it is false): set it true or leave the field out")
     world = data.get("world")
     obstacles = world.get("obstacles") if isinstance(world, dict) else None
     for i, o in enumerate(obstacles if isinstance(obstacles, list) else []):

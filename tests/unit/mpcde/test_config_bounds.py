@@ -100,3 +100,21 @@ def test_a_bound_with_an_infinite_meaning_says_it():
     assert load_scenario("crossing", {"radio": {"range_m": ".inf"}}).radio.range_m == math.inf
     with pytest.raises(ConfigError, match=r"^radio\.range_m=-inf"):
         load_scenario("crossing", {"radio": {"range_m": -math.inf}})
+
+
+def test_a_setting_its_choice_would_ignore_is_refused(tmp_path):
+    cases = {
+        "drones: {count: 6}\n": "drones.count",
+        "drones: {layout: mirror, count: 3, starts: [[0.0, 0.0, 1.5]]}\n": "drones.starts",
+        "drones: {layout: antipodal}\nworld:\n  obstacles: [{center_xy: [3.0, 3.0], yaw: 0.3}]\n": "world.obstacles[0].yaw",
+        "drones: {layout: antipodal}\nworld:\n  obstacles: [{kind: box, center_xy: [3.0, 3.0], radius_m: 0.4}]\n": "world.obstacles[0].radius_m",
+        "drones: {layout: antipodal}\ndenied: {active_yaw: false, yaw: {tracking_sweep_deg: 10}}\n": "denied.yaw.tracking_sweep_deg",
+    }
+    for text, field in cases.items():
+        path = tmp_path / "s.yaml"
+        path.write_text(text)
+        with pytest.raises(ConfigError) as e:
+            load_scenario(path)
+        assert e.value.field == field, str(e.value)
+    path.write_text("drones: {layout: antipodal, count: 3}\ndenied: {active_yaw: false, yaw: {tracking_sweep_deg: 35}}\n")
+    assert load_scenario(path).drones.count == 3  # a field at its default is no choice ignored
