@@ -153,6 +153,23 @@ def _axis_setup(o, dv, i):
 
 
 @njit(cache=True)
+def _axis_step(i, step, n, t_max, t_delta, lin, lin_step, t1):
+    """One Amanatides-Woo step into the next cell along an axis: (moved, i, t_max, lin).
+
+    ``i`` is the cell index on the axis (0..n-1), ``step`` its direction (+-1), ``t_max`` the ray
+    parameter of the next boundary crossing, ``t_delta`` that between crossings, ``lin`` the flat
+    index and ``lin_step`` its change per step. moved is False (and the traversal ends) when the
+    crossing lies beyond ``t1`` or leaves the window.
+    """
+    if t_max > t1:
+        return False, i, t_max, lin
+    i += step
+    if i < 0 or i >= n:
+        return False, i, t_max, lin
+    return True, i, t_max + t_delta, lin + lin_step
+
+
+@njit(cache=True)
 def integrate_rays(
     origin_vox, ends_vox, is_hit, start, log_odds, observed, seen_s, time_s, mark, l_hit, l_miss, l_min, l_max, l_occupied
 ):  # pragma: no cover - compiled
@@ -173,7 +190,7 @@ def integrate_rays(
     obs_flat = observed.reshape(-1)
     seen_flat = seen_s.reshape(-1)
     mk = mark.reshape(-1)
-    touched = np.empty(4096, np.int64)
+    touched = np.empty(lo_flat.shape[0], np.int64)  # a voxel enters once per call (mark), so the window bounds it
     n_touched = 0
     ox, oy, oz = origin_vox[0], origin_vox[1], origin_vox[2]
     for r in range(ends_vox.shape[0]):
@@ -209,42 +226,18 @@ def integrate_rays(
         while lin != end_lin:
             if mk[lin] == 0:
                 mk[lin] = 1
-                if n_touched == touched.shape[0]:
-                    grown = np.empty(2 * n_touched, np.int64)
-                    grown[:n_touched] = touched
-                    touched = grown
                 touched[n_touched] = lin
                 n_touched += 1
             if tmx <= tmy and tmx <= tmz:
-                if tmx > t1:
-                    break
-                ix += sx
-                if ix < 0 or ix >= nx:
-                    break
-                tmx += tdx
-                lin += sx * ny * nz
+                moved, ix, tmx, lin = _axis_step(ix, sx, nx, tmx, tdx, lin, sx * ny * nz, t1)
             elif tmy <= tmz:
-                if tmy > t1:
-                    break
-                iy += sy
-                if iy < 0 or iy >= ny:
-                    break
-                tmy += tdy
-                lin += sy * nz
+                moved, iy, tmy, lin = _axis_step(iy, sy, ny, tmy, tdy, lin, sy * nz, t1)
             else:
-                if tmz > t1:
-                    break
-                iz += sz
-                if iz < 0 or iz >= nz:
-                    break
-                tmz += tdz
-                lin += sz
+                moved, iz, tmz, lin = _axis_step(iz, sz, nz, tmz, tdz, lin, sz, t1)
+            if not moved:
+                break
         if end_inside and 0 <= ex < nx and 0 <= ey < ny and 0 <= ez < nz:
             if mk[end_lin] == 0:
-                if n_touched == touched.shape[0]:
-                    grown = np.empty(2 * n_touched, np.int64)
-                    grown[:n_touched] = touched
-                    touched = grown
                 touched[n_touched] = end_lin
                 n_touched += 1
             mk[end_lin] = 2

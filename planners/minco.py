@@ -60,21 +60,23 @@ def _band_lu(ab):
 
 
 @njit(cache=True)
+def _eliminate(b, i, k, factor):
+    """Row operation of the triangular solves: ``b[i] -= factor b[k]`` on (n, 3) ``b`` (skipped for a zero factor)."""
+    if factor != 0.0:
+        for d in range(3):
+            b[i, d] -= factor * b[k, d]
+
+
+@njit(cache=True)
 def _band_solve(ab, b):
     """Solve ``A x = b`` in place on ``b`` (n, 3) with the factors from :func:`_band_lu`."""
     n = ab.shape[0]
     for i in range(n):  # L y = b (unit lower)
         for k in range(max(0, i - _BW), i):
-            lik = ab[i, k - i + _BW]
-            if lik != 0.0:
-                for d in range(3):
-                    b[i, d] -= lik * b[k, d]
+            _eliminate(b, i, k, ab[i, k - i + _BW])  # L[i, k]
     for i in range(n - 1, -1, -1):  # U x = y
         for k in range(i + 1, min(n, i + _BW + 1)):
-            uik = ab[i, k - i + _BW]
-            if uik != 0.0:
-                for d in range(3):
-                    b[i, d] -= uik * b[k, d]
+            _eliminate(b, i, k, ab[i, k - i + _BW])  # U[i, k]
         for d in range(3):
             b[i, d] /= ab[i, _BW]
 
@@ -85,18 +87,12 @@ def _band_solve_adj(ab, b):
     n = ab.shape[0]
     for i in range(n):  # U^T z = b (lower triangular, diagonal of U)
         for k in range(max(0, i - _BW), i):
-            uki = ab[k, i - k + _BW]
-            if uki != 0.0:
-                for d in range(3):
-                    b[i, d] -= uki * b[k, d]
+            _eliminate(b, i, k, ab[k, i - k + _BW])  # U[k, i]
         for d in range(3):
             b[i, d] /= ab[i, _BW]
     for i in range(n - 1, -1, -1):  # L^T x = z (unit upper)
         for k in range(i + 1, min(n, i + _BW + 1)):
-            lki = ab[k, i - k + _BW]
-            if lki != 0.0:
-                for d in range(3):
-                    b[i, d] -= lki * b[k, d]
+            _eliminate(b, i, k, ab[k, i - k + _BW])  # L[k, i]
 
 
 @njit(cache=True)

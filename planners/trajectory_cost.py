@@ -59,8 +59,8 @@ __all__ = ["NeighborTable", "PenaltyParameters", "PenaltyTerms", "TrajectoryCost
 class PenaltyParameters:
     """Limits, clearances and weights of the sampled penalties (module docstring).
 
-    Built by ``TrajectoryOptimizerConfig.penalty_parameters()``, which documents the
-    same fields for users; the defaults here are the same.
+    :class:`planners.trajectory_optimizer.TrajectoryOptimizerConfig` extends it with the
+    optimiser's own settings; its ``penalty_parameters()`` gives this part alone.
 
     Attributes:
         v_max_mps: speed limit [m/s]; default 2.0.

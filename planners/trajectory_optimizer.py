@@ -31,7 +31,7 @@ from numba import njit
 from scipy.optimize import minimize
 
 from perception.types import DistanceField, NeighborPrediction
-from planners.lbfgs import delta_test, first_step, lbfgs_direction, lbfgs_loop, lbfgs_store, line_search_step
+from planners.lbfgs import lbfgs_loop, lbfgs_result, lbfgs_start, lbfgs_tell
 from planners.minco import MincoTrajectory
 from planners.trajectory_cost import PenaltyParameters, TrajectoryCost
 from planners.trajectory_penalty import _grid_trilinear
@@ -49,28 +49,20 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class TrajectoryOptimizerConfig:
+class TrajectoryOptimizerConfig(PenaltyParameters):
     """Settings of the MINCO optimiser (MP-CDE Eq. 15-16).
+
+    The limits, clearances, penalty weights and K are the fields of
+    :class:`planners.trajectory_cost.PenaltyParameters` (documented there, same defaults):
+    v_max_mps (2.0 m/s), a_max_mps2 (4.0 m/s^2), obstacle_clearance_m (0.4 m),
+    swarm_clearance_m (C_s, 0.7 m, MP-CDE Table I), swarm_z_scale (c, 2.0), clearance_margin_m (0.1 m),
+    uncertainty_sigma (1.0), max_uncertainty_inflation_m (0.5 m), swarm_recovery_mps (inf: off;
+    measured: docs/results/minco.md), weight_vel, weight_acc, weight_obstacle, weight_swarm (w_s)
+    (1e5 each), samples_per_piece (K, 16). The optimiser adds:
 
     Attributes:
         weight_energy: w_e on the jerk energy [s^5/m^2 (cost per unit energy)]; default 1.
         weight_time: w_t on the total duration [1/s]; default 20 (aggressiveness).
-        v_max_mps: speed limit [m/s]; default 2.0.
-        a_max_mps2: acceleration limit [m/s^2]; default 4.0.
-        obstacle_clearance_m: clearance to obstacles on the distance field [m]; default 0.4.
-        swarm_clearance_m: C_s [m]; default 0.7 (MP-CDE Table I).
-        swarm_z_scale: c of E = diag(1, 1, 1/c) [-], >= 1; default 2.0 (not given in the paper).
-        clearance_margin_m: margin added to both clearances inside the penalties [m]; default 0.1.
-        uncertainty_sigma: n_sigma of the neighbour uncertainty inflation [-]; default 1.0.
-        max_uncertainty_inflation_m: cap on that inflation [m]; default 0.5.
-        swarm_recovery_mps: a neighbour the start is already inside C_s + margin of gets the
-            clearance it has, growing back at this rate [m/s]; default inf: off
-            (:mod:`planners.trajectory_cost`; measured: docs/results/minco.md).
-        weight_vel: weight of the speed penalty [-]; default 1e5.
-        weight_acc: weight of the acceleration penalty [-]; default 1e5.
-        weight_obstacle: weight of the obstacle penalty [-]; default 1e5.
-        weight_swarm: weight of the swarm penalty w_s [-]; default 1e5.
-        samples_per_piece: K penalty samples per piece [-]; default 16.
         max_piece_length_m: front-end segments longer than this are split evenly [m]; default 3.0.
         min_pieces: fewer pieces than this are made by splitting the longest segment [-]; default 3.
         initial_speed_fraction: initial durations are segment length / (fraction v_max) [-]; default 0.5.
@@ -83,20 +75,6 @@ class TrajectoryOptimizerConfig:
 
     weight_energy: float = 1.0
     weight_time: float = 20.0
-    v_max_mps: float = 2.0
-    a_max_mps2: float = 4.0
-    obstacle_clearance_m: float = 0.4
-    swarm_clearance_m: float = 0.7
-    swarm_z_scale: float = 2.0
-    clearance_margin_m: float = 0.1
-    uncertainty_sigma: float = 1.0
-    max_uncertainty_inflation_m: float = 0.5
-    swarm_recovery_mps: float = float("inf")
-    weight_vel: float = 1.0e5
-    weight_acc: float = 1.0e5
-    weight_obstacle: float = 1.0e5
-    weight_swarm: float = 1.0e5
-    samples_per_piece: int = 16
     max_piece_length_m: float = 3.0
     min_pieces: int = 3
     initial_speed_fraction: float = 0.5
@@ -122,10 +100,10 @@ class TrajectoryOptimizerConfig:
                 raise ConfigError(name, getattr(self, name), "must be an int >= 1")
         if self.solver not in ("lbfgs", "scipy"):
             raise ConfigError("solver", self.solver, "must be 'lbfgs' or 'scipy'")
-        self.penalty_parameters()  # validates the penalty fields (ValueError, one line)
+        super().__post_init__()  # the penalty fields (ValueError, one line)
 
     def penalty_parameters(self) -> PenaltyParameters:
-        """The penalty part of this config (the fields shared with :class:`PenaltyParameters`)."""
+        """The penalty part of this config, as a plain :class:`PenaltyParameters`."""
         return PenaltyParameters(**{f.name: getattr(self, f.name) for f in fields(PenaltyParameters)})
 
 
@@ -278,39 +256,11 @@ def build_trajectory_problem(
 
 @njit(cache=True)
 def _lbfgs_compiled(args, x0, mem, max_iterations, g_tol, rel_tol):
-    """:func:`lbfgs_loop` with :func:`_compiled_cost`, compiled end to end."""
-    x = x0.copy()
-    f, g = _compiled_cost(x, args)
-    if not (np.isfinite(f) and np.all(np.isfinite(g))):
-        return x, f, 0, 3, 1
-    S, Y, rho, past = np.zeros((mem, x.size)), np.zeros((mem, x.size)), np.zeros(mem), np.full(4, np.inf)
-    past[0] = f
-    count, newest, code, k, evals = 0, mem - 1, 1, 0, 1
-    for it in range(1, max_iterations + 1):
-        k = it
-        done, d, dg0, count = lbfgs_direction(g, x, S, Y, rho, count, newest, g_tol)
-        if done:
-            code, k = 0, it - 1
-            break
-        step, lo, hi = first_step(g, count), 0.0, np.inf
-        accepted, give_up = False, False
-        xn, fn, gn = x, f, g
-        for _ in range(40):
-            xn = x + step * d
-            fn, gn = _compiled_cost(xn, args)
-            evals += 1
-            accepted, give_up, step, lo, hi = line_search_step(fn, gn, d, f, dg0, step, lo, hi)
-            if accepted or give_up:
-                break
-        if not accepted:
-            code = 2
-            break
-        count, newest = lbfgs_store(x, xn, g, gn, S, Y, rho, count, newest)
-        x, f, g = xn, fn, gn
-        if delta_test(past, it, f, rel_tol):
-            code = 0
-            break
-    return x, f, k, code, evals
+    """:func:`planners.lbfgs.lbfgs_loop` with :func:`_compiled_cost`, compiled end to end."""
+    st = lbfgs_start(x0, mem, max_iterations, g_tol, rel_tol)
+    while lbfgs_tell(st, *_compiled_cost(st.trial, args)):
+        pass
+    return lbfgs_result(st)
 
 
 @njit(cache=True)

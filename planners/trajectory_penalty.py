@@ -124,6 +124,26 @@ def _inflation(terms, dt, n_sig, r_max):
 
 
 @njit(cache=True)
+def _cubic(w, viol, slope):
+    """GCOPTER's C^2 penalty of a violation viol > 0: (w viol^3, w slope viol^2).
+
+    ``slope`` 3 gives d pen / d viol; 6 gives d pen / d x / x for viol = ||x||^2 - bound^2
+    (:func:`_limit_penalty`).
+    """
+    return w * viol * viol * viol, w * slope * viol * viol
+
+
+@njit(cache=True)
+def _limit_penalty(w, viol, vec, grad):
+    """Speed or acceleration limit: w viol^3 for viol = ||vec||^2 - bound^2 > 0; adds its gradient
+    6 w viol^2 vec by ``vec`` (3,) into ``grad`` (3,)."""
+    pen, gv = _cubic(w, viol, 6.0)
+    for d in range(3):
+        grad[d] += gv * vec[d]
+    return pen
+
+
+@njit(cache=True)
 def _penalty_kernel(
     coeffs, T, K, t0, prm, dist, dist_grad, use_field, nb_t, nb_p, nb_v, nb_off, nb_tlast, nb_cov, gdc, gdt, out, stats
 ):
@@ -210,20 +230,14 @@ def _penalty_kernel(
             max_a2 = max(max_a2, a2)
             viol = v2 - vmax2  # ||v||^2 - v_max^2
             if viol > 0.0 and w_v > 0.0:
-                pen = w_v * viol * viol * viol
+                pen = _limit_penalty(w_v, viol, vel, g_v)
                 node += pen
                 f_vel += omg * step * pen
-                gv = w_v * 6.0 * viol * viol
-                for d in range(3):
-                    g_v[d] += gv * vel[d]
             viol = a2 - amax2  # ||a||^2 - a_max^2
             if viol > 0.0 and w_a > 0.0:
-                pen = w_a * viol * viol * viol
+                pen = _limit_penalty(w_a, viol, acc, g_a)
                 node += pen
                 f_acc += omg * step * pen
-                gv = w_a * 6.0 * viol * viol
-                for d in range(3):
-                    g_a[d] += gv * acc[d]
             if use_field:
                 idx = i * (K + 1) + j
                 dist_k = dist[idx]
@@ -232,10 +246,9 @@ def _penalty_kernel(
                 min_dist = min(min_dist, dist_k)
                 viol = c_obs - dist_k  # (C_o + margin) - d(p)
                 if viol > 0.0 and w_o > 0.0:
-                    pen = w_o * viol * viol * viol
+                    pen, gv = _cubic(w_o, viol, 3.0)
                     node += pen
                     f_obs += omg * step * pen
-                    gv = w_o * 3.0 * viol * viol
                     for d in range(3):
                         g_p[d] -= gv * dist_grad[idx, d]
             t_abs = t_start + s1
@@ -260,10 +273,9 @@ def _penalty_kernel(
                         dr += rho  # d clr / d t_abs (enters through 2 clr dr below)
                 viol = clr * clr - ell2  # MP-CDE Eq. 16
                 if viol > 0.0 and w_s > 0.0:
-                    pen = w_s * viol * viol * viol
+                    pen, gv = _cubic(w_s, viol, 3.0)
                     node += pen
                     f_sw += omg * step * pen
-                    gv = w_s * 3.0 * viol * viol
                     g_p[0] -= gv * 2.0 * dx
                     g_p[1] -= gv * 2.0 * dy
                     g_p[2] -= gv * 2.0 * dz * inv_c

@@ -100,22 +100,21 @@ import numpy as np
 
 from mpcde.config.admm import AdmmAgentConfig
 from mpcde.onboard.admm_stats import AdmmRoundStats
-from mpcde.onboard.base import AgentCounters, OnboardAgent
+from mpcde.onboard.base import AgentCounters, SampledPlanAgent
 from planners.dmpc.admm.formation import AdmmFormationAgent
 from planners.dmpc.admm.local_qp import AdmmLocalQpError
 from planners.dmpc.admm.ocp import shift_trajectory
 from planners.dmpc.admm.types import AdmmBundle, AdmmStepResult, CopyMessage, MeanMessage, MeanRecord
-from planners.dmpc.plan_sampler import PlanSampler, sample_or_hover
-from sim.rotations import rotation_from_quat_xyzw, yaw_from_rotation
-from sim.types import FlatOutputReference, PoseEstimate, RadioMessage, RgbdFrame
+from planners.dmpc.plan_sampler import PlanSampler
+from sim.types import PoseEstimate, RadioMessage, RgbdFrame
 
 __all__ = ["AdmmAgent", "AdmmRoundStats"]
 
 _EPS_S = 1e-6  # rounds fire at the first physics tick at or after their time: floor((t + eps) / T_sub)
 
 
-class AdmmAgent(OnboardAgent):
-    """One drone of the ADMM formation swarm (an :class:`mpcde.onboard.base.OnboardAgent`); see the module docstring.
+class AdmmAgent(SampledPlanAgent):
+    """One drone of the ADMM formation swarm (a :class:`mpcde.onboard.base.SampledPlanAgent`); see the module docstring.
 
     Args:
         drone_id: i, index of the drone.
@@ -159,24 +158,13 @@ class AdmmAgent(OnboardAgent):
         self._pending: dict[tuple[int, int, int], np.ndarray] = {}  # (j, step, iteration) missed -> w_ji then
 
     # ------------------------------------------------------------------ inputs
-    def on_pose_estimate(self, estimate: PoseEstimate) -> None:
-        """Take the drone's own pose estimate (the first fixes the start and the heading)."""
-        if self.latest_estimate is None:
-            self.start_world = np.asarray(estimate.pos_world, float).copy()
-            self.yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
-        self.latest_estimate = estimate
-
     def on_frame(self, frame: RgbdFrame, detections: list | None = None) -> None:
         """Take one camera frame (the ADMM agent does not perceive; counted only)."""
         self.counters.frames += 1
 
     def on_radio(self, messages: list[RadioMessage]) -> None:
         """Take this sub-round's inbox: the other drones' ADMM bundles, read by the next :meth:`outgoing`."""
-        self._inbox = []
-        for m in messages:
-            self.counters.messages += 1
-            if isinstance(m.payload, AdmmBundle) and m.payload.sender_id != self.drone_id:
-                self._inbox.append(m.payload)
+        self._inbox = self._payloads(messages, AdmmBundle)
 
     # ------------------------------------------------------------------ sub-rounds
     def round_index(self, time_s: float) -> int:
@@ -378,16 +366,6 @@ class AdmmAgent(OnboardAgent):
         st.osqp_max_iter_hits += result.osqp_max_iter_hits
         st.primal_residual.append(float(result.primal_residual[-1]))
         st.max_slack = max(st.max_slack, float(result.slack))
-
-    # ------------------------------------------------------------------ reference
-    def reference_state(self, time_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position [m], velocity [m/s], acceleration [m/s^2] (3,) of the reference at ``time_s`` [s]."""
-        return sample_or_hover(self._sampler, self.start_world, time_s)
-
-    def reference(self, time_s: float) -> FlatOutputReference:
-        """Controller reference at ``time_s`` [s]: the current plan (a hover at the start before the first)."""
-        pos, vel, acc = self.reference_state(time_s)
-        return FlatOutputReference(pos_world=pos, vel_world=vel, acc_world=acc, yaw=self.yaw, yaw_rate=0.0)
 
     # ------------------------------------------------------------------ metrics
     def extra_metrics(self) -> dict[str, Any]:

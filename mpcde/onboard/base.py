@@ -19,11 +19,15 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from mpcde.config.perception import DetectorRequest
 from perception.types import Detection
+from planners.dmpc.plan_sampler import PlanSampler, sample_or_hover
+from sim.rotations import rotation_from_quat_xyzw, yaw_from_rotation
 from sim.types import FlatOutputReference, PoseEstimate, RadioMessage, RgbdFrame
 
-__all__ = ["AgentCounters", "OnboardAgent"]
+__all__ = ["AgentCounters", "OnboardAgent", "PlanFollowingAgent", "SampledPlanAgent"]
 
 
 class OnboardAgent(ABC):
@@ -87,6 +91,57 @@ class OnboardAgent(ABC):
     def extra_metrics(self) -> dict[str, Any] | None:
         """This drone's statistics for ``metrics.json`` (under ``agents``); None: none."""
         return None
+
+    def _payloads(self, messages: list[RadioMessage], kind: type) -> list[Any]:
+        """Count the inbox ``messages`` and return the payloads of type ``kind`` that other drones sent."""
+        self.counters.messages += len(messages)
+        return [m.payload for m in messages if isinstance(m.payload, kind) and m.payload.sender_id != self.drone_id]
+
+
+class PlanFollowingAgent(OnboardAgent):
+    """A stack that flies a planned state at a fixed heading (the DMPC family: DMPC, ADMM, MLR-DMPC).
+
+    Attributes:
+        yaw: the heading [rad] the drone keeps (its first pose estimate's, or the one a hand-over sets).
+    """
+
+    yaw: float
+
+    @abstractmethod
+    def reference_state(self, time_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position [m], velocity [m/s], acceleration [m/s^2] (3,) of the reference at ``time_s`` [s]."""
+
+    def reference(self, time_s: float) -> FlatOutputReference:
+        """Controller reference at ``time_s`` [s]: :meth:`reference_state` at the heading ``yaw``, no yaw rate."""
+        pos, vel, acc = self.reference_state(time_s)
+        return FlatOutputReference(pos_world=pos, vel_world=vel, acc_world=acc, yaw=self.yaw, yaw_rate=0.0)
+
+
+class SampledPlanAgent(PlanFollowingAgent):
+    """A :class:`PlanFollowingAgent` whose reference is its current :class:`planners.dmpc.types.DmpcPlan`
+    (DMPC, ADMM), sampled by ``_sampler``; before the first plan it hovers at the start.
+
+    Attributes:
+        latest_estimate: the drone's newest pose estimate (None before the first).
+        start_world: (3,) [m] position of the first pose estimate, which also fixes ``yaw``.
+        _sampler: the current plan's :class:`planners.dmpc.plan_sampler.PlanSampler` (None: no plan yet).
+    """
+
+    latest_estimate: PoseEstimate | None
+    start_world: np.ndarray | None
+    _sampler: PlanSampler | None
+
+    def on_pose_estimate(self, estimate: PoseEstimate) -> None:
+        """Take the drone's own pose estimate (the first fixes the start and the heading)."""
+        if self.latest_estimate is None:
+            self.start_world = np.asarray(estimate.pos_world, float).copy()
+            self.yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
+        self.latest_estimate = estimate
+
+    def reference_state(self, time_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position [m], velocity [m/s], acceleration [m/s^2] (3,) of the current plan at ``time_s`` [s]
+        (a hover at the start before the first plan)."""
+        return sample_or_hover(self._sampler, self.start_world, time_s)
 
 
 @dataclass

@@ -57,16 +57,15 @@ import numpy as np
 from mpcde.config.auto import FusionConfig
 from mpcde.config.dmpc import DmpcAgentConfig
 from mpcde.config.perception import PerceptionConfig
-from mpcde.onboard.base import AgentCounters, OnboardAgent
+from mpcde.onboard.base import AgentCounters, SampledPlanAgent
 from mpcde.onboard.budget import ComputeBudget
 from mpcde.onboard.fusion import fuse_neighbours
 from mpcde.onboard.perception import NeighbourPerception, onboard_perception
 from perception.types import NeighborPrediction
 from planners.dmpc import DmpcPlan, DmpcProblem, DmpcSolveError
 from planners.dmpc.half_spaces import obstacle_half_spaces
-from planners.dmpc.plan_sampler import PlanSampler, sample_or_hover
-from sim.rotations import rotation_from_quat_xyzw, yaw_from_rotation
-from sim.types import FlatOutputReference, ObstacleSpec, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
+from planners.dmpc.plan_sampler import PlanSampler
+from sim.types import ObstacleSpec, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
 
 __all__ = ["DmpcAgent", "DmpcRoundStats"]
 
@@ -108,8 +107,8 @@ class DmpcRoundStats:
     unknown_tracks: int = 0
 
 
-class DmpcAgent(OnboardAgent):
-    """One drone's DMPC agent (implements :class:`mpcde.onboard.base.OnboardAgent`).
+class DmpcAgent(SampledPlanAgent):
+    """One drone's DMPC agent (a :class:`mpcde.onboard.base.SampledPlanAgent`, so an :class:`~mpcde.onboard.base.OnboardAgent`).
 
     Args:
         drone_id: index of the drone.
@@ -167,13 +166,6 @@ class DmpcAgent(OnboardAgent):
         self._renewed: set[int] = set()
 
     # ------------------------------------------------------------------ inputs
-    def on_pose_estimate(self, estimate: PoseEstimate) -> None:
-        """Take the drone's own pose estimate (the first fixes start and heading)."""
-        if self.latest_estimate is None:
-            self.start_world = np.asarray(estimate.pos_world, float).copy()
-            self.yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
-        self.latest_estimate = estimate
-
     def on_frame(self, frame: RgbdFrame, detections: list | None = None) -> None:
         """Take one camera frame: track the neighbours its detector found (when it perceives)."""
         self.counters.frames += 1
@@ -311,15 +303,6 @@ class DmpcAgent(OnboardAgent):
             sender_id=self.drone_id, time_s=float(time_s), times_s=p.times_s.copy(),
             pos_world=p.pos_world.copy(), vel_world=p.vel_world.copy(),
         )  # fmt: skip
-
-    def reference_state(self, time_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position [m], velocity [m/s], acceleration [m/s^2] (3,) each of the reference at ``time_s`` [s]."""
-        return sample_or_hover(self._sampler, self.start_world, time_s)
-
-    def reference(self, time_s: float) -> FlatOutputReference:
-        """Controller reference at ``time_s`` [s]: the current plan (hover at the start before it)."""
-        pos, vel, acc = self.reference_state(time_s)
-        return FlatOutputReference(pos_world=pos, vel_world=vel, acc_world=acc, yaw=self.yaw, yaw_rate=0.0)
 
     # ------------------------------------------------------------------ metrics
     def extra_metrics(self) -> dict[str, Any]:

@@ -64,14 +64,14 @@ from typing import Any
 import numpy as np
 
 from mpcde.config.mlr import MlrAgentConfig
-from mpcde.onboard.base import AgentCounters, OnboardAgent
+from mpcde.onboard.base import AgentCounters, PlanFollowingAgent
 from planners.dmpc.mlr.compute_unit import ComputeUnit, CuStepReport, summarize_reports
 from planners.dmpc.mlr.config import MlrConfig
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory
 from planners.dmpc.mlr.types import CuTrajectoryMessage, MlrBundle
 from planners.dmpc.mlr.uav import Uav, initial_trajectory
 from sim.rotations import rotation_from_quat_xyzw, yaw_from_rotation
-from sim.types import FlatOutputReference, PoseEstimate, RadioMessage, RgbdFrame
+from sim.types import PoseEstimate, RadioMessage, RgbdFrame
 
 __all__ = ["MlrAgent", "MlrAgentConfig"]
 
@@ -99,8 +99,8 @@ class MlrRoundStats:
     cu_start_round: int | None = None
 
 
-class MlrAgent(OnboardAgent):
-    """One drone of the MLR-DMPC swarm: its UAV and, on drones 0..M-1, a CU (an :class:`mpcde.onboard.base.OnboardAgent`).
+class MlrAgent(PlanFollowingAgent):
+    """One drone of the MLR-DMPC swarm: its UAV and, on drones 0..M-1, a CU (a :class:`mpcde.onboard.base.PlanFollowingAgent`).
 
     Args:
         drone_id: i, index of the drone.
@@ -153,14 +153,10 @@ class MlrAgent(OnboardAgent):
 
     def on_radio(self, messages: list[RadioMessage]) -> None:
         """Take this round's inbox: keep the MLR bundles of the other drones for :meth:`outgoing`."""
-        self._received = []
-        for m in messages:
-            self.counters.messages += 1
-            if isinstance(m.payload, MlrBundle) and m.payload.sender_id != self.drone_id:
-                self._received.append(m.payload)
-                cu = m.payload.cu_message
-                if isinstance(cu, CuTrajectoryMessage) and cu.trajectory is not None:
-                    self.counters.plans += 1
+        self._received = self._payloads(messages, MlrBundle)
+        for b in self._received:
+            if isinstance(b.cu_message, CuTrajectoryMessage) and b.cu_message.trajectory is not None:
+                self.counters.plans += 1
 
     # ------------------------------------------------------------------ round
     def round_index(self, time_s: float) -> int:
@@ -230,11 +226,6 @@ class MlrAgent(OnboardAgent):
         ref = self.uav.reference
         x = ref.states_at(np.array([max(float(time_s), ref.t_start_s)]))[0]
         return x[:3], x[3:6], x[6:9]
-
-    def reference(self, time_s: float) -> FlatOutputReference:
-        """Controller reference at ``time_s`` [s]: the current reference trajectory (the initial hover before one)."""
-        pos, vel, acc = self.reference_state(time_s)
-        return FlatOutputReference(pos_world=pos, vel_world=vel, acc_world=acc, yaw=self.yaw, yaw_rate=0.0)
 
     # ------------------------------------------------------------------ metrics
     def extra_metrics(self) -> dict[str, Any]:

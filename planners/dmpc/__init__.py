@@ -8,8 +8,7 @@ The names below are imported on first use, so reading a planner's settings
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from planners.lazy_exports import lazy_exports
 
 _WHERE = {
     "BvcPlanes": "planners.dmpc.collision",
@@ -41,13 +40,4 @@ _WHERE = {
 }
 
 __all__ = sorted(_WHERE)
-
-
-def __getattr__(name: str) -> Any:
-    if name in _WHERE:
-        return getattr(importlib.import_module(_WHERE[name]), name)
-    raise AttributeError(f"module 'planners.dmpc' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return list(__all__)
+__getattr__, __dir__ = lazy_exports(__name__, _WHERE)

@@ -19,13 +19,33 @@ conventions coincide.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from perception.types import NeighborPrediction
 
-__all__ = ["DmpcPlan"]
+__all__ = ["DmpcPlan", "freeze_array"]
+
+
+def freeze_array(
+    obj: object, name: str, dtype: type, valid: Callable[[np.ndarray], bool], expected: str, label: str | None = None
+) -> np.ndarray:
+    """Store field ``name`` of the frozen dataclass ``obj`` as a read-only ``dtype`` array copy, and return it.
+
+    For what the DMPC variants exchange (:mod:`planners.dmpc.admm.types`, :mod:`planners.dmpc.mlr.types`,
+    :class:`planners.dmpc.mlr.trajectory.ReferenceTrajectory`): a message, once built, cannot change
+    under its receivers. Raises ValueError ``"<label> shape <shape>: expected <expected>"`` when
+    ``valid(array)`` is false; ``label`` defaults to ``"<type>.<name>"``.
+    """
+    arr = np.array(getattr(obj, name), dtype=dtype)
+    if not valid(arr):
+        label = f"{type(obj).__name__}.{name}" if label is None else label
+        raise ValueError(f"{label} shape {arr.shape}: expected {expected}")
+    arr.setflags(write=False)
+    object.__setattr__(obj, name, arr)
+    return arr
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,7 @@ does not load the rest of the package.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from planners.lazy_exports import lazy_exports
 
 _WHERE = {
     "FanCast": "planners.yaw.coverage",
@@ -48,13 +47,4 @@ _WHERE = {
 }
 
 __all__ = sorted(_WHERE)
-
-
-def __getattr__(name: str) -> Any:
-    if name in _WHERE:
-        return getattr(importlib.import_module(_WHERE[name]), name)
-    raise AttributeError(f"module 'planners.yaw' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return list(__all__)
+__getattr__, __dir__ = lazy_exports(__name__, _WHERE)

@@ -24,21 +24,38 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.dmpc.types import DmpcPlan
+from planners.dmpc.types import DmpcPlan, freeze_array
 
 __all__ = ["AdmmBundle", "AdmmStepResult", "CopyMessage", "MeanMessage", "MeanRecord"]
 
 
 def _frozen_trajectory(obj: object, name: str) -> None:
-    traj = np.array(getattr(obj, name), dtype=float)
-    if traj.ndim != 2 or traj.shape[1] != 3 or traj.shape[0] < 1:
-        raise ValueError(f"{type(obj).__name__}.{name} shape {traj.shape}: expected (K, 3)")
-    traj.setflags(write=False)
-    object.__setattr__(obj, name, traj)
+    """Field ``name`` of ``obj`` as a read-only (K, 3) float array, K >= 1."""
+    freeze_array(obj, name, float, lambda a: a.ndim == 2 and a.shape[1] == 3 and a.shape[0] >= 1, "(K, 3)")
 
 
 @dataclass(frozen=True)
-class CopyMessage:
+class _TrajectoryMessage:
+    """What both messages of Algorithm 2 carry: a position trajectory from ``sender`` to ``receiver``.
+
+    Attributes:
+        sender: id of the sending drone.
+        receiver: id of the drone it is addressed to.
+        iteration: ADMM iteration l + 1 that produced it (1-based within the MPC step).
+        pos_world: (K, 3) positions p[1..K] [m], world frame.
+    """
+
+    sender: int
+    receiver: int
+    iteration: int
+    pos_world: np.ndarray
+
+    def __post_init__(self) -> None:
+        _frozen_trajectory(self, "pos_world")
+
+
+@dataclass(frozen=True)
+class CopyMessage(_TrajectoryMessage):
     """Algorithm 2 Step 4: the sender's copy of the receiver's position trajectory.
 
     Attributes:
@@ -48,17 +65,9 @@ class CopyMessage:
         pos_world: (K, 3) w_ji^{l+1}[1..K] [m], world frame.
     """
 
-    sender: int
-    receiver: int
-    iteration: int
-    pos_world: np.ndarray
-
-    def __post_init__(self) -> None:
-        _frozen_trajectory(self, "pos_world")
-
 
 @dataclass(frozen=True)
-class MeanMessage:
+class MeanMessage(_TrajectoryMessage):
     """Algorithm 2 Step 6: the sender's averaged own position trajectory.
 
     Attributes:
@@ -67,14 +76,6 @@ class MeanMessage:
         iteration: ADMM iteration l + 1 (1-based within the MPC step).
         pos_world: (K, 3) xbar_j^{l+1}[1..K] [m], world frame.
     """
-
-    sender: int
-    receiver: int
-    iteration: int
-    pos_world: np.ndarray
-
-    def __post_init__(self) -> None:
-        _frozen_trajectory(self, "pos_world")
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planners.dmpc.model import rollout
+from planners.dmpc.types import freeze_array
 
 __all__ = ["ReferenceTrajectory", "TrajectoryId", "positions_at_each"]
 
@@ -39,12 +40,12 @@ class TrajectoryId:
 
 
 def _frozen(obj: object, name: str, shape_tail: tuple[int, ...]) -> np.ndarray:
-    arr = np.array(getattr(obj, name), dtype=float)
-    if arr.shape[arr.ndim - len(shape_tail):] != shape_tail or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} shape {arr.shape}: expected finite (..., {shape_tail})")
-    arr.setflags(write=False)
-    object.__setattr__(obj, name, arr)
-    return arr
+    """Field ``name`` of ``obj`` as a read-only finite float array whose shape ends in ``shape_tail``."""
+
+    def valid(arr: np.ndarray) -> bool:
+        return arr.shape[arr.ndim - len(shape_tail):] == shape_tail and bool(np.all(np.isfinite(arr)))
+
+    return freeze_array(obj, name, float, valid, f"finite (..., {shape_tail})", label=name)
 
 
 @dataclass(frozen=True)

@@ -21,16 +21,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
+from planners.dmpc.types import freeze_array
 
 __all__ = ["CuTrajectoryMessage", "MlrBundle", "RecoveryReply", "RecoveryRequest", "UavStateMessage"]
 
 
 def _frozen_vector(obj: object, name: str, size: int | None = None, dtype: type = float) -> None:
-    arr = np.array(getattr(obj, name), dtype=dtype)
-    if arr.ndim != 1 or (size is not None and arr.size != size):
-        raise ValueError(f"{type(obj).__name__}.{name} shape {arr.shape}: expected ({size or 'N'},)")
-    arr.setflags(write=False)
-    object.__setattr__(obj, name, arr)
+    """Field ``name`` of ``obj`` as a read-only 1-D ``dtype`` array (of ``size`` entries unless None)."""
+    freeze_array(obj, name, dtype, lambda a: a.ndim == 1 and (size is None or a.size == size), f"({size or 'N'},)")
 
 
 @dataclass(frozen=True)
