@@ -6,8 +6,10 @@ Subcommands: ``fly`` (a headless scenario -> run folder), ``train-detector``
 (tracker evaluation -> results.json), ``eval-dmpc`` (on-demand DMPC vs
 BVC -> results.json), ``compare`` (one scenario in each mode, paired by
 seed -> results.json + run folders), ``eval-mlr`` (DMPC-Swarm's message-loss
-recovery experiments -> results.json) and ``bench`` (the hot-path benchmarks ->
-their printed figures + results.json). Bad input prints one
+recovery experiments -> results.json), ``sweep`` (a grid of conditions x
+seeds on local processes or Ray -> a resumable results.jsonl + report),
+``report`` (a sweep folder's tables and plots) and ``bench`` (the hot-path
+benchmarks -> their printed figures + results.json). Bad input prints one
 line ``mpcde: error: <field>=<value>: <allowed>`` and exits with status 2,
 having written nothing.
 """
@@ -110,6 +112,15 @@ def build_parser() -> argparse.ArgumentParser:
     cmp.add_argument("--overwrite", action="store_true", help="replace an existing non-empty --out")
     cmp.add_argument("--jobs", type=int, default=1, help="flights at once, one process each (metrics do not depend on it)")
     cmp.add_argument("--quiet", action="store_true", help="no progress bar")
+    sw = sub.add_parser("sweep", help="fly a sweep file's grid of conditions x seeds; resumable; local processes or Ray")
+    sw.add_argument("sweep", type=Path, help="sweep YAML (base scenario, seeds, axes, keep)")
+    sw.add_argument("--out", required=True, type=Path, help="results folder (created; the same sweep resumes in it)")
+    sw.add_argument("--jobs", type=int, default=1, help="flights at once on local processes (metrics do not depend on it)")
+    sw.add_argument("--backend", choices=["local", "ray"], default="local", help="local processes (default) or Ray tasks")
+    sw.add_argument("--ray-address", default=None, help="with --backend ray: 'auto' joins a cluster started by 'ray start'")
+    sw.add_argument("--quiet", action="store_true", help="no progress bar")
+    rp = sub.add_parser("report", help="tables and plots of a sweep folder (also on a partial one)")
+    rp.add_argument("folder", type=Path, help="a folder written by mpcde sweep")
     em = sub.add_parser(
         "eval-mlr", help="MLR-DMPC: message-loss recovery, event-triggered compute units (DMPC-Swarm Fig. 3-4)"
     )
@@ -247,6 +258,36 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from mpcde.sweep.report import format_report, write_report
+    from mpcde.sweep.runner import run_sweep
+    from mpcde.sweep.spec import load_sweep
+
+    _at_least("--jobs", args.jobs, 1)
+    if args.ray_address is not None and args.backend != "ray":
+        raise ConfigError("--ray-address", args.ray_address, "only with --backend ray")
+    spec = load_sweep(args.sweep)
+    try:
+        counts = run_sweep(spec, args.out, jobs=args.jobs, backend=args.backend, ray_address=args.ray_address, progress=not args.quiet)
+    except KeyboardInterrupt:
+        sys.stderr.write(f"mpcde: interrupted; the flights recorded so far are in {args.out}: run the same command to resume\n")
+        return 130
+    print(format_report(write_report(args.out)))
+    print(
+        f"{counts['flown']} flown, {counts['failed']} failed, {counts['recorded_before']} recorded before, of {counts['total']} "
+        f"({counts['wall_s']:.0f} s) -> {args.out / 'results.jsonl'}, {args.out / 'report.md'}"
+    )
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from mpcde.sweep.report import format_report, write_report
+
+    print(format_report(write_report(args.folder)))
+    print(f"-> {args.folder / 'report.txt'}, {args.folder / 'report.md'}, {args.folder / 'report.json'}")
+    return 0
+
+
 def _cmd_eval_mlr(args: argparse.Namespace) -> int:
     from mpcde.evals.mlr import run_eval_mlr
 
@@ -285,6 +326,10 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_compare(args)
         if args.command == "eval-mlr":
             return _cmd_eval_mlr(args)
+        if args.command == "sweep":
+            return _cmd_sweep(args)
+        if args.command == "report":
+            return _cmd_report(args)
         if args.command == "bench":
             return _cmd_bench(args)
     except (MpcdeError, ValueError) as e:

@@ -43,6 +43,7 @@ __all__ = [
     "build_layout",
     "load_scenario",
     "resolve_obstacles",
+    "scenario_from_dict",
 ]
 
 SCENARIO_DIR = Path(__file__).resolve().parents[2] / "data" / "scenarios"
@@ -348,7 +349,6 @@ def load_scenario(
         raise ConfigError("scenario", str(p), "an empty file (a scenario is a YAML mapping of fields; see data/scenarios/)")
     if not isinstance(data, dict):
         raise ConfigError("scenario", str(p), "must be a YAML mapping of fields")
-    _refuse_ignored(data)
     data = {**data, **(overrides or {})}
     if planner_kind is not None:
         planner = data.get("planner")
@@ -356,6 +356,12 @@ def load_scenario(
         if isinstance(planner, dict):  # anything else: from_dict names it
             data["planner"] = {**planner, "kind": planner_kind}
     data.setdefault("name", p.stem)
+    return scenario_from_dict(data)
+
+
+def scenario_from_dict(data: dict) -> ScenarioConfig:
+    """The checked, resolved scenario of a mapping as a scenario file holds it (what :func:`load_scenario` reads)."""
+    _refuse_ignored(data)
     from mpcde.config.resolve import resolve
 
     return resolve(from_dict(ScenarioConfig, data, ranges=SCENARIO_RANGES), data)

@@ -66,6 +66,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("dmpc", "DMPC QP: on-demand vs buffered Voronoi cells", ("--seeds", "1")),
     Benchmark("admm", "ADMM formation DMPC vs the centralized QP", ("--seeds", "1")),
     Benchmark("mlr", "MLR-DMPC compute-unit step (trackers, trigger, QP) vs the DMPC QP in bvc mode"),
+    Benchmark("sweep", "mpcde sweep --jobs 2 vs the same flights back to back; denied flights per hour", ("--quick",)),
 )
 _BY_NAME = {b.name: b for b in BENCHMARKS}
 

@@ -49,30 +49,36 @@ half-written ``out_dir``):
 * ``results.png``: minimum inter-drone distance over time per mode (first
   seed) with the collision distance 2 r_robot dashed, beside a top view per
   mode (tracks, starts o, goals x, obstacles);
-* ``runs/<mode>-seed<seed>/``: each flight's run folder (:class:`mpcde.flight.run_folder.RunFolder`).
+* ``runs/<mode>-seed<seed>/``: each flight's run folder (:class:`mpcde.flight.run_folder.RunFolder`);
+* ``results.jsonl`` and ``sweep.json``: the rows as ``mpcde sweep`` keeps them
+  (:mod:`mpcde.sweep.store`), so ``mpcde report OUT`` gives a comparison the
+  sweep report (Wilson intervals, McNemar's test between modes).
+
+A comparison is a preset of the sweep machinery (:func:`compare_sweep`: the
+scenario with one axis, ``planner.kind``); only its table, plot and
+all-or-nothing publishing are its own.
 """
 
 from __future__ import annotations
 
 import json
-import multiprocessing as mp
-import os
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
 from mpcde.config.modes import MODES
-from mpcde.config.scenario import load_scenario
-from mpcde.errors import ConfigError
+from mpcde.config.scenario import SCENARIO_DIR, load_scenario
+from mpcde.config.yaml_reader import read_yaml
+from mpcde.errors import ConfigError, MpcdeError
 from mpcde.evals.text_table import cell
-from mpcde.flight.loop import PreparedRun, RunResult, prepare_run, run_scenario
-from sim.spawn import main_module_hidden
+from mpcde.flight.loop import RunResult, prepare_run
+from mpcde.sweep.engine import FlightOutcome, FlightTask, git_revision, package_version, run_flights, share_cores
+from mpcde.sweep.spec import SweepSpec
+from mpcde.sweep.store import ResultsStore
 
 __all__ = [
-    "DEFAULT_MODES", "ROW_KEYS", "SUMMARY_KEYS", "check_modes", "default_modes", "format_table",
+    "DEFAULT_MODES", "ROW_KEYS", "SUMMARY_KEYS", "check_modes", "compare_sweep", "default_modes", "format_table",
     "row_from_metrics", "run_compare", "summarize",
 ]  # fmt: skip
 
@@ -249,17 +255,22 @@ def _plot(path: Path, flights: dict[str, RunResult], seed: int) -> None:
     fig.savefig(path, dpi=100)
 
 
-def _prepare_all(scenario: str, modes: tuple[str, ...], seeds: tuple[int, ...], duration_s: float | None) -> dict:
-    """Every (mode, seed) flight loaded, switched to its stack, re-checked and prepared (writes nothing)."""
-    prepared: dict[tuple[str, int], PreparedRun] = {}
-    for seed in seeds:
-        overrides: dict[str, Any] = {"seed": seed}
-        if duration_s is not None:
-            overrides["duration_s"] = float(duration_s)
-        for mode in modes:
-            cfg = load_scenario(scenario, overrides, planner_kind=MODES[mode])  # the kind before the checks
-            prepared[(mode, seed)] = prepare_run(cfg)
-    return prepared
+_share_cores = share_cores  # the name this module had before the sweep machinery held it
+
+
+def compare_sweep(scenario: str | Path, modes: Sequence[str], seeds: Sequence[int], duration_s: float | None) -> SweepSpec:
+    """The sweep a comparison is: ``scenario`` with one axis, ``planner.kind`` over ``modes``' kinds, on ``seeds``."""
+    p = Path(scenario)
+    if not p.is_file() and (SCENARIO_DIR / f"{scenario}.yaml").is_file():
+        p = SCENARIO_DIR / f"{scenario}.yaml"
+    if not p.is_file():
+        load_scenario(scenario)  # raises the loader's one line (scenario=...: no such file; built-in scenarios: ...)
+    base = read_yaml(p)
+    if not isinstance(base, dict):
+        load_scenario(p)  # raises the loader's one line for an empty or non-mapping file
+    base.setdefault("name", p.stem)
+    overrides = {} if duration_s is None else {"duration_s": float(duration_s)}
+    return SweepSpec(base, str(scenario), tuple(seeds), overrides, (("planner.kind", tuple(MODES[m] for m in modes)),))
 
 
 def run_compare(
@@ -271,12 +282,22 @@ def run_compare(
     progress: bool = True,
     overwrite: bool = False,
     jobs: int = 1,
+    backend: str = "local",
+    ray_address: str | None = None,
 ) -> dict:
     """Fly ``scenario`` in every mode for every seed and write the paired comparison.
 
+    A preset over the sweep machinery (:mod:`mpcde.sweep`): the sweep of
+    :func:`compare_sweep` (one axis, ``planner.kind``), its flights flown by
+    :func:`mpcde.sweep.engine.run_flights`, its rows kept in ``results.jsonl``
+    (so ``mpcde report`` reads a comparison too), plus this module's table and
+    plot. Unlike ``mpcde sweep`` it publishes all or nothing.
+
     Args:
         out_dir: output folder (must not exist or be empty unless ``overwrite``);
-            gets ``results.json``, ``results.txt``, ``results.png`` and ``runs/<mode>-seed<seed>/``.
+            gets ``results.json``, ``results.txt``, ``results.png``,
+            ``results.jsonl`` + ``sweep.json`` (:mod:`mpcde.sweep.store`) and
+            ``runs/<mode>-seed<seed>/``.
         scenario: scenario YAML path or built-in name.
         modes: keys of :data:`mpcde.config.modes.MODES`; default :func:`default_modes`.
         seeds: one flight per seed and mode; the same seed gives every mode the same draw.
@@ -291,6 +312,7 @@ def run_compare(
             than one job, a flight whose ``run.render_workers`` is automatic
             (-1) renders with ``max(1, cpu_count // jobs)`` workers (at most 16), so the
             jobs share the cores instead of each taking all of them.
+        backend, ray_address: as ``mpcde sweep`` (:func:`mpcde.sweep.engine.run_flights`).
 
     Returns:
         The results dict written to ``results.json`` (module docstring).
@@ -299,6 +321,7 @@ def run_compare(
         mpcde.errors.ConfigError: unknown, repeated or no mode; bad seeds or
             duration; an unusable ``out_dir``; a scenario that does not load or
             validate in some mode (all before anything is written).
+        mpcde.errors.MpcdeError: a flight failed (nothing is published).
     """
     modes = check_modes(default_modes() if modes is None else modes)
     seeds = _check_seeds(seeds)
@@ -306,9 +329,13 @@ def run_compare(
         raise ConfigError("duration_s", duration_s, "> 0 s")
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ConfigError("jobs", jobs, "an integer >= 1")
-    prepared = _prepare_all(scenario, modes, seeds, duration_s)
-    if jobs > 1:
-        prepared = {key: _share_cores(run, jobs) for key, run in prepared.items()}
+    spec = compare_sweep(scenario, modes, seeds, duration_s)
+    mode_of = dict(zip(range(len(modes)), modes))  # cell index -> mode (the one axis, in --modes order)
+    prepared = {}
+    for seed in seeds:
+        for cell in spec.cells():
+            run = prepare_run(spec.scenario(cell, seed))  # the kind is set before the checks
+            prepared[(mode_of[cell.index], seed)] = share_cores(run, jobs) if jobs > 1 else run
     name = prepared[(modes[0], seeds[0])].config.name
 
     from tqdm import tqdm
@@ -317,34 +344,38 @@ def run_compare(
 
     target = RunFolder(Path(out_dir), overwrite)  # checks --out, stages in a hidden sibling folder
     staging = target.staging
-    bar = tqdm(total=len(prepared), disable=not progress, desc="compare", unit="flight")
     order = [(mode, seed) for seed in seeds for mode in modes]  # interleaved: a seed's modes fly under the same load
-    pool = None
+    tasks = [
+        FlightTask((mode, seed), prepared[(mode, seed)], staging / "runs" / f"{mode}-seed{seed}", keep_result=seed == seeds[0])
+        for mode, seed in order
+    ]  # fmt: skip
+    store = ResultsStore.for_sweep(staging, spec)
+    cell_of = {m: i for i, m in mode_of.items()}
+    version, revision = package_version(), git_revision()
+    bar = tqdm(total=len(tasks), disable=not progress, desc="compare", unit="flight")
+    outcomes: dict[tuple[str, int], FlightOutcome] = {}
+
+    def on_done(o: FlightOutcome) -> None:
+        mode, seed = o.key
+        if o.error is not None:
+            raise MpcdeError(f"compare: the {mode} flight of seed {seed} failed: {o.error}")
+        outcomes[o.key] = o
+        store.append({
+            "cell": cell_of[mode], "values": {"planner.kind": MODES[mode]}, "seed": seed, "status": "ok", "error": None,
+            "metrics": o.metrics, "wall_s": round(o.wall_s, 3), "version": version, "git_rev": revision,
+        })  # fmt: skip
+        row = row_from_metrics(mode, seed, o.metrics)
+        bar.update(1)
+        if progress:
+            bar.write(
+                f"{mode} seed {seed}: success={row['success']} arrived {row['arrived']}/{row['n_drones']} "
+                f"collisions={row['collisions']} min_distance={cell(row['min_distance_m'], '.3f')} m "
+                f"mission_time={cell(row['mission_time_s'], '.2f')} s"
+            )
+
     try:
-        if jobs > 1:
-            pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
-            with main_module_hidden():  # the workers start on the first submit (sim/spawn.py)
-                futures = {key: pool.submit(_fly, prepared[key]) for key in order}
-        rows, first = [], {}
-        for mode, seed in order:  # rows in this order whatever order the jobs finish in
-            if pool is None:
-                result = run_scenario(prepared[(mode, seed)], progress=progress)
-            else:
-                result = futures[(mode, seed)].result()
-            folder = RunFolder(staging / "runs" / f"{mode}-seed{seed}", overwrite=True)
-            folder.write_result(result)
-            folder.publish()
-            row = row_from_metrics(mode, seed, result.metrics)
-            rows.append(row)
-            if seed == seeds[0]:
-                first[mode] = result
-            bar.update(1)
-            if progress:
-                bar.write(
-                    f"{mode} seed {seed}: success={row['success']} arrived {row['arrived']}/{row['n_drones']} "
-                    f"collisions={row['collisions']} min_distance={cell(row['min_distance_m'], '.3f')} m "
-                    f"mission_time={cell(row['mission_time_s'], '.2f')} s"
-                )
+        run_flights(tasks, on_done, jobs=jobs, backend=backend, ray_address=ray_address)
+        rows = [row_from_metrics(mode, seed, outcomes[(mode, seed)].metrics) for mode, seed in order]  # in this order whatever order they finished in
         results = {
             "scenario": name,
             "modes": list(modes),
@@ -356,30 +387,11 @@ def run_compare(
         folders = [f"  {m}: " + ", ".join(f"runs/{m}-seed{s}" for s in seeds) for m in modes]
         text = format_table(results) + "\n\nrun folders:\n" + "\n".join(folders) + "\n"
         (staging / "results.txt").write_text(text)
-        _plot(staging / "results.png", first, seeds[0])
+        _plot(staging / "results.png", {m: outcomes[(m, seeds[0])].result for m in modes}, seeds[0])
         target.publish()
     except BaseException:
-        if pool is not None:  # do not wait for flights still running (Ctrl-C reaches the workers too)
-            pool.shutdown(wait=False, cancel_futures=True)
-            pool = None
         target.discard()
         raise
     finally:
-        if pool is not None:
-            pool.shutdown()  # every flight is done: returns at once
         bar.close()
     return results
-
-
-def _fly(prepared: PreparedRun) -> RunResult:
-    """One flight in a worker process of ``run_compare(jobs > 1)`` (top level, so it pickles)."""
-    return run_scenario(prepared, progress=False)
-
-
-def _share_cores(prepared: PreparedRun, jobs: int) -> PreparedRun:
-    """``prepared`` with an automatic ``run.render_workers`` (-1) set to this job's share of the cores."""
-    run = prepared.config.run
-    if run.render_workers >= 0:
-        return prepared
-    workers = min(16, max(1, (os.cpu_count() or 1) // jobs))  # 16: run.render_workers' limit
-    return replace(prepared, config=replace(prepared.config, run=replace(run, render_workers=workers)))

@@ -1,0 +1,208 @@
+"""Flights as tasks: one prepared scenario in, its metrics (and optionally its run folder) out, on local processes or Ray.
+
+:func:`run_flights` is the one machinery behind ``mpcde sweep`` and ``mpcde
+compare``. Each :class:`FlightTask` is flown by :func:`fly_task` in a worker:
+in this process (``jobs=1``), in ``spawn`` processes of a local pool, or as a
+Ray remote task (``backend="ray"``) that reserves the CPUs its flight uses (the
+main loop plus its render workers). A flight that raises becomes a failed
+:class:`FlightOutcome` carrying its error, never an exception of the run, and
+``on_done`` is called in this process as each flight finishes, in finishing
+order. A flight's metrics do not depend on where it flew (everything is
+seeded and stepped in simulated time; a render does not depend on the worker
+that made it), except the wall-clock ones (``real_time_factor``, ``compute_time``).
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import subprocess
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass, replace
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from mpcde.errors import ConfigError
+from sim.spawn import main_module_hidden
+
+__all__ = ["BACKENDS", "FlightOutcome", "FlightTask", "fly_task", "git_revision", "package_version", "run_flights", "share_cores"]
+
+BACKENDS = ("local", "ray")
+
+
+@dataclass(frozen=True)
+class FlightTask:
+    """One flight: ``key`` (any hashable the caller chooses), the prepared run, and what to write.
+
+    Attributes:
+        key: the caller's name for the flight ((cell, seed) in a sweep).
+        prepared: a :class:`mpcde.flight.loop.PreparedRun`.
+        run_folder: write the flight's run folder here (None: metrics only).
+        video: also write ``video.mp4`` into the run folder.
+        keep_result: return the whole :class:`mpcde.flight.loop.RunResult` (the log too).
+    """
+
+    key: Any
+    prepared: Any
+    run_folder: Path | None = None
+    video: bool = False
+    keep_result: bool = False
+
+
+@dataclass(frozen=True)
+class FlightOutcome:
+    """What came back: ``metrics`` (None when failed), ``error`` (one line, None when flown), wall time [s]."""
+
+    key: Any
+    metrics: dict[str, Any] | None
+    error: str | None
+    wall_s: float
+    result: Any = None
+
+
+def fly_task(task: FlightTask) -> FlightOutcome:
+    """Fly ``task`` to its end (top level, so it pickles); any exception becomes a failed outcome."""
+    from mpcde.api import fly
+    from mpcde.flight.loop import run_scenario
+
+    t0 = time.perf_counter()
+    try:
+        out = task.run_folder
+        if out is None:
+            result = run_scenario(task.prepared)
+        else:  # mpcde.fly writes the run folder (and the video) all or nothing
+            result = fly(task.prepared.config, out=out, overwrite=True, video=task.video)
+    except Exception as e:  # a failed flight is a result of the sweep, not the end of it
+        last = traceback.extract_tb(e.__traceback__)[-1] if e.__traceback__ else None
+        where = f" at {Path(last.filename).name}:{last.lineno}" if last else ""
+        return FlightOutcome(task.key, None, f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}{where}", time.perf_counter() - t0)
+    return FlightOutcome(task.key, result.metrics, None, time.perf_counter() - t0, result if task.keep_result else None)
+
+
+def share_cores(prepared: Any, jobs: int, cpus: int | None = None) -> Any:
+    """``prepared`` with an automatic ``run.render_workers`` (-1) set to one job's share of ``cpus`` (default: this machine's)."""
+    run = prepared.config.run
+    if run.render_workers >= 0:
+        return prepared
+    workers = min(16, max(1, (cpus or os.cpu_count() or 1) // jobs))  # 16: run.render_workers' limit
+    return replace(prepared, config=replace(prepared.config, run=replace(run, render_workers=workers)))
+
+
+def cpus_of(prepared: Any) -> int:
+    """CPUs a flight keeps busy: its loop, plus its render workers when it renders cameras."""
+    run = prepared.config.run
+    return 1 + (max(run.render_workers, 0) if run.cameras else 0)
+
+
+def run_flights(
+    tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]],
+    on_done: Callable[[FlightOutcome], None],
+    jobs: int = 1,
+    backend: str = "local",
+    ray_address: str | None = None,
+) -> None:
+    """Fly every task and call ``on_done`` with each outcome as it finishes.
+
+    Args:
+        tasks: the flights, submitted in this order; or a function returning
+            them, called once the workers have started, so that they import
+            the simulator while this process prepares the flights.
+        on_done: called in this process for each outcome (it may write; an
+            exception it raises stops the run, flights in progress are abandoned).
+        jobs: flights at once on the local backend (1: one after the other
+            in this process); with Ray, the cluster's free CPUs decide.
+        backend: ``"local"`` or ``"ray"``.
+        ray_address: with Ray, ``"auto"`` (or a ``ray start`` address) joins an
+            existing cluster; None starts a local Ray instance.
+    """
+    if backend not in BACKENDS:
+        raise ConfigError("--backend", backend, f"one of {', '.join(BACKENDS)}")
+    if backend == "ray":
+        _run_ray(tasks() if callable(tasks) else tasks, on_done, ray_address)
+    elif jobs <= 1:
+        for task in tasks() if callable(tasks) else tasks:
+            on_done(fly_task(task))
+    else:
+        _run_pool(tasks, on_done, jobs)
+
+
+def _warm() -> None:
+    """A pool worker's first job: import the simulator and the stacks (what every flight needs) before a flight waits on it."""
+    import mpcde.flight.loop  # noqa: F401
+    import mpcde.onboard.factory  # noqa: F401
+
+
+def _run_pool(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], on_done: Callable[[FlightOutcome], None], jobs: int) -> None:
+    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
+    try:
+        with main_module_hidden():  # the workers start on the first submits (sim/spawn.py)
+            warm = [pool.submit(_warm) for _ in range(jobs)]
+            pending = {pool.submit(fly_task, t) for t in (tasks() if callable(tasks) else tasks)}
+        for future in warm:
+            future.result()
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                on_done(future.result())
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)  # do not wait for flights in progress
+        raise
+    pool.shutdown()
+
+
+def _run_ray(tasks: Sequence[FlightTask], on_done: Callable[[FlightOutcome], None], address: str | None) -> None:
+    try:
+        import ray
+    except ImportError:
+        raise ConfigError("--backend", "ray", "needs Ray: pip install 'mpcde[ray]'") from None
+    started = False
+    if not ray.is_initialized():
+        try:
+            ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False)
+        except (ConnectionError, RuntimeError, ValueError) as e:
+            raise ConfigError("--ray-address", address, f"no Ray cluster there ({str(e).splitlines()[0][:120]})") from None
+        started = True
+    try:
+        remote = ray.remote(fly_task)
+        refs = {remote.options(num_cpus=cpus_of(t.prepared)).remote(t): t.key for t in tasks}
+        pending = list(refs)
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            for ref in done:
+                try:
+                    outcome = ray.get(ref)
+                except Exception as e:  # the worker itself died (fly_task catches the flight's own errors)
+                    outcome = FlightOutcome(refs[ref], None, f"{type(e).__name__}: {str(e).splitlines()[0][:200]}", 0.0)
+                on_done(outcome)
+    except BaseException:
+        for ref in refs:
+            ray.cancel(ref, force=True)
+        raise
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def package_version() -> str:
+    """mpcde's installed version."""
+    try:
+        return metadata.version("mpcde")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def git_revision() -> str | None:
+    """The commit of the source tree mpcde runs from (``+dirty`` with uncommitted changes), None outside git."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        rev = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10)
+        if rev.returncode != 0:
+            return None
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True, timeout=10)
+        return rev.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.SubprocessError):
+        return None

@@ -1,0 +1,97 @@
+"""``mpcde sweep``: fly every (cell, seed) of a sweep file that its store does not hold yet, appending each row as it lands.
+
+Running the same command again resumes: the flights already in
+``DIR/results.jsonl`` (flown or failed) are not flown again, and a folder
+made by another sweep file is refused (:mod:`mpcde.sweep.store`). Flights are
+ordered seed by seed (a seed's cells fly side by side), prepared and checked
+before the store is touched, and flown by :func:`mpcde.sweep.engine.run_flights`
+on local processes or Ray.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from mpcde.errors import ConfigError
+from mpcde.sweep.engine import FlightOutcome, FlightTask, git_revision, package_version, run_flights, share_cores
+from mpcde.sweep.spec import SweepSpec
+from mpcde.sweep.store import ResultsStore
+
+__all__ = ["RAY_RENDER_WORKERS", "run_sweep", "run_folder_name"]
+
+RAY_RENDER_WORKERS = 1
+"""Render workers of a camera flight on Ray whose ``run.render_workers`` is automatic; it reserves one CPU more."""
+
+
+def run_folder_name(cell: int, seed: int) -> str:
+    """``runs/<name>``: the run folder of a kept flight."""
+    return f"cell{cell:04d}-seed{seed}"
+
+
+def run_sweep(
+    spec: SweepSpec, out: str | Path, jobs: int = 1, backend: str = "local", ray_address: str | None = None, progress: bool = True
+) -> dict[str, Any]:
+    """Fly what ``out``'s store is missing of ``spec``; returns counts: ``total``, ``recorded_before``, ``flown``, ``failed``.
+
+    Raises:
+        ConfigError: a folder of another sweep, a corrupt store, a cell or
+            seed that does not prepare (all before a flight is flown), an
+            unknown backend or an unreachable Ray cluster.
+    """
+    from mpcde.flight.loop import prepare_run
+
+    out = Path(out)
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ConfigError("--jobs", jobs, "an integer >= 1")
+    done = ResultsStore.read(out).done() if (out / "sweep.json").exists() else set()
+    cells = spec.cells()
+    by_index = {c.index: c for c in cells}
+    todo = [(c, s) for s in spec.seeds for c in cells if (c.index, s) not in done]
+    holder: dict[str, ResultsStore] = {}
+
+    def prepare() -> list[FlightTask]:
+        """Every flight prepared and checked, then the store opened (a refused sweep writes nothing)."""
+        tasks = []
+        for cell, seed in todo:
+            try:
+                prepared = prepare_run(spec.scenario(cell, seed))
+            except ConfigError as e:
+                raise ConfigError(e.field, e.value, f"{e.allowed} (cell {cell.label}, seed {seed})") from None
+            if backend == "ray" and prepared.config.run.render_workers < 0:
+                prepared = replace(prepared, config=replace(prepared.config, run=replace(prepared.config.run, render_workers=RAY_RENDER_WORKERS)))
+            elif jobs > 1:
+                prepared = share_cores(prepared, jobs)
+            folder = out / "runs" / run_folder_name(cell.index, seed) if spec.keep_run_folders else None
+            tasks.append(FlightTask((cell.index, seed), prepared, folder, spec.keep_videos))
+        holder["store"] = ResultsStore.for_sweep(out, spec)
+        return tasks
+
+    version, revision = package_version(), git_revision()
+    counts = {"total": len(cells) * len(spec.seeds), "recorded_before": len(done), "flown": 0, "failed": 0}
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=counts["total"], initial=len(done), disable=not progress, desc="sweep", unit="flight", smoothing=0.0)
+    t0 = time.perf_counter()
+
+    def on_done(o: FlightOutcome) -> None:
+        cell, seed = o.key
+        holder["store"].append({
+            "cell": cell, "values": by_index[cell].values, "seed": seed, "status": "ok" if o.error is None else "failed",
+            "error": o.error, "metrics": o.metrics, "wall_s": round(o.wall_s, 3), "version": version, "git_rev": revision,
+        })  # fmt: skip
+        counts["flown" if o.error is None else "failed"] += 1
+        bar.update(1)
+        bar.set_postfix(done=counts["flown"] + counts["recorded_before"], failed=counts["failed"])
+        if o.error is not None and progress:
+            bar.write(f"failed: cell {by_index[cell].label}, seed {seed}: {o.error}")
+
+    try:
+        run_flights(prepare, on_done, jobs=jobs, backend=backend, ray_address=ray_address)
+    finally:
+        bar.close()
+    counts["wall_s"] = time.perf_counter() - t0
+    return counts
