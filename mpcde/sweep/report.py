@@ -94,7 +94,7 @@ def build_report(folder: str | Path) -> dict[str, Any]:
         diff = (sum(success[(i, s)] for s in seeds) - sum(success[(j, s)] for s in seeds)) / len(seeds) if seeds else None
         pairs.append({
             "axis": differ[0], "a": i, "b": j, "a_value": cells_values[i][differ[0]], "b_value": cells_values[j][differ[0]],
-            "others": _label({k: v for k, v in cells_values[i].items() if k != differ[0]}), "paired_seeds": len(seeds),
+            "others": _label(rest) if (rest := {k: v for k, v in cells_values[i].items() if k != differ[0]}) else "", "paired_seeds": len(seeds),
             "a_only": b, "b_only": c, "success_difference": diff, "mcnemar_p": mcnemar_exact(b, c),
         })  # fmt: skip
     expected = len(cells_values) * len(sweep["seeds"])
