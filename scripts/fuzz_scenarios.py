@@ -1,6 +1,6 @@
 """Fuzz the scenario loader: N hypothesis-generated malformed files (mutated and damaged built-ins), counting outcomes.
 
-The same strategies as ``tests/unit/mpcde/test_malformed_scenarios.py``, run
+The same strategies as ``tests/unit/mpcde/config/test_malformed_scenarios.py``, run
 with fresh random draws and many more examples; any exception other than a
 one-line ConfigError stops the run with hypothesis's shrunk example.
 
@@ -17,7 +17,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, Phase, given, settings
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests" / "unit" / "mpcde"))
+sys.path.insert(0, str(ROOT / "tests" / "unit" / "mpcde" / "config"))
 
 import test_malformed_scenarios as strategies  # noqa: E402
 

@@ -8,7 +8,7 @@ import pytest
 import mpcde.evals.bench as bench
 from mpcde.cli import main
 
-REPO = Path(__file__).resolve().parents[3]
+REPO = Path(__file__).resolve().parents[4]
 
 
 def test_every_benchmark_script_is_listed_and_every_listed_one_exists():

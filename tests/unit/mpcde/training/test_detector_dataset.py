@@ -20,7 +20,7 @@ from mpcde.training.dataset import (
 from mpcde.training.dataset_files import load_dataset
 from sim.camera import CameraConfig
 
-FIXTURE = Path(__file__).resolve().parents[3] / "data" / "detector" / "fixture" / "test"
+FIXTURE = Path(__file__).resolve().parents[4] / "data" / "detector" / "fixture" / "test"
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ from planners.dmpc.config import DmpcConfig
 from planners.dmpc.model import rollout
 from planners.dmpc.qp import DmpcProblem, DmpcSolveError, QpSnapshot
 from planners.dmpc.types import DmpcPlan
-from qp_kkt import assert_kkt  # tests/unit/planners/qp_kkt.py
+from qp_kkt import assert_kkt  # tests/unit/planners/dmpc/qp_kkt.py
 
 TIGHT = dict(osqp_eps_abs=1e-8, osqp_eps_rel=1e-8, osqp_polish=True, osqp_max_iter=100000)
 

@@ -10,7 +10,7 @@ import pytest
 from planners.dmpc.mlr.config import MlrConfig
 from planners.dmpc.mlr.qp import MlrProblem, time_varying_bvc
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
-from qp_kkt import assert_kkt  # tests/unit/planners/qp_kkt.py
+from qp_kkt import assert_kkt  # tests/unit/planners/dmpc/qp_kkt.py
 
 TIGHT = dict(osqp_eps_abs=1e-6, osqp_eps_rel=1e-6, osqp_polish=True, osqp_max_iter=200000)
 THETA_INV = np.array([1.0, 1.0, 1.0 / 1.5])
