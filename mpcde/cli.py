@@ -18,11 +18,14 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from mpcde.config.modes import MODES
-from mpcde.errors import ConfigError, MpcdeError
+from mpcde.errors import ConfigError, MpcdeError, Terminated
 from mpcde.onboard.budget import ComputeBudget
 
 __all__ = ["main"]
@@ -269,9 +272,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     spec = load_sweep(args.sweep)
     try:
         counts = run_sweep(spec, args.out, jobs=args.jobs, backend=args.backend, ray_address=args.ray_address, progress=not args.quiet)
-    except KeyboardInterrupt:
-        sys.stderr.write(f"mpcde: interrupted; the flights recorded so far are in {args.out}: run the same command to resume\n")
-        return 130
+    except (KeyboardInterrupt, Terminated) as e:
+        how = "interrupted" if isinstance(e, KeyboardInterrupt) else "terminated"
+        sys.stderr.write(f"mpcde: {how}; the flights recorded so far are in {args.out}: run the same command to resume\n")
+        return EXIT_INTERRUPTED if isinstance(e, KeyboardInterrupt) else EXIT_TERMINATED
     print(format_report(write_report(args.out)))
     print(
         f"{counts['flown']} flown, {counts['failed']} failed, {counts['recorded_before']} recorded before, of {counts['total']} "
@@ -308,38 +312,57 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return 0 if all(r["exit_code"] == 0 for r in results["rows"]) else 1
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``mpcde`` console script."""
-    args = build_parser().parse_args(argv)
+_COMMANDS = {
+    "fly": _cmd_fly, "train-detector": _cmd_train_detector, "eval-detector": _cmd_eval_detector,
+    "eval-tracking": _cmd_eval_tracking, "eval-dmpc": _cmd_eval_dmpc, "compare": _cmd_compare,
+    "eval-mlr": _cmd_eval_mlr, "sweep": _cmd_sweep, "report": _cmd_report, "bench": _cmd_bench,
+}  # fmt: skip
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports Ctrl-C
+EXIT_TERMINATED = 143  # 128 + SIGTERM
+
+
+@contextmanager
+def _sigterm_raises() -> Iterator[None]:
+    """Inside the block SIGTERM raises :class:`Terminated` in the main thread, so staging folders are cleaned."""
+    def raise_terminated(signum: int, frame: object) -> None:
+        raise Terminated()
+
     try:
-        if args.command == "fly":
-            return _cmd_fly(args)
-        if args.command == "train-detector":
-            return _cmd_train_detector(args)
-        if args.command == "eval-detector":
-            return _cmd_eval_detector(args)
-        if args.command == "eval-tracking":
-            return _cmd_eval_tracking(args)
-        if args.command == "eval-dmpc":
-            return _cmd_eval_dmpc(args)
-        if args.command == "compare":
-            return _cmd_compare(args)
-        if args.command == "eval-mlr":
-            return _cmd_eval_mlr(args)
-        if args.command == "sweep":
-            return _cmd_sweep(args)
-        if args.command == "report":
-            return _cmd_report(args)
-        if args.command == "bench":
-            return _cmd_bench(args)
-    except (MpcdeError, ValueError) as e:
-        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
-        sys.stderr.write(f"mpcde: error: {msg}\n")
-        return EXIT_BAD_INPUT
-    except OSError as e:  # an output place that cannot be written
-        sys.stderr.write(f"mpcde: error: --out={str(getattr(args, 'out', ''))!r}: {e.strerror or e} ({e.filename})\n")
-        return EXIT_BAD_INPUT
-    return 1
+        previous = signal.signal(signal.SIGTERM, raise_terminated)
+    except ValueError:  # not the main thread (main() called from a thread): leave SIGTERM alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``mpcde`` console script.
+
+    Exit status: 0 done, 1 a benchmark failed, 2 bad input (one line on
+    stderr), 130 Ctrl-C and 143 SIGTERM (one line; whatever was staged is
+    removed: a run folder or an evaluation appears only when complete, a
+    sweep keeps the rows it recorded).
+    """
+    args = build_parser().parse_args(argv)
+    with _sigterm_raises():
+        try:
+            return _COMMANDS[args.command](args)
+        except (MpcdeError, ValueError) as e:
+            msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+            sys.stderr.write(f"mpcde: error: {msg}\n")
+            return EXIT_BAD_INPUT
+        except OSError as e:  # an output place that cannot be written
+            sys.stderr.write(f"mpcde: error: --out={str(getattr(args, 'out', ''))!r}: {e.strerror or e} ({e.filename})\n")
+            return EXIT_BAD_INPUT
+        except KeyboardInterrupt:
+            sys.stderr.write("mpcde: interrupted, nothing written\n")
+            return EXIT_INTERRUPTED
+        except Terminated:
+            sys.stderr.write("mpcde: terminated, nothing written\n")
+            return EXIT_TERMINATED
 
 
 if __name__ == "__main__":

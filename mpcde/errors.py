@@ -11,8 +11,16 @@ from __future__ import annotations
 
 from sim.checks import ConfigError
 
-__all__ = ["ConfigError", "MpcdeError"]
+__all__ = ["ConfigError", "MpcdeError", "Terminated"]
 
 
 class MpcdeError(Exception):
     """Base class of mpcde's errors that the command line turns into exit status 2."""
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread by the command line's handler so that staging folders are cleaned as on Ctrl-C.
+
+    A ``BaseException`` like ``KeyboardInterrupt``: every ``except BaseException``
+    cleanup (run folders, evaluations, pools) runs, and no ``except Exception`` swallows it.
+    """

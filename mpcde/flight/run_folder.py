@@ -21,7 +21,7 @@ import numpy as np
 import yaml
 
 from mpcde.config.io import to_dict
-from mpcde.errors import ConfigError
+from mpcde.errors import ConfigError, MpcdeError
 from mpcde.flight.loop import RunResult
 from mpcde.flight.plots import plot_min_distance, plot_top_down, plot_yaw
 
@@ -33,6 +33,7 @@ class RunFolder:
 
     def __init__(self, out: Path, overwrite: bool) -> None:
         self.out = Path(out)
+        self.overwrite = overwrite
         if self.out.exists() and not self.out.is_dir():
             raise ConfigError("--out", str(out), "exists and is not a folder")
         if self.out.exists() and any(self.out.iterdir()) and not overwrite:
@@ -67,9 +68,22 @@ class RunFolder:
             plot_yaw(self.staging / "yaw.png", arrays["time_s"], arrays["yaw"])
 
     def publish(self) -> Path:
-        """Move the staged folder to ``out`` (replacing an old one)."""
-        if self.out.exists():
-            shutil.rmtree(self.out)
+        """Move the staged folder to ``out``.
+
+        An old ``out`` is replaced only with ``overwrite`` (which the user
+        asked for) or when it is an empty folder. One that appeared, or filled,
+        while the run was flying is never deleted: the staged run is renamed
+        ``<out>.kept-<pid>`` beside it and :class:`MpcdeError` says so.
+        """
+        if self.out.exists() or self.out.is_symlink():
+            if self.overwrite and self.out.is_dir() and not self.out.is_symlink():
+                shutil.rmtree(self.out)
+            elif self.out.is_dir() and not self.out.is_symlink() and not any(self.out.iterdir()):
+                self.out.rmdir()
+            else:
+                kept = self.out.with_name(f"{self.out.name}.kept-{os.getpid()}")
+                os.replace(self.staging, kept)
+                raise MpcdeError(f"--out={str(self.out)!r}: appeared during the run and is not empty, so it was left as it is; the run is in {kept}")
         os.replace(self.staging, self.out)
         return self.out
 

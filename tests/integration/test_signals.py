@@ -1,0 +1,67 @@
+"""Ctrl-C and SIGTERM during a flight: one stderr line, exit 130 / 143, no --out, no staging folder, no traceback.
+
+Each case starts ``python -m mpcde fly`` in its own process group (as a
+terminal's foreground job is), waits until the run folder is being staged,
+and sends the signal: SIGINT to the whole group (what Ctrl-C does, so the
+render workers get it too), SIGTERM to the main process (what ``kill`` does).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from mpcde.errors import MpcdeError
+from mpcde.flight.run_folder import RunFolder
+
+pytestmark = pytest.mark.slow
+
+
+def _start_and_signal(tmp_path: Path, sig: int, group: bool) -> tuple[int, str, Path]:
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "mpcde", "fly", "forest_swarm", "--mode", "denied", "--duration", "20", "--out", str(out), "--quiet"]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not list(tmp_path.glob(".run.partial-*")):
+        time.sleep(0.1)
+    time.sleep(3.0)  # flying, render workers up
+    if group:
+        os.killpg(p.pid, sig)
+    else:
+        os.kill(p.pid, sig)
+    _, err = p.communicate(timeout=120)
+    return p.returncode, err, out
+
+
+@pytest.mark.parametrize("sig, group, code, line", [
+    (signal.SIGINT, True, 130, "mpcde: interrupted, nothing written"),
+    (signal.SIGTERM, False, 143, "mpcde: terminated, nothing written"),
+])  # fmt: skip
+def test_a_signal_during_a_flight_is_one_line_and_leaves_nothing(tmp_path, sig, group, code, line):
+    rc, err, out = _start_and_signal(tmp_path, sig, group)
+    assert rc == code, err[-3000:]
+    assert err.strip().splitlines() == [line], err[-3000:]
+    assert not out.exists() and not list(tmp_path.glob(".run.partial-*"))
+
+
+def test_publishing_never_deletes_a_folder_that_appeared_during_the_run(tmp_path):
+    out = tmp_path / "run"
+    folder = RunFolder(out, overwrite=False)
+    (folder.staging / "metrics.json").write_text("{}")
+    out.mkdir()  # someone else's folder appears while the run flies
+    (out / "theirs.txt").write_text("keep me")
+    with pytest.raises(MpcdeError, match="appeared during the run") as e:
+        folder.publish()
+    assert (out / "theirs.txt").read_text() == "keep me" and sorted(p.name for p in out.iterdir()) == ["theirs.txt"]
+    kept = tmp_path / f"run.kept-{os.getpid()}"
+    assert (kept / "metrics.json").exists() and str(kept) in str(e.value)
+    empty = tmp_path / "empty"
+    folder = RunFolder(empty, overwrite=False)
+    empty.mkdir()  # an empty folder is taken over
+    assert folder.publish() == empty and not list(tmp_path.glob(".empty.partial-*"))
