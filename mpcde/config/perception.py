@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from perception.backprojection import BackprojectionConfig
+from perception.backprojection_config import BackprojectionConfig
 from perception.tracker_config import TrackerConfig
 from sim.checks import ConfigError
 

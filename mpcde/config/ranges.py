@@ -14,7 +14,7 @@ from mpcde.config.auto import AutoAgentConfig, FusionConfig
 from mpcde.config.denied import DeniedAgentConfig
 from mpcde.config.dmpc import DmpcAgentConfig
 from mpcde.config.mlr import MlrAgentConfig
-from perception.backprojection import BackprojectionConfig
+from perception.backprojection_config import BackprojectionConfig
 from perception.map_config import MapConfig
 from perception.tracker_config import TrackerConfig
 from planners.dmpc.config import DmpcConfig

@@ -19,8 +19,9 @@ import os
 import subprocess
 import time
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from importlib import metadata
 from pathlib import Path
@@ -29,7 +30,7 @@ from typing import Any
 from mpcde.errors import ConfigError
 from sim.spawn import main_module_hidden
 
-__all__ = ["BACKENDS", "FlightOutcome", "FlightTask", "fly_task", "git_revision", "package_version", "run_flights", "share_cores"]
+__all__ = ["BACKENDS", "FlightOutcome", "FlightTask", "fly_task", "git_revision", "package_version", "run_flights", "share_cores", "share_cores_count"]
 
 BACKENDS = ("local", "ray")
 
@@ -40,7 +41,10 @@ class FlightTask:
 
     Attributes:
         key: the caller's name for the flight ((cell, seed) in a sweep).
-        prepared: a :class:`mpcde.flight.loop.PreparedRun`.
+        prepared: a :class:`mpcde.flight.loop.PreparedRun`, or a picklable
+            function that returns one, called by the worker (so a sweep's
+            main process does not prepare hundreds of flights on the cores
+            its workers fly on; an error there is the flight's failure).
         run_folder: write the flight's run folder here (None: metrics only).
         video: also write ``video.mp4`` into the run folder.
         keep_result: return the whole :class:`mpcde.flight.loop.RunResult` (the log too).
@@ -71,11 +75,12 @@ def fly_task(task: FlightTask) -> FlightOutcome:
 
     t0 = time.perf_counter()
     try:
+        prepared = task.prepared() if callable(task.prepared) else task.prepared
         out = task.run_folder
         if out is None:
-            result = run_scenario(task.prepared)
+            result = run_scenario(prepared)
         else:  # mpcde.fly writes the run folder (and the video) all or nothing
-            result = fly(task.prepared.config, out=out, overwrite=True, video=task.video)
+            result = fly(prepared.config, out=out, overwrite=True, video=task.video)
     except Exception as e:  # a failed flight is a result of the sweep, not the end of it
         last = traceback.extract_tb(e.__traceback__)[-1] if e.__traceback__ else None
         where = f" at {Path(last.filename).name}:{last.lineno}" if last else ""
@@ -83,18 +88,22 @@ def fly_task(task: FlightTask) -> FlightOutcome:
     return FlightOutcome(task.key, result.metrics, None, time.perf_counter() - t0, result if task.keep_result else None)
 
 
+def share_cores_count(jobs: int, cpus: int | None = None) -> int:
+    """Render workers of one of ``jobs`` flights at once: its share of ``cpus`` (default: this machine's), 1 to 16."""
+    return min(16, max(1, (cpus or os.cpu_count() or 1) // jobs))  # 16: run.render_workers' limit
+
+
 def share_cores(prepared: Any, jobs: int, cpus: int | None = None) -> Any:
     """``prepared`` with an automatic ``run.render_workers`` (-1) set to one job's share of ``cpus`` (default: this machine's)."""
     run = prepared.config.run
     if run.render_workers >= 0:
         return prepared
-    workers = min(16, max(1, (cpus or os.cpu_count() or 1) // jobs))  # 16: run.render_workers' limit
-    return replace(prepared, config=replace(prepared.config, run=replace(run, render_workers=workers)))
+    return replace(prepared, config=replace(prepared.config, run=replace(run, render_workers=share_cores_count(jobs, cpus))))
 
 
 def cpus_of(prepared: Any) -> int:
     """CPUs a flight keeps busy: its loop, plus its render workers when it renders cameras."""
-    run = prepared.config.run
+    run = (prepared() if callable(prepared) else prepared).config.run
     return 1 + (max(run.render_workers, 0) if run.cameras else 0)
 
 
@@ -136,10 +145,31 @@ def _warm() -> None:
     import mpcde.onboard.factory  # noqa: F401
 
 
+_ONE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+"""Each pool worker's BLAS and OpenMP libraries run one thread: ``jobs`` flights already fill the cores, and
+two flights whose numpy products each spin two OpenBLAS threads on a 2-core machine ran 3.3x slower than
+one after the other (docs/results/sweeps.md)."""
+
+
+@contextmanager
+def _environment(values: dict[str, str]) -> Iterator[None]:
+    """``os.environ`` with ``values`` set inside the block (children started inside inherit them)."""
+    saved = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 def _run_pool(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], on_done: Callable[[FlightOutcome], None], jobs: int) -> None:
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
     try:
-        with main_module_hidden():  # the workers start on the first submits (sim/spawn.py)
+        with main_module_hidden(), _environment(_ONE_THREAD):  # the workers start on these first submits (sim/spawn.py)
             warm = [pool.submit(_warm) for _ in range(jobs)]
             pending = {pool.submit(fly_task, t) for t in (tasks() if callable(tasks) else tasks)}
         for future in warm:

@@ -3,27 +3,42 @@
 Running the same command again resumes: the flights already in
 ``DIR/results.jsonl`` (flown or failed) are not flown again, and a folder
 made by another sweep file is refused (:mod:`mpcde.sweep.store`). Flights are
-ordered seed by seed (a seed's cells fly side by side), prepared and checked
-before the store is touched, and flown by :func:`mpcde.sweep.engine.run_flights`
-on local processes or Ray.
+ordered seed by seed (a seed's cells fly side by side) and flown by
+:func:`mpcde.sweep.engine.run_flights` on local processes or Ray. Every cell
+was checked when the sweep file was read; each flight is prepared in its
+worker (a seed whose layout is refused, a start inside an obstacle say, is a
+failed row naming the field), so the main process stays off the cores the
+flights use.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 from mpcde.errors import ConfigError
-from mpcde.sweep.engine import FlightOutcome, FlightTask, git_revision, package_version, run_flights, share_cores
-from mpcde.sweep.spec import SweepSpec
+from mpcde.sweep.engine import FlightOutcome, FlightTask, git_revision, package_version, run_flights, share_cores_count
+from mpcde.sweep.spec import Cell, SweepSpec
 from mpcde.sweep.store import ResultsStore
 
 __all__ = ["RAY_RENDER_WORKERS", "run_sweep", "run_folder_name"]
 
 RAY_RENDER_WORKERS = 1
 """Render workers of a camera flight on Ray whose ``run.render_workers`` is automatic; it reserves one CPU more."""
+
+
+def prepare_flight(spec: SweepSpec, cell: Cell, seed: int, render_workers: int | None) -> Any:
+    """The prepared run of ``cell`` flown with ``seed`` (in the worker); an automatic ``run.render_workers`` set to ``render_workers``."""
+    from mpcde.flight.loop import prepare_run
+
+    prepared = prepare_run(spec.scenario(cell, seed))
+    run = prepared.config.run
+    if render_workers is None or run.render_workers >= 0:
+        return prepared
+    return replace(prepared, config=replace(prepared.config, run=replace(run, render_workers=render_workers)))
 
 
 def run_folder_name(cell: int, seed: int) -> str:
@@ -37,12 +52,9 @@ def run_sweep(
     """Fly what ``out``'s store is missing of ``spec``; returns counts: ``total``, ``recorded_before``, ``flown``, ``failed``.
 
     Raises:
-        ConfigError: a folder of another sweep, a corrupt store, a cell or
-            seed that does not prepare (all before a flight is flown), an
-            unknown backend or an unreachable Ray cluster.
+        ConfigError: a folder of another sweep, a corrupt store (before a
+            flight is flown), an unknown backend or an unreachable Ray cluster.
     """
-    from mpcde.flight.loop import prepare_run
-
     out = Path(out)
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ConfigError("--jobs", jobs, "an integer >= 1")
@@ -50,23 +62,18 @@ def run_sweep(
     cells = spec.cells()
     by_index = {c.index: c for c in cells}
     todo = [(c, s) for s in spec.seeds for c in cells if (c.index, s) not in done]
+    render_workers = RAY_RENDER_WORKERS if backend == "ray" else (share_cores_count(jobs) if jobs > 1 else None)
+    tasks = [
+        FlightTask(
+            (cell.index, seed), partial(prepare_flight, spec, cell, seed, render_workers),
+            out / "runs" / run_folder_name(cell.index, seed) if spec.keep_run_folders else None, spec.keep_videos,
+        )
+        for cell, seed in todo
+    ]  # fmt: skip
     holder: dict[str, ResultsStore] = {}
 
-    def prepare() -> list[FlightTask]:
-        """Every flight prepared and checked, then the store opened (a refused sweep writes nothing)."""
-        tasks = []
-        for cell, seed in todo:
-            try:
-                prepared = prepare_run(spec.scenario(cell, seed))
-            except ConfigError as e:
-                raise ConfigError(e.field, e.value, f"{e.allowed} (cell {cell.label}, seed {seed})") from None
-            if backend == "ray" and prepared.config.run.render_workers < 0:
-                prepared = replace(prepared, config=replace(prepared.config, run=replace(prepared.config.run, render_workers=RAY_RENDER_WORKERS)))
-            elif jobs > 1:
-                prepared = share_cores(prepared, jobs)
-            folder = out / "runs" / run_folder_name(cell.index, seed) if spec.keep_run_folders else None
-            tasks.append(FlightTask((cell.index, seed), prepared, folder, spec.keep_videos))
-        holder["store"] = ResultsStore.for_sweep(out, spec)
+    def open_store() -> list[FlightTask]:
+        holder["store"] = ResultsStore.for_sweep(out, spec)  # the sweep file was checked: every cell loads
         return tasks
 
     version, revision = package_version(), git_revision()
@@ -90,7 +97,7 @@ def run_sweep(
             bar.write(f"failed: cell {by_index[cell].label}, seed {seed}: {o.error}")
 
     try:
-        run_flights(prepare, on_done, jobs=jobs, backend=backend, ray_address=ray_address)
+        run_flights(open_store, on_done, jobs=jobs, backend=backend, ray_address=ray_address)
     finally:
         bar.close()
     counts["wall_s"] = time.perf_counter() - t0
