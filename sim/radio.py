@@ -121,6 +121,7 @@ class Radio:
         self.inboxes: list[list[RadioMessage]] = [[] for _ in range(n_drones)]
         self.sent = 0
         self.delivered = 0
+        self.latency_sum_s = 0.0  # sum of send-to-delivery times of the delivered messages [s]
         self.lost: Counter[LossCause] = Counter()
 
     def _drop_by_loss_model(self, sender: int, receiver: int) -> bool:
@@ -174,6 +175,7 @@ class Radio:
                 r, payload = m.payload
                 self.inboxes[r].append(RadioMessage(m.sender_id, m.send_time_s, m.receive_time_s, payload))
                 self.delivered += 1
+                self.latency_sum_s += m.receive_time_s - m.send_time_s
             else:
                 keep.append(m)
         self.pending = keep
@@ -185,5 +187,15 @@ class Radio:
         return out
 
     def stats(self) -> dict[str, Any]:
-        """Counts of messages sent (per receiver), delivered and lost by cause."""
-        return {"sent": self.sent, "delivered": self.delivered, "lost": dict(sorted(self.lost.items()))}
+        """Counts of messages sent (per receiver), delivered and lost by cause; the loss model and delay that applied.
+
+        ``lost["loss"]`` counts the random losses of ``loss_model`` (named
+        beside it, so a Bernoulli and a Gilbert-Elliott channel are told apart);
+        ``mean_latency_s`` is the mean send-to-delivery time of the delivered
+        messages (``delay_s`` on this channel; None before any).
+        """
+        return {
+            "sent": self.sent, "delivered": self.delivered, "lost": dict(sorted(self.lost.items())),
+            "loss_model": self.config.loss_model, "delay_s": self.config.delay_s,
+            "mean_latency_s": self.latency_sum_s / self.delivered if self.delivered else None,
+        }  # fmt: skip

@@ -20,6 +20,7 @@ from perception.tracker_config import TrackerConfig
 from planners.dmpc.config import DmpcConfig
 from planners.yaw.config import YawPlannerConfig
 from sim.camera import CameraConfig
+from sim.faults import FaultsConfig
 from sim.pose_estimate import PoseEstimateConfig
 from sim.radio import RadioConfig
 from sim.vehicle.controller import ControllerGains
@@ -33,6 +34,10 @@ __all__ = ["RANGES"]
 PI = math.pi
 
 RANGES: dict[type, dict[str, B]] = {
+    FaultsConfig: {
+        "frame_drop_probability": B(0, 1), "frame_drop_burst_frames": B(1, 1000, "frames"), "frame_drop_windows_s": B(-1, 3600),
+        "detector_miss_probability": B(0, 1), "detector_false_positive_rate": B(0, 50, "per frame"), "drone_failures": B(0, 3600),
+    },
     CameraConfig: {
         "width_px": B(16, 1920, "px"), "height_px": B(16, 1080, "px"), "hfov_deg": B(1, 170, "deg"), "vfov_deg": B(1, 170, "deg"),
         "rate_hz": B(0.5, 120, "Hz"), "depth_min_m": B(0.01, 10, "m"), "depth_max_m": B(0.1, 100, "m"),

@@ -27,6 +27,7 @@ from mpcde.config.stack_rules import check_admm, check_mlr
 from mpcde.errors import ConfigError
 from planners.yaw.config import YawPlannerConfig
 from sim.camera import CameraConfig
+from sim.faults import FaultsConfig
 from sim.pose_estimate import PoseEstimateConfig
 from sim.radio import RadioConfig
 from sim.types import ObstacleSpec
@@ -250,6 +251,9 @@ class ScenarioConfig:
             admm`` and ``admm.radio_rate_from_step`` (default) the scenario's
             ``radio.rate_hz`` is derived, ``2 admm.l_max / admm.step_s``
             (:mod:`mpcde.config.resolve`, with the other derived fields).
+        faults: lost camera frames, detector misses and false boxes, drone
+            failures (:mod:`sim.faults`; the radio's and the sensors' own
+            faults are in ``radio``, ``camera`` and ``pose_estimate``).
         run: simulation options.
     """
 
@@ -269,6 +273,7 @@ class ScenarioConfig:
     auto: AutoAgentConfig = field(default_factory=AutoAgentConfig)
     mlr: MlrAgentConfig = field(default_factory=MlrAgentConfig)
     admm: AdmmAgentConfig = field(default_factory=AdmmAgentConfig)
+    faults: FaultsConfig = field(default_factory=FaultsConfig)
     run: RunOptions = field(default_factory=RunOptions)
 
     def __post_init__(self) -> None:
@@ -288,6 +293,10 @@ class ScenarioConfig:
             allowed = "a multiple of 16 px with run.cameras: true (the detector's stride-16 level)"
             raise ConfigError(f"camera.{bad}", getattr(self.camera, bad), allowed)
         _require_inside_arena(self)
+        try:
+            self.faults.check_drones(len(build_layout(self.drones)[0]))
+        except ConfigError as e:
+            raise e.under("faults") from None
         if self.planner.kind == "mlr":
             check_mlr(self)
         if self.planner.kind == "admm":

@@ -27,15 +27,17 @@ from typing import Any, Callable
 
 import numpy as np
 
-from mpcde.config.resolve import resolve
 from mpcde.config.layout import build_layout, check_layout, resolve_obstacles
+from mpcde.config.resolve import resolve
 from mpcde.config.scenario import ScenarioConfig
 from mpcde.flight.metrics import MetricsAccumulator, formation_metrics
 from mpcde.flight.tracking_score import TrackingScore
 from mpcde.onboard.budget import ComputeBudget
 from mpcde.onboard.detection import BatchedDetector
 from mpcde.onboard.factory import make_agent
+from perception.types import Detection
 from sim.camera_rig import CameraRig
+from sim.faults import FaultInjector
 from sim.ground_truth import TrueState
 from sim.pose_estimate import PoseEstimator
 from sim.radio import Radio
@@ -131,6 +133,7 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
     estimator = PoseEstimator(cfg.pose_estimate, n, cfg.seed)
     rig = CameraRig(cfg.camera, cfg.seed)
     radio = Radio(cfg.radio, n, cfg.seed, line_of_sight=lambda a, b: _line_of_sight(world, a, b))
+    faults = FaultInjector(cfg.faults, n, cfg.seed, (cfg.camera.width_px, cfg.camera.height_px))
     track_score = TrackingScore()
     metrics = MetricsAccumulator(goals, prepared.obstacles, cfg.physics.quadrotor.robot_radius_m, cfg.run.goal_tolerance_m)
     log = RunLog()
@@ -145,6 +148,7 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
     radio_period = 1.0 / cfg.radio.rate_hz
     log_period = 1.0 / cfg.run.log_rate_hz
     next_cam, next_radio, next_log = 0.0, 0.0, 0.0
+    invalid_px, pixels = 0, 0  # NaN depth pixels of the frames delivered, and all their pixels
     frame_index = 0
     in_flight: tuple[float, int, list, list] | None = None  # (capture time, index, estimates, true camera poses)
     delivery: deque[tuple[float, list[RgbdFrame]]] = deque()
@@ -179,10 +183,17 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
                 in_flight = None
             while delivery and t >= delivery[0][0] + cfg.camera.latency_s - eps:
                 _, frames = delivery.popleft()
+                if cfg.faults.any:
+                    frames = [f for f in frames if not faults.frame_dropped(f.drone_id, f.time_s)]
+                invalid_px += sum(int(np.count_nonzero(np.isnan(f.depth_m))) for f in frames)
+                pixels += sum(f.depth_m.size for f in frames)
                 with budget.measure("detect"):
                     detections = _detect(detector, frames, agents, truth.failed)
+                if cfg.faults.any:
+                    detections = [None if d is None else _corrupt(faults, d) for d in detections]
                 for f, dets in zip(frames, detections):
-                    agents[f.drone_id].on_frame(f, dets)
+                    if not truth.failed[f.drone_id]:  # a failed drone's computer is down with its motors
+                        agents[f.drone_id].on_frame(f, dets)
                     latest_frames[f.drone_id] = f
                 _score_tracks(track_score, agents, t, truth)
                 if frame_sink is not None:
@@ -210,6 +221,8 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
                     failed=truth.failed,
                 )
                 next_log += log_period
+            for i in faults.failures_due(t):
+                world.fail_drone(i)
             with budget.measure("physics"):
                 truth = world.step(refs)
             metrics.update(truth, world.dt_s)
@@ -236,6 +249,12 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
         "frames_received": int(sum(a.counters.frames for a in agents)),
     }
     extra["compute_time"] = budget.result(world.time_s, wall)
+    extra["faults"] = {
+        **faults.report(),
+        "invalid_depth_pixels": int(invalid_px),
+        "invalid_depth_fraction": invalid_px / pixels if pixels else None,
+        **pose_error_m(log.arrays),
+    }
     extra.update(track_score.result())
     if _flies_formation(cfg):
         extra.update(formation_metrics(log.arrays["pos_world"], goals))
@@ -258,6 +277,23 @@ def _detect(detector: BatchedDetector | None, frames: list[RgbdFrame], agents: l
         return [None] * len(frames)
     wanted = [agents[f.drone_id].detector_request is not None and not failed[f.drone_id] for f in frames]
     return detector.detect(frames, wanted)
+
+
+def _corrupt(faults: FaultInjector, detections: list[Detection]) -> list[Detection]:
+    """One frame's detections after the scenario's detector faults (:meth:`sim.faults.FaultInjector.corrupt`)."""
+    boxes = np.array([d.box_xyxy for d in detections], float).reshape(-1, 4)
+    scores = np.array([d.score for d in detections], float)
+    boxes, scores = faults.corrupt(boxes, scores)
+    return [Detection(box_xyxy=b, score=float(s)) for b, s in zip(boxes, scores)]
+
+
+def pose_error_m(arrays: dict[str, np.ndarray]) -> dict[str, float | None]:
+    """The drones' pose-estimate position error over the logged flight [m]: mean, max, and mean at the end (drift)."""
+    est, true = arrays.get("est_pos_world"), arrays.get("pos_world")
+    if est is None or true is None or est.ndim != 3 or not est.size:
+        return {"pose_error_mean_m": None, "pose_error_max_m": None, "pose_error_final_m": None}
+    err = np.linalg.norm(est - true, axis=-1)  # (T, N)
+    return {"pose_error_mean_m": float(err.mean()), "pose_error_max_m": float(err.max()), "pose_error_final_m": float(err[-1].mean())}
 
 
 def _score_tracks(score: TrackingScore, agents: list, t: float, truth: TrueState) -> None:

@@ -262,7 +262,11 @@ class DeniedAgent(OnboardAgent):
             front = with_neighbour_capsules(
                 snap, neighbours, t, c.conflict_horizon_s, c.swarm_clearance_m, self.t_hold_s, reach_m=c.front_end_clearance_m + 0.3
             )
-            path = search_path(front, start[0], self.goal_world, c.front_end_clearance_m, self.search)
+            try:
+                path = search_path(front, start[0], self.goal_world, c.front_end_clearance_m, self.search)
+            except ValueError:  # the planned start left the map window (the map moves with the frames it gets)
+                self.stats.failures += 1
+                return False
         if not path.found:
             self.stats.failures += 1
             return False
