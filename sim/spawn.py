@@ -13,11 +13,12 @@ argument defined in the script itself, the package never does.
 
 from __future__ import annotations
 
+import signal
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-__all__ = ["main_module_hidden"]
+__all__ = ["main_module_hidden", "sigint_ignored"]
 
 _MISSING = object()
 
@@ -41,3 +42,25 @@ def main_module_hidden() -> Iterator[None]:
             main.__dict__.pop("__spec__", None)
         else:
             main.__spec__ = saved_spec
+
+
+@contextmanager
+def sigint_ignored() -> Iterator[None]:
+    """Processes started inside the block ignore SIGINT (the setting is inherited through exec, so even their start-up imports do).
+
+    Ctrl-C reaches a terminal's whole process group. Worker pools (render
+    workers, dataset renderers) are stopped by their parent, so a worker that
+    took the signal itself would only print a traceback beside the parent's
+    one-line message. Off the main thread (where signals cannot be set) this
+    does nothing. A Ctrl-C in the parent while the block runs (starting the
+    processes: milliseconds) is lost.
+    """
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)

@@ -53,7 +53,7 @@ from sim.rendering.pool import make_renderer
 from sim.rendering.tiny import PARKED_POS
 from sim.rotations import quat_xyzw_from_rotation
 from sim.scene import RenderStyle, SceneSpec
-from sim.spawn import main_module_hidden
+from sim.spawn import main_module_hidden, sigint_ignored
 from sim.types import ObstacleSpec
 
 __all__ = [
@@ -366,7 +366,7 @@ def iter_scenes(seeds: Sequence[int], cfg: DatasetConfig, camera: CameraConfig, 
         for j in jobs:
             yield _render_scene_job(j)
         return
-    with main_module_hidden():  # sim/spawn.py
+    with main_module_hidden(), sigint_ignored():  # sim/spawn.py; Ctrl-C is the parent's (the pool is terminated)
         pool = mp.get_context("spawn").Pool(workers)
     with pool:
         yield from pool.imap(_render_scene_job, jobs, chunksize=2)

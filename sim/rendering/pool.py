@@ -18,10 +18,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import pickle
-import signal
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from multiprocessing import shared_memory
 from typing import Sequence
 
@@ -32,7 +29,7 @@ from sim.camera_rig import sensor_depth
 from sim.rendering.raycast import RaycastRenderer
 from sim.rendering.tiny import RawRender, SceneRenderer
 from sim.scene import RenderStyle, SceneSpec
-from sim.spawn import main_module_hidden
+from sim.spawn import main_module_hidden, sigint_ignored
 
 __all__ = ["CameraRequest", "RenderPool", "make_renderer"]
 
@@ -67,26 +64,6 @@ def _render_one(renderer: SceneRenderer | RaycastRenderer, drone: int, T_cw: np.
         return r
     seed, frame_index = sensor
     return RawRender(r.rgb, r.depth_true_m, r.drone_index_mask, sensor_depth(r.depth_true_m, renderer.camera, seed, drone, frame_index))
-
-
-@contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    """Start processes with SIGINT ignored (inherited through exec, so even their start-up imports ignore Ctrl-C).
-
-    Ctrl-C reaches a terminal's whole process group; the render workers'
-    parent handles it and stops them (``close``, or as daemons when it
-    exits), so a worker that took it itself would only add a traceback.
-    Off the main thread (where signals cannot be set) this does nothing.
-    """
-    try:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_slots: int) -> None:  # pragma: no cover - runs in a child
@@ -146,7 +123,7 @@ class RenderPool:
             shm = shared_memory.SharedMemory(create=True, size=max(1, n_slots * H * W * SLOT_BYTES_PER_PX))
             parent, child = ctx.Pipe()
             proc = ctx.Process(target=_worker_main, args=(child, spec, camera, shm.name, n_slots), daemon=True)
-            with main_module_hidden(), _sigint_ignored():  # no __main__ guard needed (sim/spawn.py); no Ctrl-C traceback
+            with main_module_hidden(), sigint_ignored():  # no __main__ guard needed (sim/spawn.py); no Ctrl-C traceback
                 proc.start()
             child.close()
             self._workers.append(proc)
