@@ -148,3 +148,23 @@ def test_the_sweep_file_resolves_a_relative_base_next_to_it(tmp_path):
     (tmp_path / "scen.yaml").write_text("name: mine\ndrones: {layout: antipodal, count: 2}\nrun: {cameras: false}\n")
     spec = sweep_from_dict({"base": "scen.yaml", "seeds": 1}, tmp_path)
     assert spec.scenario(spec.cells()[0], 0).name == "mine" and spec.cells()[0].label == "base"
+
+
+def test_a_flight_that_raises_is_a_failed_row_and_the_sweep_goes_on(tmp_path, tiny, monkeypatch):
+    import mpcde.flight.loop as loop
+
+    real = loop.run_scenario
+
+    def flaky(prepared, *args, **kwargs):
+        if prepared.config.seed == 1 and prepared.config.planner.kind == "dmpc":
+            raise RuntimeError("motor driver\nfault")  # a two-line message: the row keeps one line
+        return real(prepared, *args, **kwargs)
+
+    monkeypatch.setattr(loop, "run_scenario", flaky)
+    counts = run_sweep(tiny, tmp_path / "out", progress=False)
+    assert (counts["flown"], counts["failed"]) == (6, 2)
+    failed = [r for r in ResultsStore.read(tmp_path / "out").rows() if r["status"] == "failed"]
+    assert sorted(r["cell"] for r in failed) == [2, 3] and all(r["seed"] == 1 and r["metrics"] is None for r in failed)
+    assert all(r["error"].startswith("RuntimeError: motor driver at ") and "\n" not in r["error"] for r in failed)
+    report = build_report(tmp_path / "out")
+    assert [c["failed"] for c in report["cells"]] == [0, 0, 1, 1] and [c["flights"] for c in report["cells"]] == [2, 2, 1, 1]
