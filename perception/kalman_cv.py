@@ -241,7 +241,7 @@ class KalmanCV:
         adapt_after: int = 1,
     ) -> None:
         """Start a track at ``pos_world`` (3,) [m] with covariance ``pos_cov_world`` (3, 3) and zero velocity."""
-        from filterpy.kalman import KalmanFilter  # imported here: filterpy pulls scipy.stats (0.4 s), which the tracker's kernels never need
+        from filterpy.kalman import KalmanFilter  # imported here: filterpy pulls in scipy.stats, which the tracker's kernels never need (docs/results/sweeps.md)
 
         self.kf = KalmanFilter(dim_x=6, dim_z=3)
         self.kf.x = np.concatenate([np.asarray(pos_world, float), np.zeros(3)]).reshape(6, 1)

@@ -33,11 +33,10 @@ class DmpcAgentConfig:
         goal_lookahead_m: the QP's goal is the point this far [m] along the
             line to the real goal when the goal is farther (a carrot; 0 =
             always the real goal, the paper's form). Chosen: 4.0 m, two
-            thirds of what v_max = 2 m/s covers in the 3 s horizon. With the
-            goal itself 15 m away the terminal cost pins the plan to the speed
-            limit at every step and OSQP needed 410 iterations on average
-            (median 2.1 ms) in formation_square; with the carrot 70 (0.41 ms),
-            at the price of a slower cruise (mission 9.9 s -> 13.0 s).
+            thirds of what v_max = 2 m/s covers in the 3 s horizon. With a
+            far goal the terminal cost pins the plan to the speed limit at
+            every step and OSQP needs many more iterations (measured:
+            docs/results/dmpc_agent.md).
         state_tolerance_m: x0 is the own plan's state when the estimated
             position is within this of it [m], else the estimate (chosen:
             0.1 m, a few times the controller's tracking error; 0 = always
