@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, get_args
 
+import numpy as np
+
 from mpcde.config.admm import AdmmAgentConfig
 from mpcde.config.auto import AutoAgentConfig
 from mpcde.config.bounds import Bound
@@ -292,20 +294,20 @@ class ScenarioConfig:
             bad = "width_px" if self.camera.width_px % 16 else "height_px"
             allowed = "a multiple of 16 px with run.cameras: true (the detector's stride-16 level)"
             raise ConfigError(f"camera.{bad}", getattr(self.camera, bad), allowed)
-        _require_inside_arena(self)
+        starts, goals = build_layout(self.drones)
+        _require_inside_arena(self, starts, goals)
         try:
-            self.faults.check_drones(len(build_layout(self.drones)[0]))
+            self.faults.check_drones(len(starts))
         except ConfigError as e:
             raise e.under("faults") from None
         if self.planner.kind == "mlr":
-            check_mlr(self)
+            check_mlr(self, starts, goals)
         if self.planner.kind == "admm":
-            check_admm(self)
+            check_admm(self, starts, goals)
 
 
-def _require_inside_arena(cfg: ScenarioConfig) -> None:
-    """ConfigError naming the first start or goal outside the arena or above the altitude limit."""
-    starts, goals = build_layout(cfg.drones)
+def _require_inside_arena(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> None:
+    """ConfigError naming the first start or goal (N, 3) [m] outside the arena or above the altitude limit."""
     hx, hy = (a / 2 for a in cfg.world.arena_size_m)
     for name, pts in (("drones.starts", starts), ("drones.goals", goals)):
         for i, (x, y, z) in enumerate(pts):

@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from mpcde.config.layout import build_layout
 from mpcde.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -42,8 +41,8 @@ def _require_inside_box(starts: np.ndarray, goals: np.ndarray, planner: Any, box
             raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], allowed)
 
 
-def check_mlr(cfg: ScenarioConfig) -> None:
-    """The cross-field rules of ``planner.kind: mlr`` (:mod:`mpcde.onboard.mlr`); raises ConfigError."""
+def check_mlr(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> None:
+    """The cross-field rules of ``planner.kind: mlr`` (:mod:`mpcde.onboard.mlr`) for the layout's starts and goals (N, 3) [m]; raises ConfigError."""
     mlr, radio, world = cfg.mlr, cfg.radio, cfg.world
     if abs(mlr.round_s * radio.rate_hz - 1.0) > 1e-6:
         allowed = f"must equal 1 / radio.rate_hz = {1.0 / radio.rate_hz:g} s (one MLR round per radio round)"
@@ -52,13 +51,12 @@ def check_mlr(cfg: ScenarioConfig) -> None:
         allowed = f"< mlr.round_s = {mlr.round_s:g} s for planner.kind 'mlr' (messages are read in the next round)"
         raise ConfigError("radio.delay_s", radio.delay_s, allowed)
     _refuse_obstacles(world, "mlr", "MLR-DMPC has no obstacle constraints")
-    starts, goals = build_layout(cfg.drones)
     planner = mlr.planner_config(len(starts), world.arena_size_m)  # M < N and the flying box
     _require_inside_box(starts, goals, planner, "MLR-DMPC's flying box", "mlr")
 
 
-def check_admm(cfg: ScenarioConfig) -> None:
-    """The cross-field rules of ``planner.kind: admm`` (:mod:`mpcde.onboard.admm`); raises ConfigError."""
+def check_admm(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> None:
+    """The cross-field rules of ``planner.kind: admm`` (:mod:`mpcde.onboard.admm`) for the layout's starts and goals (N, 3) [m]; raises ConfigError."""
     admm, radio, world = cfg.admm, cfg.radio, cfg.world
     if admm.radio_rate_from_step:  # the rate resolve() gives the radio (mpcde/config/resolve.py)
         radio = replace(radio, rate_hz=admm.radio_rate_hz)
@@ -78,7 +76,6 @@ def check_admm(cfg: ScenarioConfig) -> None:
     if cfg.planner.cruise_speed_mps > admm.v_max:
         allowed = f"<= admm.v_max = {admm.v_max:g} m/s for planner.kind 'admm' (the own reference's speed)"
         raise ConfigError("planner.cruise_speed_mps", cfg.planner.cruise_speed_mps, allowed)
-    starts, goals = build_layout(cfg.drones)
     planner = admm.planner_config(cfg.world.arena_size_m)  # the soft position box fits the arena
     _require_inside_box(starts, goals, planner, "the ADMM position box", "admm")
     # no collision avoidance: the drones must start in the goals' formation (moved to the starts' centroid)

@@ -75,7 +75,7 @@ from mpcde.evals.text_table import cell
 from mpcde.flight.loop import RunResult, prepare_run
 from mpcde.sweep.engine import FlightOutcome, FlightTask, git_revision, package_version, run_flights, share_cores
 from mpcde.sweep.spec import SweepSpec
-from mpcde.sweep.store import ResultsStore
+from mpcde.sweep.store import ResultsStore, flight_row
 
 __all__ = [
     "DEFAULT_MODES", "ROW_KEYS", "SUMMARY_KEYS", "check_modes", "compare_sweep", "default_modes", "format_table",
@@ -360,10 +360,7 @@ def run_compare(
         if o.error is not None:
             raise MpcdeError(f"compare: the {mode} flight of seed {seed} failed: {o.error}")
         outcomes[o.key] = o
-        store.append({
-            "cell": cell_of[mode], "values": {"planner.kind": MODES[mode]}, "seed": seed, "status": "ok", "error": None,
-            "metrics": o.metrics, "wall_s": round(o.wall_s, 3), "version": version, "git_rev": revision,
-        })  # fmt: skip
+        store.append(flight_row(cell_of[mode], {"planner.kind": MODES[mode]}, seed, o, version, revision))
         row = row_from_metrics(mode, seed, o.metrics)
         bar.update(1)
         if progress:

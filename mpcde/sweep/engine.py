@@ -30,7 +30,7 @@ from typing import Any
 from mpcde.errors import ConfigError
 from sim.spawn import main_module_hidden
 
-__all__ = ["BACKENDS", "FlightOutcome", "FlightTask", "fly_task", "git_revision", "package_version", "run_flights", "share_cores", "share_cores_count"]
+__all__ = ["BACKENDS", "FlightOutcome", "FlightTask", "cpus_of", "fly_task", "git_revision", "package_version", "run_flights", "share_cores", "share_cores_count"]
 
 BACKENDS = ("local", "ray")
 
@@ -48,6 +48,7 @@ class FlightTask:
         run_folder: write the flight's run folder here (None: metrics only).
         video: also write ``video.mp4`` into the run folder.
         keep_result: return the whole :class:`mpcde.flight.loop.RunResult` (the log too).
+        cpus: CPUs the flight keeps busy (what a Ray task reserves); None: :func:`cpus_of` the prepared run.
     """
 
     key: Any
@@ -55,6 +56,7 @@ class FlightTask:
     run_folder: Path | None = None
     video: bool = False
     keep_result: bool = False
+    cpus: int | None = None
 
 
 @dataclass(frozen=True)
@@ -101,9 +103,8 @@ def share_cores(prepared: Any, jobs: int, cpus: int | None = None) -> Any:
     return replace(prepared, config=replace(prepared.config, run=replace(run, render_workers=share_cores_count(jobs, cpus))))
 
 
-def cpus_of(prepared: Any) -> int:
-    """CPUs a flight keeps busy: its loop, plus its render workers when it renders cameras."""
-    run = (prepared() if callable(prepared) else prepared).config.run
+def cpus_of(run: Any) -> int:
+    """CPUs a flight with run options ``run`` (``ScenarioConfig.run``) keeps busy: its loop, plus its render workers when it renders cameras."""
     return 1 + (max(run.render_workers, 0) if run.cameras else 0)
 
 
@@ -147,8 +148,7 @@ def _warm() -> None:
 
 _ONE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 """Each pool worker's BLAS and OpenMP libraries run one thread: ``jobs`` flights already fill the cores, and
-two flights whose numpy products each spin two OpenBLAS threads on a 2-core machine ran 3.3x slower than
-one after the other (docs/results/sweeps.md)."""
+two processes each spinning two OpenBLAS threads oversubscribe them (measured: docs/results/sweeps.md)."""
 
 
 @contextmanager
@@ -198,7 +198,7 @@ def _run_ray(tasks: Sequence[FlightTask], on_done: Callable[[FlightOutcome], Non
         started = True
     try:
         remote = ray.remote(fly_task)
-        refs = {remote.options(num_cpus=cpus_of(t.prepared)).remote(t): t.key for t in tasks}
+        refs = {remote.options(num_cpus=t.cpus or cpus_of(t.prepared.config.run)).remote(t): t.key for t in tasks}
         pending = list(refs)
         while pending:
             done, pending = ray.wait(pending, num_returns=1)

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from mpcde.evals.text_table import cell as fmt
+from mpcde.sweep.spec import cell_label
 from mpcde.sweep.stats import mcnemar_exact, wilson_interval
 from mpcde.sweep.store import ResultsStore, json_safe
 
@@ -40,10 +41,6 @@ CELL_KEYS = (
     "drone_drone_per_flight", "drone_obstacle_per_flight", "min_distance_m", "mission_time_s", "mission_time_std_s",
     "arrived_flights", "tracking_pos_rmse_m",
 )  # fmt: skip
-
-
-def _label(values: dict[str, Any]) -> str:
-    return ", ".join(f"{k}={json.dumps(v)}" for k, v in values.items()) or "base"
 
 
 def _cell_stats(index: int, values: dict[str, Any], rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -59,7 +56,7 @@ def _cell_stats(index: int, values: dict[str, Any], rows: list[dict[str, Any]]) 
         return float(np.mean([m.get(key, 0) for m in ok])) if n else None
 
     return {
-        "cell": index, "label": _label(values), "values": values, "flights": n, "failed": len(rows) - n,
+        "cell": index, "label": cell_label(values), "values": values, "flights": n, "failed": len(rows) - n,
         "success_rate": wins / n if n else None, "success_low": low if n else None, "success_high": high if n else None,
         "collisions_per_flight": per_flight("collisions"), "drone_drone_per_flight": per_flight("drone_drone_collisions"),
         "drone_obstacle_per_flight": per_flight("drone_obstacle_collisions"),
@@ -94,7 +91,7 @@ def build_report(folder: str | Path) -> dict[str, Any]:
         diff = (sum(success[(i, s)] for s in seeds) - sum(success[(j, s)] for s in seeds)) / len(seeds) if seeds else None
         pairs.append({
             "axis": differ[0], "a": i, "b": j, "a_value": cells_values[i][differ[0]], "b_value": cells_values[j][differ[0]],
-            "others": _label(rest) if (rest := {k: v for k, v in cells_values[i].items() if k != differ[0]}) else "", "paired_seeds": len(seeds),
+            "others": cell_label(rest) if (rest := {k: v for k, v in cells_values[i].items() if k != differ[0]}) else "", "paired_seeds": len(seeds),
             "a_only": b, "b_only": c, "success_difference": diff, "mcnemar_p": mcnemar_exact(b, c),
         })  # fmt: skip
     expected = len(cells_values) * len(sweep["seeds"])
@@ -156,7 +153,7 @@ def _plot_success(path: Path, report: dict[str, Any], axis: str, values: list[fl
     ax = fig.add_subplot(1, 1, 1)
     lines: dict[str, list[dict[str, Any]]] = {}
     for c in report["cells"]:
-        others = _label({k: v for k, v in c["values"].items() if k != axis})
+        others = cell_label({k: v for k, v in c["values"].items() if k != axis})
         lines.setdefault(others, []).append(c)
     for k, (label, cells) in enumerate(lines.items()):
         pts = sorted((c["values"][axis], c) for c in cells if c["success_rate"] is not None)

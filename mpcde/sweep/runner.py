@@ -20,9 +20,9 @@ from pathlib import Path
 from typing import Any
 
 from mpcde.errors import ConfigError
-from mpcde.sweep.engine import FlightOutcome, FlightTask, git_revision, package_version, run_flights, share_cores_count
+from mpcde.sweep.engine import FlightOutcome, FlightTask, cpus_of, git_revision, package_version, run_flights, share_cores_count
 from mpcde.sweep.spec import Cell, SweepSpec
-from mpcde.sweep.store import ResultsStore
+from mpcde.sweep.store import ResultsStore, flight_row
 
 __all__ = ["RAY_RENDER_WORKERS", "run_sweep", "run_folder_name"]
 
@@ -63,10 +63,16 @@ def run_sweep(
     by_index = {c.index: c for c in cells}
     todo = [(c, s) for s in spec.seeds for c in cells if (c.index, s) not in done]
     render_workers = RAY_RENDER_WORKERS if backend == "ray" else (share_cores_count(jobs) if jobs > 1 else None)
+    cpus = {}  # per cell, what a Ray task reserves (the run options do not depend on the seed)
+    if backend == "ray":
+        for cell in cells:
+            run = spec.scenario(cell, spec.seeds[0]).run
+            cpus[cell.index] = cpus_of(replace(run, render_workers=render_workers) if run.render_workers < 0 else run)
     tasks = [
         FlightTask(
             (cell.index, seed), partial(prepare_flight, spec, cell, seed, render_workers),
             out / "runs" / run_folder_name(cell.index, seed) if spec.keep_run_folders else None, spec.keep_videos,
+            cpus=cpus.get(cell.index),
         )
         for cell, seed in todo
     ]  # fmt: skip
@@ -86,10 +92,7 @@ def run_sweep(
 
     def on_done(o: FlightOutcome) -> None:
         cell, seed = o.key
-        holder["store"].append({
-            "cell": cell, "values": by_index[cell].values, "seed": seed, "status": "ok" if o.error is None else "failed",
-            "error": o.error, "metrics": o.metrics, "wall_s": round(o.wall_s, 3), "version": version, "git_rev": revision,
-        })  # fmt: skip
+        holder["store"].append(flight_row(cell, by_index[cell].values, seed, o, version, revision))
         counts["flown" if o.error is None else "failed"] += 1
         bar.update(1)
         bar.set_postfix(done=counts["flown"] + counts["recorded_before"], failed=counts["failed"])

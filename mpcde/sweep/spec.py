@@ -35,13 +35,18 @@ from mpcde.config.scenario import SCENARIO_DIR, ScenarioConfig, scenario_from_di
 from mpcde.config.yaml_reader import read_yaml
 from mpcde.errors import ConfigError
 
-__all__ = ["Cell", "SweepSpec", "load_sweep", "set_dotted", "sweep_from_dict"]
+__all__ = ["Cell", "SweepSpec", "cell_label", "load_sweep", "set_dotted", "sweep_from_dict"]
 
 MAX_SEEDS = 100_000
 MAX_CELLS = 10_000
 MAX_VALUES = 1_000
 _KEYS = {"base", "seeds", "overrides", "axes", "keep"}
 _KEEP = {"run_folders", "videos"}
+
+
+def cell_label(values: dict[str, Any]) -> str:
+    """``planner.kind="mpcde", planner.cruise_speed_mps=0.5`` (``base`` for no values: a sweep without axes)."""
+    return ", ".join(f"{k}={json.dumps(v)}" for k, v in values.items()) or "base"
 
 
 @dataclass(frozen=True)
@@ -53,8 +58,8 @@ class Cell:
 
     @property
     def label(self) -> str:
-        """``planner.kind=mpcde, planner.cruise_speed_mps=0.5`` (``base`` for a sweep without axes)."""
-        return ", ".join(f"{k}={json.dumps(v)}" for k, v in self.values.items()) or "base"
+        """:func:`cell_label` of its values."""
+        return cell_label(self.values)
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from typing import Any
 from mpcde.errors import ConfigError
 from mpcde.sweep.spec import SweepSpec
 
-__all__ = ["MANIFEST", "RESULTS", "ROW_KEYS", "WALL_CLOCK_KEYS", "ResultsStore", "json_safe", "without_wall_clock"]
+__all__ = ["MANIFEST", "RESULTS", "ROW_KEYS", "WALL_CLOCK_KEYS", "ResultsStore", "flight_row", "json_safe", "without_wall_clock"]
 
 RESULTS = "results.jsonl"
 MANIFEST = "sweep.json"
@@ -43,6 +43,17 @@ def without_wall_clock(metrics: Any) -> Any:
     if isinstance(metrics, list):
         return [without_wall_clock(v) for v in metrics]
     return metrics
+
+
+def flight_row(
+    cell: int, values: dict[str, Any], seed: int, outcome: Any, version: str, git_rev: str | None
+) -> dict[str, Any]:
+    """The row (:data:`ROW_KEYS`) of one flight's :class:`mpcde.sweep.engine.FlightOutcome` in ``cell`` (its ``values``) with ``seed``."""
+    return {
+        "cell": cell, "values": values, "seed": seed, "status": "ok" if outcome.error is None else "failed",
+        "error": outcome.error, "metrics": outcome.metrics, "wall_s": round(outcome.wall_s, 3), "version": version,
+        "git_rev": git_rev,
+    }  # fmt: skip
 
 
 def json_safe(value: Any) -> Any:
