@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import socket
 import subprocess
 import time
 import traceback
@@ -132,7 +133,7 @@ def run_flights(
     if backend not in BACKENDS:
         raise ConfigError("--backend", backend, f"one of {', '.join(BACKENDS)}")
     if backend == "ray":
-        _run_ray(tasks() if callable(tasks) else tasks, on_done, ray_address)
+        _run_ray(tasks, on_done, ray_address)
     elif jobs <= 1:
         for task in tasks() if callable(tasks) else tasks:
             on_done(fly_task(task))
@@ -184,21 +185,41 @@ def _run_pool(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], 
     pool.shutdown()
 
 
-def _run_ray(tasks: Sequence[FlightTask], on_done: Callable[[FlightOutcome], None], address: str | None) -> None:
+def _check_reachable(address: str | None) -> None:
+    """Refuse a ``host:port`` (or ``ray://host:port``) address where nothing accepts a connection within 5 s.
+
+    Ray's own connect retries for minutes before it gives up; ``auto`` and
+    None are left to Ray, which answers at once when no local cluster runs.
+    """
+    if address is None or address == "auto":
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    try:
+        socket.create_connection((host or "127.0.0.1", int(port)), timeout=5.0).close()
+    except (OSError, ValueError):
+        raise ConfigError("--ray-address", address, "nothing answers there: start the head with 'ray start --head' and pass the address it prints, or 'auto'") from None
+
+
+def _run_ray(
+    tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], on_done: Callable[[FlightOutcome], None], address: str | None
+) -> None:
     try:
         import ray
     except ImportError:
         raise ConfigError("--backend", "ray", "needs Ray: pip install 'mpcde[ray]'") from None
     started = False
     if not ray.is_initialized():
+        _check_reachable(address)
         try:
             ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False)
         except (ConnectionError, RuntimeError, ValueError) as e:
             raise ConfigError("--ray-address", address, f"no Ray cluster there ({str(e).splitlines()[0][:120]})") from None
         started = True
+    refs: dict = {}
     try:
         remote = ray.remote(fly_task)
-        refs = {remote.options(num_cpus=t.cpus or cpus_of(t.prepared.config.run)).remote(t): t.key for t in tasks}
+        for t in tasks() if callable(tasks) else tasks:  # a sweep opens its store only once the cluster answered
+            refs[remote.options(num_cpus=t.cpus or cpus_of(t.prepared.config.run)).remote(t)] = t.key
         pending = list(refs)
         while pending:
             done, pending = ray.wait(pending, num_returns=1)

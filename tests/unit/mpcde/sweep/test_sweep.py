@@ -168,3 +168,14 @@ def test_a_flight_that_raises_is_a_failed_row_and_the_sweep_goes_on(tmp_path, ti
     assert all(r["error"].startswith("RuntimeError: motor driver at ") and "\n" not in r["error"] for r in failed)
     report = build_report(tmp_path / "out")
     assert [c["failed"] for c in report["cells"]] == [0, 0, 1, 1] and [c["flights"] for c in report["cells"]] == [2, 2, 1, 1]
+
+
+def test_an_address_where_no_ray_cluster_answers_is_one_line_and_writes_nothing(tmp_path, capsys):
+    pytest.importorskip("ray")
+    path = tmp_path / "tiny.yaml"
+    path.write_text(TINY)
+    out = tmp_path / "out"
+    assert main(["sweep", str(path), "--out", str(out), "--backend", "ray", "--ray-address", "127.0.0.1:1", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("mpcde: error: --ray-address='127.0.0.1:1': nothing answers there"), err
+    assert not out.exists()  # the store is opened only once the cluster answered
