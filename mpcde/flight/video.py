@@ -18,16 +18,23 @@ from mpcde.flight.plots import box_corners_xy
 from sim.ground_truth import TrueState
 from sim.types import ObstacleSpec, RgbdFrame
 
-__all__ = ["VideoWriter"]
+__all__ = ["FrameComposer", "VideoWriter"]
 
 PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207)]
 
 
-class VideoWriter:
-    """Writes frames as the loop delivers camera images (``frame_sink`` of the loop)."""
+class FrameComposer:
+    """Draws the video's frame: the top view (obstacles, goals, trails, headings) beside each drone's newest camera image.
 
-    def __init__(self, path: Path, obstacles: Sequence[ObstacleSpec], goals: np.ndarray, arena_size_m: tuple[float, float], fps: float, cam_size_px: tuple[int, int], top_px: int = 480) -> None:
-        self.path = Path(path)
+    Args:
+        obstacles: the scene's obstacles.
+        goals: (N, 3) goals [m].
+        arena_size_m: (x, y) arena size [m] (the top view's scale).
+        cam_size_px: (width, height) of the camera images [px].
+        top_px: the top view's side [px].
+    """
+
+    def __init__(self, obstacles: Sequence[ObstacleSpec], goals: np.ndarray, arena_size_m: tuple[float, float], cam_size_px: tuple[int, int], top_px: int = 480) -> None:
         self.goals = goals
         self.n = goals.shape[0]
         self.top_px = top_px
@@ -40,8 +47,6 @@ class VideoWriter:
         self.tile = (int(round(w * tile_h / h)), tile_h)
         self.cols, self.rows = cols, rows
         self.background = self._draw_static(obstacles)
-        self.writer = imageio.get_writer(str(self.path), fps=fps, codec="libx264", pixelformat="yuv420p", macro_block_size=16, quality=6, ffmpeg_log_level="error")
-        self.frames = 0
 
     def _px(self, xy: np.ndarray) -> tuple[int, int]:
         return int(self.top_px / 2 + xy[0] * self.scale), int(self.top_px / 2 - xy[1] * self.scale)
@@ -60,8 +65,8 @@ class VideoWriter:
             cv2.drawMarker(img, (x, y), c, cv2.MARKER_CROSS, 10, 2)
         return img
 
-    def __call__(self, time_s: float, truth: TrueState, frames: list[RgbdFrame | None]) -> None:
-        """Append one video frame for time ``time_s`` [s]."""
+    def compose(self, time_s: float, truth: TrueState, frames: list[RgbdFrame | None]) -> np.ndarray:
+        """The frame (H, W, 3) uint8 RGB for time ``time_s`` [s], H and W multiples of 16 (each call extends the trails)."""
         top = self.background.copy()
         for i in range(self.n):
             c = PALETTE[i % 10]
@@ -89,8 +94,21 @@ class VideoWriter:
             grid[r * th : r * th + th, col * tw : col * tw + tw] = tile
         frame = np.concatenate([top, grid], axis=1)
         h, w = frame.shape[:2]
-        frame = np.pad(frame, ((0, (-h) % 16), (0, (-w) % 16), (0, 0)))
-        self.writer.append_data(frame)
+        return np.pad(frame, ((0, (-h) % 16), (0, (-w) % 16), (0, 0)))
+
+
+class VideoWriter:
+    """Writes frames as the loop delivers camera images (``frame_sink`` of the loop), drawn by :class:`FrameComposer`."""
+
+    def __init__(self, path: Path, obstacles: Sequence[ObstacleSpec], goals: np.ndarray, arena_size_m: tuple[float, float], fps: float, cam_size_px: tuple[int, int], top_px: int = 480) -> None:
+        self.path = Path(path)
+        self.composer = FrameComposer(obstacles, goals, arena_size_m, cam_size_px, top_px)
+        self.writer = imageio.get_writer(str(self.path), fps=fps, codec="libx264", pixelformat="yuv420p", macro_block_size=16, quality=6, ffmpeg_log_level="error")
+        self.frames = 0
+
+    def __call__(self, time_s: float, truth: TrueState, frames: list[RgbdFrame | None]) -> None:
+        """Append one video frame for time ``time_s`` [s]."""
+        self.writer.append_data(self.composer.compose(time_s, truth, frames))
         self.frames += 1
 
     def close(self) -> None:
