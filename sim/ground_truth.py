@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["TrueState", "pairwise_distances"]
+__all__ = ["TrueState"]
 
 
 @dataclass(frozen=True)
@@ -35,10 +35,3 @@ class TrueState:
     ang_vel_body: np.ndarray
     obstacle_contact: np.ndarray
     failed: np.ndarray
-
-
-def pairwise_distances(pos_world: np.ndarray) -> np.ndarray:
-    """(N, N) centre distances [m] between drones at (N, 3); diagonal is inf."""
-    d = np.linalg.norm(pos_world[:, None, :] - pos_world[None, :, :], axis=-1)
-    np.fill_diagonal(d, np.inf)
-    return d

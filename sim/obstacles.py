@@ -97,11 +97,24 @@ class ObstacleField:
         self.box_c = np.array([o.center_xy for o in boxes]).reshape(-1, 2)
         self.box_he = np.array([o.half_extents_xy for o in boxes]).reshape(-1, 2)
         self.box_h = np.array([o.height_m for o in boxes])
-        self.box_cos = np.cos([o.yaw for o in boxes])
-        self.box_sin = np.sin([o.yaw for o in boxes])
+        self.box_cos = np.cos(np.array([o.yaw for o in boxes], float))
+        self.box_sin = np.sin(np.array([o.yaw for o in boxes], float))
+        self.tree_c, self.box_c, self.box_he = (np.ascontiguousarray(a, float) for a in (self.tree_c, self.box_c, self.box_he))
+        self.tree_r, self.tree_h, self.box_h = (np.asarray(a, float) for a in (self.tree_r, self.tree_h, self.box_h))
 
     def distance(self, points_world: np.ndarray) -> np.ndarray:
-        """Distance [m] from (n, 3) points to the nearest surface, (n,); see :func:`distance_to_obstacles`."""
+        """Distance [m] from (n, 3) points to the nearest surface, (n,); see :func:`distance_to_obstacles`.
+
+        Compiled (:func:`sim.obstacle_distance_kernel.obstacle_distances`, imported on first use so that
+        reading a scenario loads no numba); :meth:`distance_numpy` is the same in numpy.
+        """
+        from sim.obstacle_distance_kernel import obstacle_distances
+
+        pts = np.ascontiguousarray(np.atleast_2d(np.asarray(points_world, float)))
+        return obstacle_distances(pts, self.tree_c, self.tree_r, self.tree_h, self.box_c, self.box_he, self.box_h, self.box_cos, self.box_sin)
+
+    def distance_numpy(self, points_world: np.ndarray) -> np.ndarray:
+        """:meth:`distance` in numpy (the tests' oracle)."""
         pts = np.atleast_2d(np.asarray(points_world, float))
         best = np.full(pts.shape[0], np.inf)
         z = pts[:, 2:3]
@@ -137,4 +150,4 @@ def distance_to_obstacles(points_world: np.ndarray, obstacles: Sequence[Obstacle
         (n,) distances [m]; negative inside an obstacle (depth of penetration
         in the horizontal plane); ``inf`` when there are no obstacles.
     """
-    return ObstacleField(obstacles).distance(points_world)
+    return ObstacleField(obstacles).distance_numpy(points_world)  # a one-off (layout checks): numpy, no compiled import

@@ -20,12 +20,13 @@ import numpy as np
 
 from sim.bullet import pb
 from sim.ground_truth import TrueState
-from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
+from sim.rotations import quat_xyzw_from_yaw
 from sim.scene import SceneSpec, build_obstacles, load_drones
 from sim.types import FlatOutputReference
 from sim.vehicle.controller import SE3Controller
 from sim.vehicle.motors import MotorBank
 from sim.vehicle.params import GRAVITY_MPS2
+from sim.vehicle.rigid_body_kernels import motor_wrench_to_body_loads, rotations_and_body_rates
 from sim.vehicle.physics_config import PhysicsConfig
 
 __all__ = ["PhysicsConfig", "World"]
@@ -65,7 +66,10 @@ class World:
         self.failed = np.zeros(n, bool)
         self.time_s = 0.0
         self.step_count = 0
-        self._rotor_pos_body = self.params.rotor_pos_body
+        self._rotor_pos_body = np.ascontiguousarray(self.params.rotor_pos_body, float)
+        self._motor_dirs = np.asarray(self.params.motor_dirs, float)
+        tau_m = self.params.motor_time_constant_s
+        self._lag_alpha = float(1.0 - np.exp(-self.dt_s / tau_m)) if tau_m > 0 else 1.0
         self._state = self._read_state()
 
     @property
@@ -96,8 +100,7 @@ class World:
             p, q = pb.getBasePositionAndOrientation(b, physicsClientId=c)
             v, w = pb.getBaseVelocity(b, physicsClientId=c)
             pos[i], quat[i], vel[i], omega_w[i] = p, q, v, w
-        R = rotation_from_quat_xyzw(quat)
-        omega_b = np.einsum("nji,nj->ni", R, omega_w)  # Omega_body = R^T omega_world
+        R, omega_b = rotations_and_body_rates(quat, omega_w)  # R(q), Omega_body = R^T omega_world
         contact = np.zeros(n, bool)
         for cp in pb.getContactPoints(physicsClientId=c):  # every contact of the world in one call
             a, b = cp[1], cp[2]
@@ -134,16 +137,16 @@ class World:
         wrench = self.controller.step(
             s.pos_world, s.vel_world, s.rotation_body_to_world, s.ang_vel_body, ref_p, ref_v, ref_a, ref_yaw, ref_yaw_rate, self.dt_s
         )
-        thrusts, drag_torques = self.motors.step(self.motors.thrusts_for_wrench(wrench), self.dt_s)
-        R = s.rotation_body_to_world
         # The four rotor thrusts f_i act along body z at the hubs r_i; their resultant
         # about the centre of mass is exactly F = sum_i f_i R e3 and
         # tau = R (sum_i r_i x f_i e3 + sum_i s_i k_m w_i^2 e3) (rotor drag torques), applied
         # as one force at the COM and one torque (2 PyBullet calls per drone instead of 6).
-        r = self._rotor_pos_body
-        tau_body = np.stack([thrusts @ r[:, 1], -(thrusts @ r[:, 0]), drag_torques.sum(axis=1)], axis=1)
-        force_world = thrusts.sum(axis=1)[:, None] * R[:, :, 2] - self.params.linear_drag_coeff * s.vel_world
-        torque_world = np.einsum("nij,nj->ni", R, tau_body)
+        # Compiled with the motors' allocation and lag (sim/vehicle/rigid_body_kernels.py).
+        mb, p = self.motors, self.params
+        force_world, torque_world = motor_wrench_to_body_loads(
+            wrench, mb.A_inv, float(mb.f_max), mb.speed_radps, mb.enabled, float(p.thrust_coeff), float(p.torque_coeff),
+            self._motor_dirs, self._lag_alpha, self._rotor_pos_body, s.rotation_body_to_world, s.vel_world, float(p.linear_drag_coeff),
+        )  # fmt: skip
         c = self.client
         for i, b in enumerate(self.drone_ids):
             pb.applyExternalForce(b, -1, force_world[i].tolist(), s.pos_world[i].tolist(), pb.WORLD_FRAME, physicsClientId=c)

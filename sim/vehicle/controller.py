@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.rotations import cross_rows, rotation_from_thrust_axis_and_yaw, vee
+from sim.vehicle.controller_kernel import se3_wrenches
 from sim.vehicle.params import GRAVITY_MPS2, QuadrotorParams
 
 __all__ = ["ControllerGains", "SE3Controller"]
@@ -84,7 +85,42 @@ class SE3Controller:
         ref_yaw_rate: np.ndarray,
         dt_s: float,
     ) -> np.ndarray:
-        """Desired wrenches for N drones.
+        """Desired wrenches for N drones (the compiled law, :func:`sim.vehicle.controller_kernel.se3_wrenches`).
+
+        Args:
+            pos_world, vel_world: (N, 3) state [m], [m/s].
+            rotation_body_to_world: (N, 3, 3).
+            ang_vel_body: (N, 3) body rates [rad/s].
+            ref_pos_world, ref_vel_world, ref_acc_world: (N, 3) reference.
+            ref_yaw, ref_yaw_rate: (N,) [rad], [rad/s].
+            dt_s: controller period [s] (for the integral).
+
+        Returns:
+            (N, 4) wrench ``[F, tau_x, tau_y, tau_z]`` in [N] and body [N m].
+        """
+        g = self.gains
+        f64 = np.ascontiguousarray
+        return se3_wrenches(
+            f64(pos_world, float), f64(vel_world, float), f64(rotation_body_to_world, float), f64(ang_vel_body, float),
+            f64(ref_pos_world, float), f64(ref_vel_world, float), f64(ref_acc_world, float), f64(ref_yaw, float), f64(ref_yaw_rate, float),
+            self.integral, float(dt_s), float(self.params.mass_kg), GRAVITY_MPS2, float(self.k_x), float(self.k_v), float(self.k_i),
+            f64(self.k_R, float), f64(self.k_W, float), f64(self.J, float), float(g.integral_limit_m_s), float(g.integral_zone_m), float(np.tan(g.max_tilt_rad)),
+        )  # fmt: skip
+
+    def step_numpy(
+        self,
+        pos_world: np.ndarray,
+        vel_world: np.ndarray,
+        rotation_body_to_world: np.ndarray,
+        ang_vel_body: np.ndarray,
+        ref_pos_world: np.ndarray,
+        ref_vel_world: np.ndarray,
+        ref_acc_world: np.ndarray,
+        ref_yaw: np.ndarray,
+        ref_yaw_rate: np.ndarray,
+        dt_s: float,
+    ) -> np.ndarray:
+        """The same law as :meth:`step` in numpy (the tests' oracle for the compiled kernel).
 
         Args:
             pos_world, vel_world: (N, 3) state [m], [m/s].
