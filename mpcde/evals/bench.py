@@ -67,6 +67,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("admm", "ADMM formation DMPC vs the centralized QP", ("--seeds", "1")),
     Benchmark("mlr", "MLR-DMPC compute-unit step (trackers, trigger, QP) vs the DMPC QP in bvc mode"),
     Benchmark("sweep", "mpcde sweep --jobs 2 vs the same flights back to back; denied flights per hour", ("--quick",)),
+    Benchmark("env", "PettingZoo env steps/s without cameras vs PyFlyt's MA QuadX env; with cameras vs mpcde fly", ("--quick",)),
 )
 _BY_NAME = {b.name: b for b in BENCHMARKS}
 

@@ -89,3 +89,9 @@ def test_example_fly_denied_runs_headless(tmp_path):
 def test_example_compare_radio_runs_headless():
     rows = _example("compare_radio").main(duration_s=1.0)
     assert set(rows) == {"comm", "denied", "auto"}
+
+
+@pytest.mark.slow
+def test_example_env_random_and_denied_runs_headless():
+    m = _example("env_random_and_denied").main(duration_s=1.0)
+    assert m["frames_received"] > 0 and m["n_drones"] == 6

@@ -1,7 +1,9 @@
 """The layers' import rules (docs/design.md section 1), checked on every import statement.
 
-Every ``import``/``from`` in ``sim/``, ``perception/``, ``planners/`` and the
-onboard room ``mpcde/onboard/`` is parsed (top level and inside functions,
+Every ``import``/``from`` in ``sim/``, ``perception/``, ``planners/``, the
+onboard room ``mpcde/onboard/`` and the environments' onboard side (the
+learner's drone ``mpcde/env/external.py``, its held action
+``mpcde/env/actions.py``, and the stacks-as-policies ``mpcde/env/policies.py``) is parsed (top level and inside functions,
 ``TYPE_CHECKING`` blocks included) and compared with what its layer may use.
 """
 
@@ -26,6 +28,9 @@ RULES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
         ("pybullet",),
     ),
 }
+ONBOARD = RULES["mpcde/onboard"][0]
+for _file in ("mpcde/env/external.py", "mpcde/env/actions.py", "mpcde/env/policies.py"):
+    RULES[_file] = (ONBOARD + ("mpcde.env.actions",), ("pybullet",))
 
 
 def imports_of(path: Path) -> list[tuple[int, str]]:
@@ -44,7 +49,8 @@ def imports_of(path: Path) -> list[tuple[int, str]]:
 def violations(layer: str) -> list[str]:
     allowed, forbidden = RULES[layer]
     bad = []
-    for py in sorted((ROOT / layer).rglob("*.py")):
+    target = ROOT / layer
+    for py in [target] if target.is_file() else sorted(target.rglob("*.py")):
         for line, mod in imports_of(py):
             top = mod.split(".")[0]
             ours = top in OURS
