@@ -110,8 +110,10 @@ class ExternalDrone(OnboardAgent):
         pos = self.estimate.pos_world if self.estimate is not None else np.zeros(3)
         if action is None:
             self.hold.hover(time_s, pos, self.yaw())
-        else:
+        elif self.hold.mode == "velocity":  # anchored at the own estimate
             self.hold.set(time_s, action, pos, self.yaw())
+        else:
+            self.hold.set(time_s, action, pos, 0.0)  # a reference action needs no anchor
 
     def freeze(self, time_s: float) -> None:
         """Terminated: hover from now on at the current reference's position and heading; actions are ignored."""

@@ -29,7 +29,9 @@ the other entries are chosen by :attr:`mpcde.env.options.EnvOptions.observe`:
 
 Empty slots are zeros with ``valid`` 0. Every observation holds its own
 arrays (Gymnasium's checker requires it): an image's invalid depth is
-converted once per frame and copied into each observation.
+converted once per frame and copied into each observation; with
+``copy_images: false`` the observations of one frame share its read-only
+RGB and depth arrays instead (for control rates above the camera's).
 """
 
 from __future__ import annotations
@@ -99,7 +101,7 @@ class ObservationBuilder:
                 "times_s": _box((p, k)), "pos_world": _box((p, k, 3)), "vel_world": _box((p, k, 3)), "valid": spaces.MultiBinary(p),
             })  # fmt: skip
         self.space = spaces.Dict(entries)
-        self._depth_cache: dict[int, tuple[int, np.ndarray]] = {}
+        self._image_cache: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}
 
     def observe(self, drone: ExternalDrone, time_s: float, goal: np.ndarray) -> dict:
         """The observation of ``drone`` at ``time_s`` [s] (its goal ``goal`` (3,) [m])."""
@@ -131,12 +133,18 @@ class ObservationBuilder:
                 "rgb": np.zeros((h, w, 3), np.uint8), "depth_m": np.zeros((h, w), np.float32), "time_s": np.array([-1.0]),
                 "K": self.K.copy(), "transform_camera_to_world": np.eye(4),
             }  # fmt: skip
-        cached = self._depth_cache.get(drone.drone_id)
+        cached = self._image_cache.get(drone.drone_id)
         if cached is None or cached[0] != drone.frame_serial:  # invalid depth (NaN) -> 0, once per frame
-            cached = (drone.frame_serial, np.nan_to_num(f.depth_m, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32, copy=False))
-            self._depth_cache[drone.drone_id] = cached
+            rgb = f.rgb.copy()
+            depth = np.nan_to_num(f.depth_m, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32, copy=False)
+            rgb.flags.writeable = depth.flags.writeable = False
+            cached = (drone.frame_serial, rgb, depth)
+            self._image_cache[drone.drone_id] = cached
+        _, rgb, depth = cached
+        if self.options.copy_images:
+            rgb, depth = rgb.copy(), depth.copy()
         return {
-            "rgb": f.rgb.copy(), "depth_m": cached[1].copy(), "time_s": np.array([f.time_s]),
+            "rgb": rgb, "depth_m": depth, "time_s": np.array([f.time_s]),
             "K": np.array(f.K, float), "transform_camera_to_world": np.array(f.transform_camera_to_world, float),
         }  # fmt: skip
 

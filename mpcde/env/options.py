@@ -45,6 +45,11 @@ class EnvOptions:
         broadcast: an env-driven drone broadcasts its held action as a plan at
             every radio round (so that radio-using neighbours avoid it); False:
             it is silent, as the ``denied`` stack is.
+        copy_images: every observation gets its own copy of the camera's RGB
+            and depth arrays (Gymnasium's checker requires observations that
+            share no memory); False: the observations of one frame share one
+            read-only RGB and one read-only depth array, copied once per frame
+            instead of once per step (for control rates above the camera's).
         max_speed_mps: the velocity bound of both action modes [m/s].
         max_accel_mps2: the acceleration bound of the reference action [m/s^2].
         max_yaw_rate_rps: the yaw-rate bound of both action modes [rad/s].
@@ -69,6 +74,7 @@ class EnvOptions:
     plan_samples: int = 16
     plan_horizon_s: float = 3.0
     broadcast: bool = True
+    copy_images: bool = True
     max_speed_mps: float = 3.0
     max_accel_mps2: float = 10.0
     max_yaw_rate_rps: float = math.pi
@@ -88,7 +94,7 @@ class EnvOptions:
             raise ConfigError("env.observe", self.observe, f"a non-empty list of {', '.join(OBSERVATIONS)}")
         if len(set(self.observe)) != len(self.observe):
             raise ConfigError("env.observe", self.observe, "each entry once")
-        for name in ("cameras", "broadcast", "terminate_on_collision", "terminate_on_arrival"):
+        for name in ("cameras", "broadcast", "copy_images", "terminate_on_collision", "terminate_on_arrival"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"env.{name}", getattr(self, name), "true or false")
         needs = [k for k in self.observe if k in ("camera", "detections", "tracks")]

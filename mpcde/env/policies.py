@@ -17,8 +17,10 @@ drone is told before take-off: the scenario (its goals, the mapped obstacles
 the DMPC stacks are given, the settings).
 
 Exactness: with ``control_hz`` equal to ``physics.physics_hz`` (the action is
-read at every physics tick, as the session reads a stack's reference) and
-``broadcast=False``, the ``denied`` policy flies the very flight of
+read at every physics tick, as the session reads a stack's reference),
+``broadcast=False`` and ``detections`` observed (so that the env's own
+tracker, which the metrics score, sees what the stack's does), the ``denied``
+policy flies the very flight of
 ``mpcde fly --mode denied`` on the same seed: the same states and metrics
 (tests/integration/test_env_policy.py). Radio-using stacks run too, with two
 differences from ``mpcde fly``: their neighbours hear the plan the env builds

@@ -13,7 +13,7 @@ from mpcde.sweep.store import WALL_CLOCK_KEYS
 
 pytestmark = pytest.mark.slow
 
-EXACT = {"control_hz": 240.0, "action": "reference", "observe": ("pose", "goal", "camera", "detections", "tracks"), "broadcast": False,
+EXACT = {"control_hz": 240.0, "action": "reference", "observe": ("pose", "goal", "camera", "detections"), "broadcast": False, "copy_images": False,
          "terminate_on_collision": False, "terminate_on_arrival": False, "max_speed_mps": 20.0, "max_accel_mps2": 50.0, "max_yaw_rate_rps": 20.0}  # fmt: skip
 
 
