@@ -42,6 +42,21 @@ class DmpcAgentConfig:
             0.1 m, a few times the controller's tracking error; 0 = always
             the estimate). See the module docstring.
         state_tolerance_mps: the same bound on the velocity [m/s] (chosen: 0.3).
+        commit_when_unheard: keep DMPC-Swarm's promise under message loss. Every
+            plan ends in a halt (the QP's terminal constraint v[K] = 0, Eq. 13e,
+            is forced on), a neighbour's last plan is kept as broadcast, halt
+            included, however old (``plan_timeout_s`` then drops only plans that
+            do not halt), and in a round where a neighbour near the own plan sent
+            nothing new (so it may not have heard this drone either) the drone
+            does not replan: it flies its last broadcast plan, which that
+            neighbour planned against, toward its halt. False: the plain DMPC
+            of the paper (replan every round against shifted stale plans).
+            In ``auto`` a stale plan that a camera track replaces no longer counts
+            as unheard.
+        commit_range_m: a neighbour is near when its last plan comes within this
+            [m] of the own plan at a common time over the horizon (chosen: 12 m =
+            2 v_max K h at the defaults: two drones replanning unheard can each
+            move v_max K h from where the other expects them).
         perceive_neighbours: run the drone's detector and tracker on its frames
             (DESIGN.md: perception runs in every mode, so the tracks are warm
             when an outage starts; settings in the scenario's ``perception:``).
@@ -59,6 +74,8 @@ class DmpcAgentConfig:
     state_tolerance_m: float = 0.1
     state_tolerance_mps: float = 0.3
     perceive_neighbours: bool = True
+    commit_when_unheard: bool = True
+    commit_range_m: float = 12.0
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.plan_timeout_s) and self.plan_timeout_s > 0):
@@ -67,6 +84,10 @@ class DmpcAgentConfig:
             raise ConfigError("obstacle_margin_m", self.obstacle_margin_m, "a number >= 0 [m]")
         if not (math.isfinite(self.obstacle_range_m) and self.obstacle_range_m > 0):
             raise ConfigError("obstacle_range_m", self.obstacle_range_m, "a number > 0 [m]")
+        if not isinstance(self.commit_when_unheard, bool):
+            raise ConfigError("commit_when_unheard", self.commit_when_unheard, "true or false")
+        if not (isinstance(self.commit_range_m, (int, float)) and math.isfinite(self.commit_range_m) and self.commit_range_m >= 0):
+            raise ConfigError("commit_range_m", self.commit_range_m, "a number >= 0 [m]")
         for name in ("goal_lookahead_m", "state_tolerance_m", "state_tolerance_mps"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):

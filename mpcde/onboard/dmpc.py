@@ -69,6 +69,9 @@ from sim.types import ObstacleSpec, PlanMessage, PoseEstimate, RadioMessage, Rgb
 
 __all__ = ["DmpcAgent", "DmpcRoundStats"]
 
+HALT_TOLERANCE_MPS = 1e-3
+"""A received plan whose last velocity is below this on every axis [m/s] halts (OSQP meets v[K] = 0 to its tolerance)."""
+
 
 @dataclass
 class DmpcRoundStats:
@@ -82,6 +85,8 @@ class DmpcRoundStats:
         obstacle_rows: per solved round, obstacle rows in the QP (after culling; on demand: conflicts).
         statuses: count per OSQP status (failures included).
         fallbacks: rounds flown on the previous plan because OSQP failed.
+        commits: rounds flown on the previous plan because a near neighbour sent nothing new
+            (``commit_when_unheard``).
         state_resets: rounds whose x0 came from the estimate (it disagreed with the plan, or no plan yet).
         stale_plans: neighbour plans used that were not renewed this round.
         fresh_plans: neighbour plans used that arrived this round.
@@ -98,6 +103,7 @@ class DmpcRoundStats:
     obstacle_rows: list[int] = field(default_factory=list)
     statuses: dict[str, int] = field(default_factory=dict)
     fallbacks: int = 0
+    commits: int = 0
     state_resets: int = 0
     stale_plans: int = 0
     fresh_plans: int = 0
@@ -150,6 +156,8 @@ class DmpcAgent(SampledPlanAgent):
         self.obstacles = tuple(obstacles)
         # Its planes are vertical (obstacle_half_spaces), so the QP may drop their z columns.
         qp = replace(config.qp, vertical_obstacle_planes=True) if self.obstacles else replace(config.qp, max_obstacle_planes=0)
+        if config.commit_when_unheard:
+            qp = replace(qp, terminal_halt=True)  # every broadcast plan ends in a halt (DMPC-Swarm Eq. 13e)
         self.qp_config = qp
         self.problem = DmpcProblem(qp)
         self.start_delay_s = float(start_delay_s)
@@ -212,7 +220,8 @@ class DmpcAgent(SampledPlanAgent):
         for j in sorted(self.neighbour_plans):
             msg = self.neighbour_plans[j]
             age = time_s - msg.time_s
-            if age > self.config.plan_timeout_s:
+            halts = self.config.commit_when_unheard and _halts(msg)
+            if age > self.config.plan_timeout_s and not halts:  # a halted plan says where the neighbour waits
                 self.stats.dropped_plans += 1
                 continue
             if j in self._renewed:
@@ -267,7 +276,11 @@ class DmpcAgent(SampledPlanAgent):
         dist = float(np.linalg.norm(to_goal))
         if lookahead > 0 and dist > lookahead:
             goal = x0[:3] + to_goal * (lookahead / dist)  # carrot on the line to the goal
+        renewed = set(self._renewed)
         predictions = self._predictions(time_s)
+        if self.plan is not None and self.config.commit_when_unheard and self._unheard_near(time_s, predictions, renewed):
+            self.stats.commits += 1  # fly the last broadcast plan toward its halt: what the unheard neighbour planned against
+            return self._message(time_s, self.plan.shifted(time_s))
         obstacles = None
         if cfg.max_obstacle_planes:
             t_steps = time_s + cfg.step_s * np.arange(1, cfg.horizon_steps + 1)
@@ -297,12 +310,30 @@ class DmpcAgent(SampledPlanAgent):
             self.stats.collision_rows.append(res.n_collision_constraints)
             self.stats.obstacle_rows.append(res.n_obstacle_rows)
             self.plan = res.plan
-        p = self.plan
-        self._sampler = PlanSampler(p)
+        return self._message(time_s, self.plan)
+
+    def _message(self, time_s: float, plan: DmpcPlan) -> PlanMessage:
+        """Fly ``plan`` from now on and return it as this round's broadcast."""
+        self.plan = plan
+        self._sampler = PlanSampler(plan)
         return PlanMessage(
-            sender_id=self.drone_id, time_s=float(time_s), times_s=p.times_s.copy(),
-            pos_world=p.pos_world.copy(), vel_world=p.vel_world.copy(),
+            sender_id=self.drone_id, time_s=float(time_s), times_s=plan.times_s.copy(),
+            pos_world=plan.pos_world.copy(), vel_world=plan.vel_world.copy(),
         )  # fmt: skip
+
+    def _unheard_near(self, time_s: float, predictions: list[NeighborPrediction], renewed: set[int]) -> bool:
+        """Whether a neighbour whose plan (not a camera track) was not renewed this round comes within ``commit_range_m`` of the own plan."""
+        t = self.plan.times_s
+        t = t[t >= time_s - 1e-9]
+        if t.size == 0:
+            return False
+        mine = self.plan.position(t)
+        for p in predictions:
+            if p.source != "radio" or p.neighbor_id in renewed:
+                continue
+            if float(np.min(np.linalg.norm(p.position(t) - mine, axis=1))) < self.config.commit_range_m:
+                return True
+        return False
 
     # ------------------------------------------------------------------ metrics
     def extra_metrics(self) -> dict[str, Any]:
@@ -325,6 +356,7 @@ class DmpcAgent(SampledPlanAgent):
             "rounds": len(s.qp_solve_s) + s.fallbacks,
             "solves": len(s.qp_solve_s),
             "fallbacks": s.fallbacks,
+            "commits": s.commits,
             "state_resets": s.state_resets,
             "statuses": dict(s.statuses),
             "fresh_plans": s.fresh_plans,
@@ -343,6 +375,11 @@ class DmpcAgent(SampledPlanAgent):
             "qp_solve_ms": [round(float(v), 5) for v in solve_ms],
             **(self.perception.counts.metrics() if self.perception is not None else {}),
         }
+
+
+def _halts(msg: PlanMessage) -> bool:
+    """Whether a received plan ends at rest (a halting plan, DMPC-Swarm Eq. 13e)."""
+    return bool(np.all(np.abs(np.asarray(msg.vel_world)[-1]) < HALT_TOLERANCE_MPS))
 
 
 def _plan_prediction(neighbor_id: int, msg: PlanMessage) -> NeighborPrediction:
