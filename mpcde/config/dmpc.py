@@ -44,7 +44,10 @@ class DmpcAgentConfig:
         state_tolerance_mps: the same bound on the velocity [m/s] (chosen: 0.3).
         commit_when_unheard: keep DMPC-Swarm's promise under message loss. Every
             plan ends in a halt (the QP's terminal constraint v[K] = 0, Eq. 13e,
-            is forced on), a neighbour's last plan is kept as broadcast, halt
+            is forced on), the drone-drone constraints are buffered Voronoi
+            planes between the previous plans (Eq. 14-15; ``qp.collision_mode``
+            is forced to ``bvc``, the obstacle rows keep their mode), so that
+            plans solved in the same round stay apart; a neighbour's last plan is kept as broadcast, halt
             included, however old (``plan_timeout_s`` then drops only plans that
             do not halt), and in a round where a neighbour near the own plan sent
             nothing new (so it may not have heard this drone either) the drone
@@ -57,6 +60,11 @@ class DmpcAgentConfig:
             [m] of the own plan at a common time over the horizon (chosen: 12 m =
             2 v_max K h at the defaults: two drones replanning unheard can each
             move v_max K h from where the other expects them).
+        deadlock_turn_deg: with ``commit_when_unheard``, a drone whose plan has
+            stalled short of its goal (it ends within 0.1 m of the start, the goal
+            is farther than 0.5 m) turns its carrot this far [deg] to the right:
+            the right-hand rule that breaks the symmetric deadlocks of buffered
+            Voronoi planes (chosen: 60; 0 = off).
         perceive_neighbours: run the drone's detector and tracker on its frames
             (DESIGN.md: perception runs in every mode, so the tracks are warm
             when an outage starts; settings in the scenario's ``perception:``).
@@ -76,6 +84,7 @@ class DmpcAgentConfig:
     perceive_neighbours: bool = True
     commit_when_unheard: bool = True
     commit_range_m: float = 12.0
+    deadlock_turn_deg: float = 60.0
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.plan_timeout_s) and self.plan_timeout_s > 0):
@@ -86,6 +95,8 @@ class DmpcAgentConfig:
             raise ConfigError("obstacle_range_m", self.obstacle_range_m, "a number > 0 [m]")
         if not isinstance(self.commit_when_unheard, bool):
             raise ConfigError("commit_when_unheard", self.commit_when_unheard, "true or false")
+        if not (isinstance(self.deadlock_turn_deg, (int, float)) and 0 <= self.deadlock_turn_deg <= 90):
+            raise ConfigError("deadlock_turn_deg", self.deadlock_turn_deg, "a number in [0, 90] [deg]")
         if not (isinstance(self.commit_range_m, (int, float)) and math.isfinite(self.commit_range_m) and self.commit_range_m >= 0):
             raise ConfigError("commit_range_m", self.commit_range_m, "a number >= 0 [m]")
         for name in ("goal_lookahead_m", "state_tolerance_m", "state_tolerance_mps"):

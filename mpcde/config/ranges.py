@@ -121,7 +121,7 @@ RANGES: dict[type, dict[str, B]] = {
     DmpcAgentConfig: {
         "plan_timeout_s": B(0, 60, "s"), "obstacle_margin_m": B(0, 5, "m"), "obstacle_range_m": B(0, 100, "m"),
         "goal_lookahead_m": B(0, 1000, "m"), "state_tolerance_m": B(0, 10, "m"), "state_tolerance_mps": B(0, 10, "m/s"),
-        "commit_range_m": B(0, 1000, "m"),
+        "commit_range_m": B(0, 1000, "m"), "deadlock_turn_deg": B(0, 90, "deg"),
     },
     AutoAgentConfig: {
         "radio_silence_s": B(0, 60, "s"), "plan_memory_s": B(0, 60, "s"),

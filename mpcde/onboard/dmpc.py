@@ -87,6 +87,7 @@ class DmpcRoundStats:
         fallbacks: rounds flown on the previous plan because OSQP failed.
         commits: rounds flown on the previous plan because a near neighbour sent nothing new
             (``commit_when_unheard``).
+        deadlock_turns: rounds whose carrot the right-hand rule turned (``deadlock_turn_deg``).
         state_resets: rounds whose x0 came from the estimate (it disagreed with the plan, or no plan yet).
         stale_plans: neighbour plans used that were not renewed this round.
         fresh_plans: neighbour plans used that arrived this round.
@@ -104,6 +105,7 @@ class DmpcRoundStats:
     statuses: dict[str, int] = field(default_factory=dict)
     fallbacks: int = 0
     commits: int = 0
+    deadlock_turns: int = 0
     state_resets: int = 0
     stale_plans: int = 0
     fresh_plans: int = 0
@@ -157,7 +159,12 @@ class DmpcAgent(SampledPlanAgent):
         # Its planes are vertical (obstacle_half_spaces), so the QP may drop their z columns.
         qp = replace(config.qp, vertical_obstacle_planes=True) if self.obstacles else replace(config.qp, max_obstacle_planes=0)
         if config.commit_when_unheard:
-            qp = replace(qp, terminal_halt=True)  # every broadcast plan ends in a halt (DMPC-Swarm Eq. 13e)
+            # DMPC-Swarm's promise rests on three pieces together: every broadcast plan ends in a halt
+            # (Eq. 13e); the drone-drone constraints are buffered Voronoi planes between the previous plans
+            # (Eq. 14-15), which both drones of a pair compute alike, so plans solved in the same round stay
+            # apart (on-demand rows do not: docs/results/comm_safety.md); and no replanning while unheard.
+            # The obstacle rows keep the mode they had (on demand by default).
+            qp = replace(qp, terminal_halt=True, collision_mode="bvc", obstacle_avoidance=qp.obstacle_mode)
         self.qp_config = qp
         self.problem = DmpcProblem(qp)
         self.start_delay_s = float(start_delay_s)
@@ -276,6 +283,11 @@ class DmpcAgent(SampledPlanAgent):
         dist = float(np.linalg.norm(to_goal))
         if lookahead > 0 and dist > lookahead:
             goal = x0[:3] + to_goal * (lookahead / dist)  # carrot on the line to the goal
+        if self._stuck(x0, dist):  # right-hand rule: turn the carrot to the right, the same way for every drone
+            self.stats.deadlock_turns += 1
+            a = -np.deg2rad(self.config.deadlock_turn_deg)
+            d = goal - x0[:3]
+            goal = x0[:3] + np.array([np.cos(a) * d[0] - np.sin(a) * d[1], np.sin(a) * d[0] + np.cos(a) * d[1], d[2]])
         renewed = set(self._renewed)
         predictions = self._predictions(time_s)
         if self.plan is not None and self.config.commit_when_unheard and self._unheard_near(time_s, predictions, renewed):
@@ -321,6 +333,19 @@ class DmpcAgent(SampledPlanAgent):
             pos_world=plan.pos_world.copy(), vel_world=plan.vel_world.copy(),
         )  # fmt: skip
 
+    def _stuck(self, x0: np.ndarray, dist_to_goal: float) -> bool:
+        """Whether the own plan has stalled short of the goal: it ends within 0.1 m of x0 while the goal is farther than 0.5 m.
+
+        Buffered Voronoi planes (``commit_when_unheard``) let drones that face each other
+        symmetrically stop at their planes for good (the deadlock of BVC; DMPC-Swarm resolves it
+        apart); the right-hand rule breaks the symmetry.
+        """
+        if not self.config.commit_when_unheard or self.config.deadlock_turn_deg == 0 or self.plan is None:
+            return False
+        if self.plan.t0_s < self.start_delay_s - 1e-9:  # the previous plan held the start on purpose
+            return False
+        return dist_to_goal > 0.5 and float(np.linalg.norm(self.plan.pos_world[-1] - x0[:3])) < 0.1
+
     def _unheard_near(self, time_s: float, predictions: list[NeighborPrediction], renewed: set[int]) -> bool:
         """Whether a neighbour whose plan (not a camera track) was not renewed this round comes within ``commit_range_m`` of the own plan."""
         t = self.plan.times_s
@@ -357,6 +382,7 @@ class DmpcAgent(SampledPlanAgent):
             "solves": len(s.qp_solve_s),
             "fallbacks": s.fallbacks,
             "commits": s.commits,
+            "deadlock_turns": s.deadlock_turns,
             "state_resets": s.state_resets,
             "statuses": dict(s.statuses),
             "fresh_plans": s.fresh_plans,

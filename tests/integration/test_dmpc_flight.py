@@ -30,7 +30,18 @@ def test_eight_drone_swap_with_ideal_radio_arrives_without_collision(record_prop
     m = _swap(0.0)
     record_property("min_distance_m", m["min_inter_drone_distance_m"])
     assert m["arrived"] == 8 and m["collisions"] == 0 and m["success"]
-    assert sum(a["fallbacks"] for a in m["agents"]) == 0
+    # buffered Voronoi planes deadlock a symmetric swap; the right-hand rule turns it into a roundabout
+    assert sum(a["deadlock_turns"] for a in m["agents"]) > 0
+    assert sum(a["fallbacks"] for a in m["agents"]) <= 2  # a fallback flies the last plan to its halt
+
+
+@pytest.mark.slow
+def test_plain_dmpc_swap_replans_every_round_without_fallback():
+    cfg = load_scenario("antipodal", {"duration_s": 20.0, "seed": 0})
+    cfg = replace(cfg, planner=replace(cfg.planner, kind="dmpc"), run=replace(cfg.run, cameras=False), dmpc=replace(cfg.dmpc, commit_when_unheard=False))
+    m = run_scenario(prepare_run(cfg)).metrics
+    assert m["arrived"] == 8 and m["collisions"] == 0
+    assert sum(a["fallbacks"] for a in m["agents"]) == 0 and sum(a["commits"] + a["deadlock_turns"] for a in m["agents"]) == 0
 
 
 @pytest.mark.slow

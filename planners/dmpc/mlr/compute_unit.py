@@ -19,9 +19,31 @@ communication phase:
    unified priority is 0 or its tracker holds two candidates (it was
    recomputed in round k - 1 and its initial state is not known yet), or if
    OSQP fails (then the UAV keeps its trajectory, which is safe).
-5. Else MLR (Lines 22-32): it requests the trajectory of one deprecated UAV,
-   the one at rank (k + w) mod (number deprecated), so that several CUs in
-   MLR tend to ask for different UAVs.
+5. Else MLR (Lines 22-32): it requests the trajectory of one deprecated UAV
+   and donates its next slot. Which one the paper does not say. With
+   ``lazy_recovery=False`` it is the one at rank (k + w) mod (number
+   deprecated), so that several CUs in MLR tend to ask for different UAVs.
+   With ``lazy_recovery=True`` (default):
+
+   * a UAV whose state message named a trajectory its tracker lacks
+     (``missing``: only a reply can restore it) is asked for first;
+   * a UAV that another CU asked for in round k - 1 is not asked for: its
+     reply, broadcast in round k, reaches this CU too;
+   * if every remaining deprecated tracker became deprecated in this very
+     update, for want of the UAV's metadata (Line 13) or of a CU message
+     (Line 18), the CU waits one round instead (mode ``"wait"``: a CU
+     message with its priorities and no trajectory): the UAVs' state
+     messages of round k restore such trackers (Alg. 2 step 1) at the same
+     time a reply would, without costing a donated slot. A tracker still
+     deprecated one round later is asked for.
+
+   Under loss the eager choice spent about half of all CU rounds requesting
+   and donating, mostly for trackers the next state message restored anyway,
+   and asked for an arbitrary UAV after a lost CU message although only the
+   UAV whose new trajectory was missed needs a reply. The choice changes
+   only which message a CU in MLR sends; it computes nothing while any
+   tracker is deprecated, so Lemma 1-2 and the collision guarantee are
+   untouched.
 6. Priorities for round k + 1 (Line 34, Appendix A), 0 for the UAV it just computed.
 
 Start (Remark 2): all CUs start together in round ``first_round`` with the
@@ -63,8 +85,9 @@ class CuStepReport:
     Attributes:
         round_index: k.
         mode: ``"compute"``, ``"idle"`` (selected UAV not computable),
-            ``"request"`` (MLR), ``"donate"`` (silent, slot given to a UAV)
-            or ``"failed"`` (QP not solved).
+            ``"request"`` (MLR), ``"donate"`` (silent, slot given to a UAV),
+            ``"wait"`` (MLR, waiting a round for metadata or another CU's
+            reply, see the module docstring) or ``"failed"`` (QP not solved).
         uav_id: the UAV computed or requested (None otherwise).
         a_et: A_ET(k).
         deprecated: UAVs whose tracker is deprecated after the update.
@@ -120,6 +143,8 @@ class ComputeUnit:
         self._own_last: CuTrajectoryMessage | RecoveryRequest | None = None  # what this CU sent last round
         self._donate_now = False
         self._heard_requests: set[int] = set()  # CUs whose request this CU received last round
+        self._pending_replies: set[int] = set()  # UAVs asked for by those requests: they reply this round
+        self._a_et_prev: tuple[int, ...] | None = None  # A_ET(k - 1) if formed from every CU slot of k - 2
 
     def step(self, round_index: int, inbox: Sequence[object]) -> tuple[object | None, CuStepReport]:
         """Alg. 1 for round k = ``round_index`` with the payloads received in round k - 1.
@@ -141,20 +166,29 @@ class ComputeUnit:
         own = self._own_last
         if isinstance(own, CuTrajectoryMessage) and own.uav_id is not None:
             new[own.uav_id] = own.trajectory
+        missed: list[int] = []
         if self.ignore_message_loss:
             update = self.trackers.update_ignoring_loss(new)
         else:
-            accounted = k == self.first_round or all(  # the first round has no previous round to miss
-                v == w or v in cu_msgs or v in replies or v in self._heard_requests for v in range(cfg.n_cus)
-            )
+            missed = [] if k == self.first_round else [  # the first round has no previous round to miss
+                v for v in range(cfg.n_cus)
+                if not (v == w or v in cu_msgs or v in replies or v in self._heard_requests)
+            ]
+            suspects: set[int] = set()
+            if missed and cfg.precise_cu_loss and self._a_et_prev is not None:
+                # Only the UAV that CU v selected in round k - 1 can have a trajectory this CU missed.
+                suspects = {selected_uav(self._a_et_prev, k - 1, v, cfg.n_cus) for v in missed}
             update = self.trackers.update(
                 {i: m.following for i, m in states.items()}, new,
-                {r.uav_id: r.trajectory for r in replies.values()}, accounted,
+                {r.uav_id: r.trajectory for r in replies.values()}, not missed or bool(suspects), suspects,
             )  # fmt: skip
         self._heard_requests = {v for v, m in cu_msgs.items() if isinstance(m, RecoveryRequest)}
+        self._pending_replies = {m.uav_id for m in cu_msgs.values() if isinstance(m, RecoveryRequest)}
         vectors = [m.priorities for m in cu_msgs.values()] + ([own.priorities] if own is not None else [])
         unified = consensus(vectors, cfg.n_uavs)  # Eq. 11 with the zero rule
         a_et = event_set(unified, cfg.n_cus)
+        # A_ET(k) is every computing CU's A_ET(k) when this CU heard every CU slot of round k - 1 (see step 1b).
+        self._a_et_prev = a_et if k != self.first_round and not self.ignore_message_loss and not missed else None
 
         deprecated = self.trackers.deprecated_ids
         if self._donate_now:  # Alg. 1 Line 30: the slot belongs to the requested UAV this round
@@ -162,7 +196,11 @@ class ComputeUnit:
             self._own_last = None
             return None, CuStepReport(k, "donate", None, a_et, deprecated, update)
         if deprecated and not self.ignore_message_loss:  # MLR, Lines 22-32
-            uav = deprecated[(k + w) % len(deprecated)]
+            uav = self._recovery_target(k, deprecated, update)
+            if uav is None:  # wait a round (lazy recovery): metadata or another CU's reply restores them
+                msg = CuTrajectoryMessage(w, k, self._priorities(k, None))
+                self._own_last = msg
+                return msg, CuStepReport(k, "wait", None, a_et, deprecated, update)
             msg = RecoveryRequest(w, k, self._priorities(k, None), uav)
             self._donate_now = True
             self._own_last = msg
@@ -181,6 +219,20 @@ class ComputeUnit:
             msg = CuTrajectoryMessage(w, k, self._priorities(k, uav), uav, result.trajectory)
         self._own_last = msg
         return msg, CuStepReport(k, mode, uav if mode != "idle" else None, a_et, deprecated, update, result)
+
+    def _recovery_target(self, k: int, deprecated: tuple[int, ...], update: TrackerUpdate) -> int | None:
+        """The deprecated UAV to request in round k, or None to wait a round (module docstring, step 5)."""
+        w = self.cu_index
+        if not self.config.lazy_recovery:
+            return deprecated[(k + w) % len(deprecated)]
+        open_ = [i for i in deprecated if i not in self._pending_replies]
+        missing = [i for i in open_ if self.trackers[i].missing]
+        if missing:
+            return missing[(k + w) % len(missing)]
+        fresh = set(update.newly_deprecated)
+        if not open_ or all(i in fresh for i in open_):
+            return None
+        return open_[(k + w) % len(open_)]
 
     def _solve(self, k: int, uav: int, a_et: set[int]) -> MlrQpResult:
         """QP (13) for ``uav`` against every candidate of every other UAV (Alg. 1 Lines 17-18)."""
@@ -217,8 +269,8 @@ class ComputeUnit:
 def summarize_reports(reports: Sequence[CuStepReport]) -> dict[str, Any]:
     """Counts and QP timings over CU rounds (one CU's or several; NaN timings when no QP was solved).
 
-    Keys: ``rounds_with_mlr`` (distinct rounds in which a CU requested or
-    donated), ``deprecated_trackers`` (tracker deprecations summed),
+    Keys: ``rounds_with_mlr`` (distinct rounds in which a CU requested,
+    donated or waited), ``deprecated_trackers`` (tracker deprecations summed),
     ``recovery_requests``, ``computations`` (rounds that solved a QP),
     ``qp_failures``, ``qp_solve_ms_median`` / ``qp_solve_ms_max`` (OSQP update +
     solve [ms]), ``qp_step_ms_median`` (build + solve [ms]), ``qp_iterations_median``.
@@ -228,7 +280,7 @@ def summarize_reports(reports: Sequence[CuStepReport]) -> dict[str, Any]:
     solve_ms = [q.solve_time_s * 1e3 for q in qps]
     step_ms = [(q.solve_time_s + q.build_time_s) * 1e3 for q in qps]
     return {
-        "rounds_with_mlr": len({r.round_index for r in reports if r.mode in ("request", "donate")}),
+        "rounds_with_mlr": len({r.round_index for r in reports if r.mode in ("request", "donate", "wait")}),
         "deprecated_trackers": sum(len(r.tracker_update.newly_deprecated) for r in reports),
         "recovery_requests": sum(r.mode == "request" for r in reports),
         "computations": len(qps),

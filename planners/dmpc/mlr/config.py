@@ -78,6 +78,29 @@ class MlrConfig:
         max_kept_deprecated: a deprecated tracker keeps at most this many
             candidates (the newest), so that a later UAV state message naming
             one of them restores it (chosen: 8).
+        lazy_recovery: how a CU whose trackers are deprecated picks its
+            recovery request (Alg. 1 Lines 22-32; the paper does not say which
+            UAV to ask). True (chosen): it asks first for a UAV whose state
+            message named a trajectory the tracker lacks (only a reply can
+            restore it); it does not ask for a UAV another CU asked for in the
+            previous round (that UAV's reply comes in this round); and when every
+            deprecated tracker became deprecated in this round only for want of
+            metadata or of a CU message, it waits one round (a CU message with
+            its priorities and no trajectory) for the UAVs' next state messages,
+            which restore such trackers without a request. False: it asks at
+            once for the deprecated UAV at rank (k + w) mod (number deprecated)
+            and donates its next slot. Either way it computes nothing while a
+            tracker is deprecated, so the choice only affects progress, never
+            safety (:mod:`planners.dmpc.mlr.compute_unit`).
+        precise_cu_loss: what a lost CU message deprecates (Alg. 2 Line 18).
+            False: every tracker (the paper: "it might lack the actual
+            trajectory of an unknown UAV"). True (chosen): when this CU heard
+            every CU slot of round k - 2, its A_ET(k - 1) is the A_ET(k - 1)
+            of every CU that computed in round k - 1 (the same priority
+            vectors; Eq. 15's midway / relaxed choice already rests on this),
+            so the lost message of CU v can only have carried a trajectory for
+            the UAV at rank (k - 1 + v) mod M of it: only that tracker is
+            deprecated. Otherwise every tracker is, as in the paper.
         trigger: event trigger of Appendix A: ``"rr"`` (round-robin, A1),
             ``"db"`` (distance-based, A2) or ``"ht"`` (hybrid, A3).
         priority_scale_rr: one 8-bit priority unit of RR in rounds (chosen 1).
@@ -112,6 +135,8 @@ class MlrConfig:
     weight_jerk: float = 0.01
     max_candidates: int = 2
     max_kept_deprecated: int = 8
+    lazy_recovery: bool = True
+    precise_cu_loss: bool = True
     trigger: str = "ht"
     priority_scale_rr: float = 1.0
     priority_scale_db_m: float = 0.02
@@ -141,6 +166,8 @@ class MlrConfig:
         require_box("pos_min_world", self.pos_min_world, "pos_max_world", self.pos_max_world)
         require_integer_at_least("max_candidates", self.max_candidates, 1)
         require_integer_at_least("max_kept_deprecated", self.max_kept_deprecated, 1)
+        require_boolean("lazy_recovery", self.lazy_recovery)
+        require_boolean("precise_cu_loss", self.precise_cu_loss)
         if self.trigger not in TRIGGERS:
             raise ConfigError("trigger", self.trigger, f"one of {', '.join(TRIGGERS)}")
         for name in ("priority_scale_rr", "priority_scale_db_m", "priority_scale_ht", "osqp_eps_abs", "osqp_eps_rel"):

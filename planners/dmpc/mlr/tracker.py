@@ -35,7 +35,7 @@ to trajectories followed in round k - 1, before those computed in k - 1 start.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
@@ -50,10 +50,16 @@ class TrackerEntry:
     Attributes:
         candidates: the trajectories i may follow, oldest first.
         deprecated: True when they may not contain i's true trajectory.
+        missing: deprecated, and i's latest state message named a trajectory
+            that is not among the candidates: its metadata cannot restore the
+            tracker, only a recovery reply (or a later state message naming a
+            trajectory added since) can. False when the tracker is only
+            deprecated for want of metadata or a CU message.
     """
 
     candidates: tuple[ReferenceTrajectory, ...]
     deprecated: bool = False
+    missing: bool = False
 
     @property
     def metas(self) -> tuple[TrajectoryId, ...]:
@@ -101,7 +107,7 @@ class InformationTrackers:
 
     def deprecate_all(self) -> None:
         """Mark every tracker deprecated (a CU that may have missed trajectories: it joins late)."""
-        self.entries = [TrackerEntry(e.candidates, True) for e in self.entries]
+        self.entries = [TrackerEntry(e.candidates, True, e.missing) for e in self.entries]
 
     @property
     def any_deprecated(self) -> bool:
@@ -114,6 +120,7 @@ class InformationTrackers:
         new_trajectories: Mapping[int, ReferenceTrajectory],
         replies: Mapping[int, ReferenceTrajectory],
         all_cu_slots_accounted: bool,
+        suspects: Iterable[int] = (),
     ) -> TrackerUpdate:
         """Alg. 2 with the messages of the previous round (steps 1-5 of the module docstring).
 
@@ -123,6 +130,9 @@ class InformationTrackers:
                 (received from a CU, or computed by this CU).
             replies: UAV i -> trajectory from a received recovery reply of the previous round.
             all_cu_slots_accounted: False if a CU slot of the previous round is missing.
+            suspects: UAVs whose tracker is deprecated like in step 4, but alone
+                (step 4b): the UAVs a missed CU message can have carried a
+                trajectory for, when the caller can name them.
         """
         before = [e.deprecated for e in self.entries]
         restored = []
@@ -132,17 +142,19 @@ class InformationTrackers:
                 continue
             if i in following:  # step 1 (Line 6)
                 match = [c for c in entry.candidates if c.meta == following[i]]
-                self.entries[i] = TrackerEntry((match[0],)) if match else TrackerEntry(entry.candidates, True)
+                self.entries[i] = TrackerEntry((match[0],)) if match else TrackerEntry(entry.candidates, True, True)
             elif len(entry.candidates) > 1:  # step 2 (Line 13)
-                self.entries[i] = TrackerEntry(entry.candidates, True)
+                self.entries[i] = TrackerEntry(entry.candidates, True, entry.missing)
         if not all_cu_slots_accounted:  # step 4 (Line 18)
-            self.entries = [TrackerEntry(e.candidates, True) for e in self.entries]
+            self.entries = [TrackerEntry(e.candidates, True, e.missing) for e in self.entries]
+        for i in suspects:  # step 4b
+            self.entries[i] = TrackerEntry(self.entries[i].candidates, True, self.entries[i].missing)
         for i, traj in new_trajectories.items():  # step 5 (Line 22)
             e = self.entries[i]
             cands = tuple(c for c in e.candidates if c.meta != traj.meta) + (traj,)
             if e.deprecated:
                 cands = cands[-self.max_kept:]
-            self.entries[i] = TrackerEntry(cands, e.deprecated)
+            self.entries[i] = TrackerEntry(cands, e.deprecated, e.missing)
         for i, e in enumerate(self.entries):
             if before[i] and not e.deprecated:
                 restored.append(i)
