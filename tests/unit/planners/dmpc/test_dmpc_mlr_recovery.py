@@ -63,7 +63,8 @@ def test_a_uav_that_names_an_unknown_trajectory_is_asked_for_first() -> None:
     assert cu.trackers[2].missing and not cu.trackers[0].missing
     assert rep.mode == "request" and rep.uav_id == 2 and isinstance(msg, RecoveryRequest) and msg.uav_id == 2
     # round 2 (donated): the metadata restores 0 and 1; round 3: UAV 2's reply restores it
-    msg, rep = cu.step(2, [_state(i, 1) for i in range(2)] + [_state(2, 1, UNKNOWN), CuTrajectoryMessage(1, 1, _prio())])
+    inbox = [_state(0, 1), _state(1, 1), _state(2, 1, UNKNOWN), CuTrajectoryMessage(1, 1, _prio())]
+    msg, rep = cu.step(2, inbox)
     assert rep.mode == "donate" and msg is None and rep.deprecated == (2,)
     followed = ReferenceTrajectory.hover(UNKNOWN, 0.2, STARTS[2], _cfg().n_inputs, _cfg().input_step_s)
     _, rep = cu.step(3, [_state(i, 2) for i in range(2)] + [_state(2, 2, UNKNOWN), RecoveryReply(2, 0, 2, followed),
