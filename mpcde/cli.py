@@ -346,6 +346,17 @@ def main(argv: list[str] | None = None) -> int:
     removed: a run folder or an evaluation appears only when complete, a
     sweep keeps the rows it recorded).
     """
+    code = _run(argv)
+    if code in (EXIT_INTERRUPTED, EXIT_TERMINATED):
+        # The interpreter's shutdown still joins pool threads; a second Ctrl-C or SIGTERM there
+        # (a shell's, or a `timeout` forwarding its own) printed a threading traceback after our line.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    return code
+
+
+def _run(argv: list[str] | None) -> int:
+    """:func:`main` up to its exit status."""
     args = build_parser().parse_args(argv)
     with _sigterm_raises():
         try:

@@ -163,8 +163,10 @@ class DmpcAgent(SampledPlanAgent):
             # (Eq. 13e); the drone-drone constraints are buffered Voronoi planes between the previous plans
             # (Eq. 14-15), which both drones of a pair compute alike, so plans solved in the same round stay
             # apart (on-demand rows do not: docs/results/comm_safety.md); and no replanning while unheard.
-            # The obstacle rows keep the mode they had (on demand by default).
-            qp = replace(qp, terminal_halt=True, collision_mode="bvc", obstacle_avoidance=qp.obstacle_mode)
+            # The obstacle rows follow BVC to every step (``obstacle_avoidance: auto``): a plan flown to its
+            # halt without replanning must clear the obstacles over its whole horizon, not only at its
+            # first predicted conflict as on-demand rows promise.
+            qp = replace(qp, terminal_halt=True, collision_mode="bvc")
         self.qp_config = qp
         self.problem = DmpcProblem(qp)
         self.start_delay_s = float(start_delay_s)
@@ -179,6 +181,7 @@ class DmpcAgent(SampledPlanAgent):
         self.yaw = 0.0
         self.neighbour_plans: dict[int, PlanMessage] = {}
         self._renewed: set[int] = set()
+        self._solved_last = False  # whether the current plan came from a solved QP (not a commit or a fallback)
 
     # ------------------------------------------------------------------ inputs
     def on_frame(self, frame: RgbdFrame, detections: list | None = None) -> None:
@@ -283,16 +286,17 @@ class DmpcAgent(SampledPlanAgent):
         dist = float(np.linalg.norm(to_goal))
         if lookahead > 0 and dist > lookahead:
             goal = x0[:3] + to_goal * (lookahead / dist)  # carrot on the line to the goal
+        renewed = set(self._renewed)
+        predictions = self._predictions(time_s)
+        if self.plan is not None and self.config.commit_when_unheard and self._unheard_near(time_s, predictions, renewed):
+            self.stats.commits += 1  # fly the last broadcast plan toward its halt: what the unheard neighbour planned against
+            self._solved_last = False
+            return self._message(time_s, self.plan.shifted(time_s))
         if self._stuck(x0, dist):  # right-hand rule: turn the carrot to the right, the same way for every drone
             self.stats.deadlock_turns += 1
             a = -np.deg2rad(self.config.deadlock_turn_deg)
             d = goal - x0[:3]
             goal = x0[:3] + np.array([np.cos(a) * d[0] - np.sin(a) * d[1], np.sin(a) * d[0] + np.cos(a) * d[1], d[2]])
-        renewed = set(self._renewed)
-        predictions = self._predictions(time_s)
-        if self.plan is not None and self.config.commit_when_unheard and self._unheard_near(time_s, predictions, renewed):
-            self.stats.commits += 1  # fly the last broadcast plan toward its halt: what the unheard neighbour planned against
-            return self._message(time_s, self.plan.shifted(time_s))
         obstacles = None
         if cfg.max_obstacle_planes:
             t_steps = time_s + cfg.step_s * np.arange(1, cfg.horizon_steps + 1)
@@ -310,6 +314,7 @@ class DmpcAgent(SampledPlanAgent):
         except DmpcSolveError as e:
             self.stats.statuses[e.status] = self.stats.statuses.get(e.status, 0) + 1
             self.stats.fallbacks += 1
+            self._solved_last = False
             if self.plan is None:
                 self.plan = DmpcPlan.hover(time_s, cfg.step_s, cfg.horizon_steps, x0[:3])
             else:
@@ -321,6 +326,7 @@ class DmpcAgent(SampledPlanAgent):
             self.stats.iterations.append(res.iterations)
             self.stats.collision_rows.append(res.n_collision_constraints)
             self.stats.obstacle_rows.append(res.n_obstacle_rows)
+            self._solved_last = True
             self.plan = res.plan
         return self._message(time_s, self.plan)
 
@@ -342,7 +348,7 @@ class DmpcAgent(SampledPlanAgent):
         """
         if not self.config.commit_when_unheard or self.config.deadlock_turn_deg == 0 or self.plan is None:
             return False
-        if self.plan.t0_s < self.start_delay_s - 1e-9:  # the previous plan held the start on purpose
+        if self.plan.t0_s < self.start_delay_s - 1e-9 or not self._solved_last:  # held the start, or committed / fell back
             return False
         return dist_to_goal > 0.5 and float(np.linalg.norm(self.plan.pos_world[-1] - x0[:3])) < 0.1
 

@@ -180,7 +180,13 @@ def _run_pool(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], 
             for future in done:
                 on_done(future.result())
     except BaseException:
-        pool.shutdown(wait=False, cancel_futures=True)  # do not wait for flights in progress
+        # Do not wait for flights in progress (their rows would be discarded): cancel what is queued and
+        # stop the workers, or the interpreter's exit joins them for up to a flight's length after the
+        # one-line message (Python 3.11 has no public terminate for a ProcessPoolExecutor).
+        workers = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for w in workers:
+            w.terminate()
         raise
     pool.shutdown()
 

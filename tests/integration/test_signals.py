@@ -65,3 +65,20 @@ def test_publishing_never_deletes_a_folder_that_appeared_during_the_run(tmp_path
     folder = RunFolder(empty, overwrite=False)
     empty.mkdir()  # an empty folder is taken over
     assert folder.publish() == empty and not list(tmp_path.glob(".empty.partial-*"))
+
+
+def test_a_second_ctrl_c_while_a_sweep_shuts_down_adds_no_traceback(tmp_path):
+    """Ctrl-C twice (a user who presses again, or a `timeout` forwarding its own): still the one line, exit 130."""
+    out = tmp_path / "sweep"
+    cmd = [sys.executable, "-m", "mpcde", "sweep", "data/sweeps/tiny.yaml", "--out", str(out), "--jobs", "2", "--quiet"]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, cwd=Path(__file__).resolve().parents[2])
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not (out / "results.jsonl").exists():
+        time.sleep(0.1)
+    os.killpg(p.pid, signal.SIGINT)
+    time.sleep(0.5)
+    if p.poll() is None:
+        os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 130, err[-3000:]
+    assert len(err.strip().splitlines()) == 1 and err.startswith("mpcde: interrupted;"), err[-3000:]
