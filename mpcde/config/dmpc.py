@@ -46,9 +46,10 @@ class DmpcAgentConfig:
             plan ends in a halt (the QP's terminal constraint v[K] = 0, Eq. 13e,
             is forced on), the drone-drone constraints are buffered Voronoi
             planes between the previous plans (Eq. 14-15; ``qp.collision_mode``
-            is forced to ``bvc``, and the obstacle rows follow it to every step,
-            so that a plan flown to its halt clears the obstacles over its whole
-            horizon), so that
+            is forced to ``bvc``, and the obstacle rows follow it to every step and
+            cover every obstacle the plan can reach, ``obstacle_range_m`` raised to
+            sqrt(2) v_max K h + the inflation, so that a plan flown to its halt
+            clears the obstacles over its whole horizon), so that
             plans solved in the same round stay apart; a neighbour's last plan is kept as broadcast, halt
             included, however old (``plan_timeout_s`` then drops only plans that
             do not halt), and in a round where a neighbour near the own plan sent

@@ -172,6 +172,11 @@ class DmpcAgent(SampledPlanAgent):
         self.start_delay_s = float(start_delay_s)
         self.formation_offsets = formation_offsets
         self.inflation_m = float(robot_radius_m) + config.obstacle_margin_m
+        self.obstacle_range_m = config.obstacle_range_m
+        if config.commit_when_unheard:
+            # a plan flown to its halt unrevised reaches sqrt(2) v_max K h horizontally: every obstacle it can
+            # reach must have its plane (radio_outage seed 18 flew a plan into a tree 3-6 m out of range)
+            self.obstacle_range_m = max(self.obstacle_range_m, float(np.sqrt(2.0) * qp.v_max * qp.horizon_s) + self.inflation_m)
         self.counters = AgentCounters()
         self.stats = DmpcRoundStats()
         self.plan: DmpcPlan | None = None
@@ -305,7 +310,7 @@ class DmpcAgent(SampledPlanAgent):
             else:
                 path = x0[:3] + x0[3:6] * (t_steps - time_s)[:, None]
             obstacles = obstacle_half_spaces(
-                path, self.obstacles, self.inflation_m, self.config.obstacle_range_m, cfg.max_obstacle_planes
+                path, self.obstacles, self.inflation_m, self.obstacle_range_m, cfg.max_obstacle_planes
             )
         try:
             res = self.problem.solve(

@@ -14,8 +14,10 @@ that made it), except the wall-clock ones (``real_time_factor``, ``compute_time`
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import os
+import signal
 import socket
 import subprocess
 import time
@@ -29,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from mpcde.errors import ConfigError
-from sim.spawn import main_module_hidden
+from sim.spawn import main_module_hidden, sigint_ignored
 
 __all__ = ["BACKENDS", "FlightOutcome", "FlightTask", "cpus_of", "fly_task", "git_revision", "package_version", "run_flights", "share_cores", "share_cores_count"]
 
@@ -142,9 +144,22 @@ def run_flights(
 
 
 def _warm() -> None:
-    """A pool worker's first job: import the simulator and the stacks (what every flight needs) before a flight waits on it."""
+    """A pool worker's first job: import the simulator and the stacks (what every flight needs) before a flight waits on it.
+
+    It also makes SIGTERM raise :class:`mpcde.errors.Terminated` in the worker, so that a flight stopped by
+    an interrupted sweep closes its session (render pool, shared memory) on the way out, and it ignores
+    SIGINT: Ctrl-C reaches the whole process group, and the main process answers it by stopping the
+    workers with SIGTERM (a second Ctrl-C must not interrupt that cleanup).
+    """
     import mpcde.flight.loop  # noqa: F401
     import mpcde.onboard.factory  # noqa: F401
+    from mpcde.errors import Terminated
+
+    def raise_terminated(signum: int, frame: object) -> None:
+        raise Terminated()
+
+    signal.signal(signal.SIGTERM, raise_terminated)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 _ONE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -170,7 +185,7 @@ def _environment(values: dict[str, str]) -> Iterator[None]:
 def _run_pool(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], on_done: Callable[[FlightOutcome], None], jobs: int) -> None:
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
     try:
-        with main_module_hidden(), _environment(_ONE_THREAD):  # the workers start on these first submits (sim/spawn.py)
+        with main_module_hidden(), _environment(_ONE_THREAD), sigint_ignored():  # the workers start on these first submits (sim/spawn.py)
             warm = [pool.submit(_warm) for _ in range(jobs)]
             pending = {pool.submit(fly_task, t) for t in (tasks() if callable(tasks) else tasks)}
         for future in warm:
@@ -183,10 +198,14 @@ def _run_pool(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], 
         # Do not wait for flights in progress (their rows would be discarded): cancel what is queued and
         # stop the workers, or the interpreter's exit joins them for up to a flight's length after the
         # one-line message (Python 3.11 has no public terminate for a ProcessPoolExecutor).
+        with contextlib.suppress(ValueError):  # off the main thread signals stay as they are
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the workers' cleanup short
         workers = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
         for w in workers:
-            w.terminate()
+            w.terminate()  # SIGTERM: the flight raises Terminated and closes its session (_warm)
+        for w in workers:
+            w.join(timeout=10)
         raise
     pool.shutdown()
 

@@ -72,7 +72,10 @@ def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_s
     views = _slot_views(shm.buf, n_slots, camera.height_px, camera.width_px)
     try:
         while True:
-            msg = conn.recv()
+            try:
+                msg = conn.recv()
+            except (EOFError, OSError):  # the flight's process is gone without a "stop": leave quietly
+                break
             if msg[0] == "stop":
                 break
             _, pos, quat, jobs, style, sensor = msg

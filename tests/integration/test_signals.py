@@ -68,9 +68,12 @@ def test_publishing_never_deletes_a_folder_that_appeared_during_the_run(tmp_path
 
 
 def test_a_second_ctrl_c_while_a_sweep_shuts_down_adds_no_traceback(tmp_path):
-    """Ctrl-C twice (a user who presses again, or a `timeout` forwarding its own): still the one line, exit 130."""
+    """Ctrl-C twice during camera flights in a --jobs 2 sweep (a user who presses again, or a `timeout` forwarding
+    its own): the one line, exit 130; the flights in progress are stopped (their render workers leave quietly)."""
     out = tmp_path / "sweep"
-    cmd = [sys.executable, "-m", "mpcde", "sweep", "data/sweeps/tiny.yaml", "--out", str(out), "--jobs", "2", "--quiet"]
+    sweep = tmp_path / "cameras.yaml"
+    sweep.write_text("base: radio_outage\nseeds: 6\noverrides:\n  duration_s: 4.0\naxes:\n  planner.kind: [dmpc]\n")
+    cmd = [sys.executable, "-m", "mpcde", "sweep", str(sweep), "--out", str(out), "--jobs", "2", "--quiet"]
     p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, cwd=Path(__file__).resolve().parents[2])
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and not (out / "results.jsonl").exists():
