@@ -355,6 +355,19 @@ def main(argv: list[str] | None = None) -> int:
     return code
 
 
+def _signal_in_chain(e: BaseException) -> BaseException | None:
+    """The KeyboardInterrupt or Terminated that ``e`` was raised while handling (numba's dispatcher wraps one
+    raised by a signal handler during its call in a SystemError), or None."""
+    seen = set()
+    cur: BaseException | None = e
+    while cur is not None and id(cur) not in seen:
+        if isinstance(cur, (KeyboardInterrupt, Terminated)):
+            return cur
+        seen.add(id(cur))
+        cur = cur.__cause__ or cur.__context__
+    return None
+
+
 def _run(argv: list[str] | None) -> int:
     """:func:`main` up to its exit status."""
     args = build_parser().parse_args(argv)
@@ -368,6 +381,13 @@ def _run(argv: list[str] | None) -> int:
         except OSError as e:  # an output place that cannot be written
             sys.stderr.write(f"mpcde: error: --out={str(getattr(args, 'out', ''))!r}: {e.strerror or e} ({e.filename})\n")
             return EXIT_BAD_INPUT
+        except SystemError as e:  # a signal raised inside a compiled (numba) call surfaces wrapped in SystemError
+            signal_exc = _signal_in_chain(e)
+            if signal_exc is None:
+                raise
+            how = "interrupted" if isinstance(signal_exc, KeyboardInterrupt) else "terminated"
+            sys.stderr.write(f"mpcde: {how}, nothing written\n")
+            return EXIT_INTERRUPTED if isinstance(signal_exc, KeyboardInterrupt) else EXIT_TERMINATED
         except KeyboardInterrupt:
             sys.stderr.write("mpcde: interrupted, nothing written\n")
             return EXIT_INTERRUPTED

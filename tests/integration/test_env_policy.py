@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
@@ -52,7 +54,11 @@ def test_a_learner_among_five_mp_cde_drones_passes_check_env():
 
 
 def test_the_comm_policy_flies_the_crossing_over_the_env_radio():
-    env = SwarmParallelEnv("crossing", cameras=False, action="reference", observe=("pose", "goal", "radio"), duration_s=14.0)
+    # plain DMPC: the env broadcasts each learner's held action as a plan, which does not halt, so the
+    # committing comm stack's promise (dmpc.commit_when_unheard) does not carry over to the env's radio
+    cfg = mpcde.load_scenario("crossing", mode="comm", duration_s=14.0)
+    cfg = replace(cfg, dmpc=replace(cfg.dmpc, commit_when_unheard=False))
+    env = SwarmParallelEnv(cfg, cameras=False, action="reference", observe=("pose", "goal", "radio"))
     policy = StackPolicy("comm", env)
     obs, _ = env.reset(seed=0)
     heard = 0
