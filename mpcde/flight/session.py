@@ -83,6 +83,17 @@ class FlightSession:
         self, prepared: PreparedRun, agents: Sequence[OnboardAgent], budget: ComputeBudget,
         frame_sink: FrameSink | None = None, progress: bool = False,
     ) -> None:  # fmt: skip
+        self.world = self.pool = self.bar = None  # what close() frees, before anything can fail
+        self._threads = contextlib.ExitStack()
+        self._closed = False
+        try:
+            self._build(prepared, agents, budget, frame_sink, progress)
+        except BaseException:  # a bad argument, or a signal while starting: free what was built
+            self.close()
+            raise
+
+    def _build(self, prepared: PreparedRun, agents: Sequence[OnboardAgent], budget: ComputeBudget, frame_sink: FrameSink | None, progress: bool) -> None:
+        """The constructor's work (see the class docstring)."""
         from mpcde.flight.loop import RunLog
 
         cfg = self.config = prepared.config
@@ -127,17 +138,11 @@ class FlightSession:
         self.radio_rounds = 0
         self.arrived_at: float | None = None
         self.stopped = False
-        self._closed = False
         self._wall_s: float | None = None
-        self._threads = contextlib.ExitStack()  # torch on one thread while the loop runs (mpcde/onboard/detection.py)
-        if self.detector is not None:
+        if self.detector is not None:  # torch on one thread while the loop runs (mpcde/onboard/detection.py)
             self._threads.enter_context(self.detector.single_threaded())
-        try:
-            self.wall0 = time.perf_counter()
-            self._events(world.time_s)  # the camera tick at t = 0 gives every agent its first pose estimate
-        except BaseException:
-            self.close()
-            raise
+        self.wall0 = time.perf_counter()
+        self._events(world.time_s)  # the camera tick at t = 0 gives every agent its first pose estimate
 
     @property
     def time_s(self) -> float:
@@ -256,7 +261,8 @@ class FlightSession:
                 self.budget.add("render", self.pool.render_s, self.pool.renders)
                 self.pool.close()
         finally:
-            self.world.close()
+            if self.world is not None:
+                self.world.close()
             if self.bar is not None:
                 self.bar.close()
 

@@ -122,17 +122,21 @@ class RenderPool:
         ctx = mp.get_context("spawn")
         H, W = camera.height_px, camera.width_px
         n_slots = spec.n_drones
-        for _ in range(n_workers):
-            shm = shared_memory.SharedMemory(create=True, size=max(1, n_slots * H * W * SLOT_BYTES_PER_PX))
-            parent, child = ctx.Pipe()
-            proc = ctx.Process(target=_worker_main, args=(child, spec, camera, shm.name, n_slots), daemon=True)
-            with main_module_hidden(), sigint_ignored():  # no __main__ guard needed (sim/spawn.py); no Ctrl-C traceback
-                proc.start()
-            child.close()
-            self._workers.append(proc)
-            self._conns.append(parent)
-            self._shms.append(shm)
-            self._views.append(_slot_views(shm.buf, n_slots, H, W))
+        try:  # a signal while starting (a stopped sweep flight) must not leave shared memory or workers behind
+            for _ in range(n_workers):
+                shm = shared_memory.SharedMemory(create=True, size=max(1, n_slots * H * W * SLOT_BYTES_PER_PX))
+                self._shms.append(shm)
+                parent, child = ctx.Pipe()
+                proc = ctx.Process(target=_worker_main, args=(child, spec, camera, shm.name, n_slots), daemon=True)
+                with main_module_hidden(), sigint_ignored():  # no __main__ guard needed (sim/spawn.py); no Ctrl-C traceback
+                    proc.start()
+                child.close()
+                self._workers.append(proc)
+                self._conns.append(parent)
+                self._views.append(_slot_views(shm.buf, n_slots, H, W))
+        except BaseException:
+            self.close()
+            raise
 
     def submit(
         self,
