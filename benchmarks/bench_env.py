@@ -35,9 +35,8 @@ import numpy as np
 
 import mpcde
 from mpcde.env import StackPolicy, SwarmParallelEnv
+from mpcde.env.policies import EXACT_REPLAY_OPTIONS
 
-EXACT = {"control_hz": 240.0, "action": "reference", "observe": ("pose", "goal", "camera", "detections"), "broadcast": False, "copy_images": False,
-         "terminate_on_collision": False, "terminate_on_arrival": False, "max_speed_mps": 20.0, "max_accel_mps2": 50.0, "max_yaw_rate_rps": 20.0}  # fmt: skip
 
 
 def random_steps(env, steps: int, seed: int) -> tuple[float, int]:
@@ -90,7 +89,7 @@ def same_flight_with_cameras(duration_s: float, repeats: int) -> tuple[float, fl
         t0 = time.perf_counter()
         m = mpcde.fly(cfg).metrics
         fly_rtf.append(m["sim_time_s"] / (time.perf_counter() - t0))
-        env = SwarmParallelEnv(cfg, options=EXACT)
+        env = SwarmParallelEnv(cfg, options=EXACT_REPLAY_OPTIONS)
         policy = StackPolicy("denied", env)
         t0 = time.perf_counter()
         obs, _ = env.reset(seed=0)

@@ -25,10 +25,10 @@ from mpcde.env.observations import ObservationBuilder
 from mpcde.env.options import EnvOptions
 from mpcde.env.rewards import StepOutcome, default_reward
 from mpcde.errors import ConfigError
+from mpcde.flight.session import EPS_S
 
 __all__ = ["EnvCore", "load_env_scenario"]
 
-EPS_S = 1e-9
 CEILING_M = 10.0
 """Lowest top of the reference action's flying box [m] (it is raised to twice the highest start or goal)."""
 
@@ -104,11 +104,24 @@ class EnvCore:
         )
         self.observations = ObservationBuilder(cfg, options, intrinsics(cfg.camera), n)
         self.session = None
+        self._seeds: np.random.Generator | None = None  # draws the seeds of unseeded resets
         self._composer = None
         self.drones: dict[str, ExternalDrone] = {}
-        self.episode_seed = cfg.seed
 
     # episodes -----------------------------------------------------------------
+    def episode_seed(self, seed: int | None) -> int:
+        """The scenario seed of the next episode: ``seed`` when given (it also seeds the draws of later
+        unseeded resets); otherwise the scenario's own seed first, then seeds drawn from the last given one."""
+        if seed is not None:
+            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32:
+                raise ConfigError("seed", seed, "an integer in [0, 2^32)")
+            self._seeds = np.random.default_rng(int(seed))
+            return int(seed)
+        if self._seeds is None:
+            self._seeds = np.random.default_rng(self.cfg.seed)
+            return int(self.cfg.seed)
+        return int(self._seeds.integers(0, 2**32))
+
     def start(self, seed: int) -> dict[str, dict]:
         """Close any running episode and start one with scenario seed ``seed``; the learners' first observations."""
         from mpcde.flight.loop import prepare_run
@@ -121,7 +134,7 @@ class EnvCore:
         prepared = prepare_run(cfg) if cfg.seed != self.prepared.config.seed else self.prepared
         if prepared.starts.shape[0] != self.n:
             raise ConfigError("seed", seed, f"a seed whose layout has {self.n} drones, as the spaces were built for")
-        self.prepared, self.episode_seed = prepared, int(seed)
+        self.prepared = prepared  # its config's seed is the episode's
         budget = ComputeBudget()
         o = self.options
         perceive = any(k in o.observe for k in ("tracks", "detections"))

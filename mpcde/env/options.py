@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from sim.checks import ConfigError
+from sim.checks import ConfigError, require_in
 
 __all__ = ["ACTION_MODES", "OBSERVATIONS", "EnvOptions"]
 
@@ -87,7 +87,7 @@ class EnvOptions:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "observe", tuple(self.observe) if isinstance(self.observe, (list, tuple)) else self.observe)
-        _number("control_hz", self.control_hz, 1.0, 1000.0)
+        require_in("env.control_hz", self.control_hz, 1.0, 1000.0)
         if self.action not in ACTION_MODES:
             raise ConfigError("env.action", self.action, f"one of {', '.join(ACTION_MODES)}")
         if not isinstance(self.observe, tuple) or not self.observe or any(k not in OBSERVATIONS for k in self.observe):
@@ -103,19 +103,14 @@ class EnvOptions:
         for name in ("track_slots", "detection_slots", "plan_slots"):
             _integer(name, getattr(self, name), 1, 64)
         _integer("plan_samples", self.plan_samples, 2, 64)
-        _number("plan_horizon_s", self.plan_horizon_s, 0.1, 30.0)
-        _number("max_speed_mps", self.max_speed_mps, 0.1, 20.0)
-        _number("max_accel_mps2", self.max_accel_mps2, 0.1, 50.0)
-        _number("max_yaw_rate_rps", self.max_yaw_rate_rps, 0.1, 20.0)
+        require_in("env.plan_horizon_s", self.plan_horizon_s, 0.1, 30.0)
+        require_in("env.max_speed_mps", self.max_speed_mps, 0.1, 20.0)
+        require_in("env.max_accel_mps2", self.max_accel_mps2, 0.1, 50.0)
+        require_in("env.max_yaw_rate_rps", self.max_yaw_rate_rps, 0.1, 20.0)
         if self.invalid_action not in INVALID_ACTIONS:
             raise ConfigError("env.invalid_action", self.invalid_action, f"one of {', '.join(INVALID_ACTIONS)}")
         for name in ("progress_weight", "collision_penalty", "arrival_bonus"):
-            _number(name, getattr(self, name), 0.0, 1e6)
-
-
-def _number(name: str, value: object, low: float, high: float) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (low <= value <= high):
-        raise ConfigError(f"env.{name}", value, f"a number in [{low:g}, {high:g}]")
+            require_in(f"env.{name}", getattr(self, name), 0.0, 1e6)
 
 
 def _integer(name: str, value: object, low: int, high: int) -> None:

@@ -79,7 +79,6 @@ class SwarmParallelEnv(ParallelEnv):
         self._obs_space = self.core.observations.space
         self._act_spaces = {a: spaces.Box(self.core.low, self.core.high, dtype=np.float64) for a in self.possible_agents}
         self._obs_spaces = {a: self._obs_space for a in self.possible_agents}
-        self._seeds: np.random.Generator | None = None
 
     @functools.lru_cache(maxsize=None)
     def observation_space(self, agent: str) -> spaces.Space:
@@ -93,8 +92,7 @@ class SwarmParallelEnv(ParallelEnv):
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         """Start an episode (``seed``: the scenario seed); the first observations and empty infos."""
-        episode_seed = _episode_seed(self, seed)
-        obs = self.core.start(episode_seed)
+        obs = self.core.start(self.core.episode_seed(seed))
         self.agents = list(self.core.live)
         return obs, {a: {} for a in self.agents}
 
@@ -116,18 +114,3 @@ class SwarmParallelEnv(ParallelEnv):
     def close(self) -> None:
         """Free PyBullet and the render pool."""
         self.core.close()
-
-
-def _episode_seed(env: Any, seed: int | None) -> int:
-    """The scenario seed of the next episode (module docstring's rule)."""
-    if seed is not None:
-        from mpcde.errors import ConfigError
-
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32:
-            raise ConfigError("seed", seed, "an integer in [0, 2^32)")
-        env._seeds = np.random.default_rng(int(seed))
-        return int(seed)
-    if env._seeds is None:
-        env._seeds = np.random.default_rng(env.core.cfg.seed)
-        return int(env.core.cfg.seed)
-    return int(env._seeds.integers(0, 2**32))

@@ -41,9 +41,18 @@ from mpcde.errors import ConfigError
 from perception.types import Detection
 from sim.types import PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
 
-__all__ = ["StackPolicy"]
+__all__ = ["EXACT_REPLAY_OPTIONS", "StackPolicy"]
 
-EPS_S = 1e-9
+EPS_S = 1e-9  # the session's tolerance on its rates' ticks (mpcde.flight.session.EPS_S; not importable here: onboard rule)
+
+EXACT_REPLAY_OPTIONS: dict[str, Any] = {
+    "control_hz": 240.0, "action": "reference", "observe": ("pose", "goal", "camera", "detections"), "broadcast": False,
+    "copy_images": False, "terminate_on_collision": False, "terminate_on_arrival": False,
+    "max_speed_mps": 20.0, "max_accel_mps2": 50.0, "max_yaw_rate_rps": 20.0,
+}  # fmt: skip
+"""EnvOptions under which the ``denied`` policy flies exactly ``mpcde fly``'s flight (module docstring):
+the physics rate, a silent radio, detections for the env's scored tracker, no early terminations, and bounds
+wide enough for any reference the stack flies (one read-only image copy per frame: 240 Hz steps)."""
 
 
 class StackPolicy:

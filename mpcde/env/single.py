@@ -26,7 +26,6 @@ from gymnasium import spaces
 from mpcde.config.scenario import ScenarioConfig
 from mpcde.env.core import EnvCore, load_env_scenario, options_from
 from mpcde.env.options import EnvOptions
-from mpcde.env.parallel import _episode_seed
 from mpcde.env.rewards import StepOutcome
 
 __all__ = ["NEIGHBOUR_MODES", "SingleDroneEnv"]
@@ -70,12 +69,11 @@ class SingleDroneEnv(gym.Env):
         self.action_space = spaces.Box(self.core.low, self.core.high, dtype=np.float64)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": opts.control_hz}
-        self._seeds: np.random.Generator | None = None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         """Start an episode (``seed``: the scenario seed); the learner's first observation and an empty info."""
         super().reset(seed=seed)
-        obs = self.core.start(_episode_seed(self, seed))
+        obs = self.core.start(self.core.episode_seed(seed))
         return obs[self.agent], {}
 
     def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:

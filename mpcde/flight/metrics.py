@@ -33,7 +33,7 @@ from sim.ground_truth import TrueState
 from sim.obstacles import ObstacleField
 from sim.types import ObstacleSpec
 
-__all__ = ["MetricsAccumulator", "formation_metrics"]
+__all__ = ["MetricsAccumulator", "formation_metrics", "pose_error_m"]
 
 
 def formation_metrics(pos_world: np.ndarray, goals_world: np.ndarray) -> dict[str, float | None]:
@@ -171,3 +171,12 @@ class MetricsAccumulator:
         }
         out.update(extra or {})
         return out
+
+
+def pose_error_m(arrays: dict[str, np.ndarray]) -> dict[str, float | None]:
+    """The drones' pose-estimate position error over the logged flight [m]: mean, max, and mean at the end (drift)."""
+    est, true = arrays.get("est_pos_world"), arrays.get("pos_world")
+    if est is None or true is None or est.ndim != 3 or not est.size:
+        return {"pose_error_mean_m": None, "pose_error_max_m": None, "pose_error_final_m": None}
+    err = np.linalg.norm(est - true, axis=-1)  # (T, N)
+    return {"pose_error_mean_m": float(err.mean()), "pose_error_max_m": float(err.max()), "pose_error_final_m": float(err[-1].mean())}

@@ -35,7 +35,8 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
-from mpcde.flight.metrics import MetricsAccumulator, formation_metrics
+from mpcde.flight.metrics import MetricsAccumulator, formation_metrics, pose_error_m
+from mpcde.flight.run_types import RunLog, RunResult
 from mpcde.flight.tracking_score import TrackingScore
 from mpcde.onboard.base import OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
@@ -54,7 +55,7 @@ from sim.world import World
 
 if TYPE_CHECKING:
     from mpcde.config.scenario import ScenarioConfig
-    from mpcde.flight.loop import PreparedRun, RunLog, RunResult
+    from mpcde.flight.run_types import PreparedRun
 
 __all__ = ["FlightSession", "FrameSink"]
 
@@ -94,8 +95,6 @@ class FlightSession:
 
     def _build(self, prepared: PreparedRun, agents: Sequence[OnboardAgent], budget: ComputeBudget, frame_sink: FrameSink | None, progress: bool) -> None:
         """The constructor's work (see the class docstring)."""
-        from mpcde.flight.loop import RunLog
-
         cfg = self.config = prepared.config
         self.prepared = prepared
         n = self.n = prepared.starts.shape[0]
@@ -268,8 +267,6 @@ class FlightSession:
 
     def result(self) -> RunResult:
         """Close the session and return what the flight produced: the metrics of ``metrics.json`` and the log."""
-        from mpcde.flight.loop import RunResult, pose_error_m
-
         self.close()
         cfg, prepared, agents = self.config, self.prepared, self.agents
         extra: dict[str, Any] = {

@@ -11,19 +11,18 @@ from pettingzoo.test import parallel_api_test
 
 import mpcde
 from mpcde.env import SingleDroneEnv, StackPolicy, SwarmParallelEnv
+from mpcde.env.policies import EXACT_REPLAY_OPTIONS
 from mpcde.sweep.store import WALL_CLOCK_KEYS
 
 pytestmark = pytest.mark.slow
 
-EXACT = {"control_hz": 240.0, "action": "reference", "observe": ("pose", "goal", "camera", "detections"), "broadcast": False, "copy_images": False,
-         "terminate_on_collision": False, "terminate_on_arrival": False, "max_speed_mps": 20.0, "max_accel_mps2": 50.0, "max_yaw_rate_rps": 20.0}  # fmt: skip
 
 
 def test_the_denied_policy_flies_the_flight_of_mpcde_fly():
     """Same seed: the env driven by the denied policy gives the states and metrics of `mpcde fly --mode denied`."""
     cfg = mpcde.load_scenario("forest_swarm", mode="denied", seed=3, duration_s=2.5)
     fly = mpcde.fly(cfg)
-    env = SwarmParallelEnv(cfg, options=EXACT)
+    env = SwarmParallelEnv(cfg, options=EXACT_REPLAY_OPTIONS)
     policy = StackPolicy("denied", env)
     obs, _ = env.reset(seed=3)
     while env.agents:
