@@ -90,6 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
     tde.add_argument("--frames", type=int, default=800, help="held-out test frames to render and score")
     tde.add_argument("--workers", type=int, default=2, help="render processes")
     tde.add_argument("--renderer", choices=["tiny", "raycast"], default=None, help="renderer of the held-out frames (default: camera.renderer's default, raycast)")
+    tde.add_argument("--precision", choices=["auto", "float32", "bfloat16"], default="auto", help="detector arithmetic, as perception.detector_precision (auto: bfloat16 on a CPU with native bfloat16)")
     tde.add_argument("--quiet", action="store_true")
     ev = sub.add_parser("eval-tracking", help="evaluate the tracker (AKF vs KF) and write results.json")
     ev.add_argument("--out", required=True, type=Path)
@@ -211,7 +212,7 @@ def _cmd_eval_detector(args: argparse.Namespace) -> int:
     _at_least("--frames", args.frames, 1)
     _at_least("--workers", args.workers, 1)
     _check_out_dir(args.out)
-    run_eval_detector(args.out, weights=args.weights, n_frames=args.frames, progress=not args.quiet, workers=args.workers, renderer=args.renderer)
+    run_eval_detector(args.out, weights=args.weights, n_frames=args.frames, progress=not args.quiet, workers=args.workers, renderer=args.renderer, precision=args.precision)
     print((args.out / "results.txt").read_text().rstrip())
     print(f"-> {args.out / 'results.json'}")
     return 0

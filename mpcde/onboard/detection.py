@@ -9,6 +9,14 @@ detections with its frame. Only agents that ask for detections (a
 ``detector_request`` that is not None) are served; with none, no detector is
 loaded.
 
+Where it runs: with render workers, each worker runs the detector over its
+share of a tick's frames right after rendering them (:func:`frame_detector`,
+the render pool's frame processor; the main process then only reads the
+boxes), which moves the network off the main process's core (measured in
+``docs/results/realtime.md``). With none (``run.render_workers: 0``) the main
+process runs :meth:`BatchedDetector.detect`. A frame's detections do not
+depend on where they ran beyond float rounding of the batch size.
+
 Threads: in flight the detector shares the machine with the render workers,
 so :meth:`BatchedDetector.single_threaded` runs torch on one intra-op thread
 for the flight. With torch's default (one thread per core) its OpenMP team
@@ -27,7 +35,7 @@ from mpcde.errors import ConfigError
 from perception.types import Detection
 from sim.types import RgbdFrame
 
-__all__ = ["BatchedDetector", "DetectorRequest"]
+__all__ = ["BatchedDetector", "DetectorRequest", "frame_detector"]
 
 
 class BatchedDetector:
@@ -44,10 +52,11 @@ class BatchedDetector:
         from perception.detector.detector import DroneDetector
 
         try:
-            self.detector = DroneDetector.load(request.weights)
+            self.detector = DroneDetector.load(request.weights, precision=request.precision)
         except ValueError as exc:
             raise ConfigError(request.field, request.weights, str(exc).split(": ", 1)[-1]) from None
         self.score_threshold = request.score_threshold
+        self.request = request
 
     @classmethod
     def for_agents(cls, agents: Sequence[object]) -> "BatchedDetector | None":
@@ -80,3 +89,22 @@ class BatchedDetector:
             for i, dets in zip(idx, self.detector.detect([frames[i] for i in idx], self.score_threshold)):
                 out[i] = dets
         return out
+
+
+def frame_detector(request: DetectorRequest):  # noqa: ANN201 - sim.rendering.pool.FrameProcessor
+    """A render worker's detector: loads ``request``'s checkpoint once, torch on one thread.
+
+    Returns:
+        ``run(rgbs, depths) -> [list[Detection], ...]``, one list per frame
+        (:data:`sim.rendering.pool.FrameProcessor`), at the request's threshold.
+    """
+    import torch
+
+    torch.set_num_threads(1)  # one worker per core: an OpenMP team would spin on the other worker's core
+    detector = BatchedDetector(request).detector
+    threshold = detector.score_threshold if request.score_threshold is None else float(request.score_threshold)
+
+    def run(rgbs, depths):  # noqa: ANN001, ANN202
+        return detector.detect_images(rgbs, depths, threshold)
+
+    return run

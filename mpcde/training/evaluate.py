@@ -284,6 +284,7 @@ def run_eval_detector(
     progress: bool = True,
     workers: int = 2,
     renderer: str | None = None,
+    precision: str = "auto",
 ) -> dict:
     """Render held-out frames, detect, score, back-project; write the results (see the module docstring).
 
@@ -297,6 +298,8 @@ def run_eval_detector(
         workers: render processes (1: in-process).
         renderer: ``camera.renderer`` of the held-out renders (None: the camera's default;
             ``"tiny"``: the renderer the shipped detector was trained on).
+        precision: the detector's arithmetic ("auto", "float32", "bfloat16"; as a flight's
+            ``perception.detector_precision``).
 
     Returns:
         The results dict written to ``results.json``.
@@ -314,7 +317,7 @@ def run_eval_detector(
     bad = [s for s in seeds if not lo <= int(s) < lo + SPLIT_SIZE]
     if bad:
         raise ConfigError("seeds", bad[0], f"held-out test scene seeds in [{lo}, {lo + SPLIT_SIZE})")
-    detector = DroneDetector.load(weights)
+    detector = DroneDetector.load(weights, precision=precision)
 
     frames: list[LabelledFrame] = []
     bar = tqdm(total=n_frames, disable=not progress, desc="render test")
@@ -355,6 +358,7 @@ def run_eval_detector(
         "n_frames": len(frames),
         "scene_seeds": [int(seeds[0]), int(seeds[-1])],
         "weights": str(weights) if weights is not None else "data/detector/drone_detector.pt",
+        "precision": detector.precision,
     }
     bp = _backprojection_table(frames, detections, data, detector.score_threshold)
     w5, w8 = extra["within_5m"], extra["within_8m"]
@@ -362,7 +366,7 @@ def run_eval_detector(
         f"\nwithin 5 m: precision {_fmt(w5['precision'], 0)} recall {_fmt(w5['recall'], 0)} AP@0.5 {_fmt(w5['ap50'], 0)} (n {w5['n']})"
         f"\nwithin 8 m: precision {_fmt(w8['precision'], 0)} recall {_fmt(w8['recall'], 0)} AP@0.5 {_fmt(w8['ap50'], 0)} (n {w8['n']})"
         f"\nframes {extra['n_frames']}, test scene seeds {extra['scene_seeds']}, score threshold {extra['score_threshold']}, "
-        f"weights {extra['weights']}\n"
+        f"weights {extra['weights']}, precision {extra['precision']}\n"
     )
     with staged_output(Path(out_dir)) as stage:  # all-or-nothing: moved into out_dir when complete
         (stage / "results.json").write_text(json.dumps(json_safe(results), indent=2))

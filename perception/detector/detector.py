@@ -2,7 +2,9 @@
 
 :class:`DroneDetector` wraps :class:`~perception.detector.model.DetectorNet`
 with its BatchNorms folded, in channels-last layout under
-``torch.inference_mode``, traced and frozen by ``torch.jit`` once per input
+``torch.inference_mode``, in float32 or bfloat16 (``precision``; "auto" takes
+bfloat16 where the CPU computes it natively, see :func:`native_bfloat16`),
+traced and frozen by ``torch.jit`` once per input
 shape (``optimize_for_inference`` fuses conv + ReLU; eager when
 ``compile_graph=False``); one forward pass serves every frame handed to
 :meth:`DroneDetector.detect` (one per drone of a swarm tick). It reads only
@@ -26,14 +28,49 @@ import torch
 
 from perception.detector.allocator import keep_large_allocations
 from perception.detector.decode import decode_outputs
-from perception.detector.model import DetectorNet, ModelConfig, encode_frames, fold_batchnorm
+from perception.detector.encode_kernel import encode_channels_last
+from perception.detector.model import DetectorNet, ModelConfig, fold_batchnorm
 from perception.types import Detection
 from sim.types import RgbdFrame
 
-__all__ = ["CHECKPOINT_FORMAT", "DEFAULT_WEIGHTS", "DroneDetector"]
+__all__ = ["CHECKPOINT_FORMAT", "DEFAULT_WEIGHTS", "PRECISIONS", "DroneDetector", "native_bfloat16", "resolve_precision"]
 
 CHECKPOINT_FORMAT = "mpcde-drone-detector-v1"
 DEFAULT_WEIGHTS = Path(__file__).resolve().parents[2] / "data" / "detector" / "drone_detector.pt"
+PRECISIONS = ("auto", "float32", "bfloat16")
+"""Arithmetic of the network's forward pass; "auto" resolves by :func:`resolve_precision`."""
+_BF16_CPU_FLAGS = ("avx512_bf16", "amx_bf16")
+
+
+def native_bfloat16(cpuinfo: str | None = None) -> bool:
+    """Whether this CPU has bfloat16 dot-product instructions (``avx512_bf16`` or ``amx_bf16``; Linux only).
+
+    oneDNN runs a bfloat16 convolution on such a CPU at about twice the float32
+    rate (the detector's forward pass: docs/results/detector.md); elsewhere it
+    would emulate bfloat16 or refuse it, so "auto" keeps float32 there.
+
+    Args:
+        cpuinfo: text of ``/proc/cpuinfo`` (read when None; absent: False).
+    """
+    if cpuinfo is None:
+        try:
+            cpuinfo = Path("/proc/cpuinfo").read_text()
+        except OSError:
+            return False
+    flags = set()
+    for line in cpuinfo.splitlines():
+        if line.startswith("flags"):
+            flags.update(line.split(":", 1)[-1].split())
+    return any(f in flags for f in _BF16_CPU_FLAGS) and torch.backends.mkldnn.is_available()
+
+
+def resolve_precision(precision: str) -> str:
+    """"float32" or "bfloat16" for one of :data:`PRECISIONS` ("auto": bfloat16 iff :func:`native_bfloat16`)."""
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision={precision!r}: one of {', '.join(PRECISIONS)}")
+    if precision == "auto":
+        return "bfloat16" if native_bfloat16() else "float32"
+    return precision
 
 
 def _bad_weights(path: Path, why: str) -> ValueError:
@@ -49,10 +86,19 @@ class DroneDetector:
         max_detections: most detections per frame.
         nms_iou: IoU threshold of non-maximum suppression.
         compile_graph: run a traced, frozen graph (per input shape) instead of eager PyTorch.
+        precision: the forward pass's arithmetic, "float32" or "bfloat16" (resolved from the
+            constructor's argument, one of :data:`PRECISIONS`). Encoding, decoding and the
+            boxes stay float32 / float64; only the convolutions run in bfloat16.
     """
 
     def __init__(
-        self, net: DetectorNet, score_threshold: float, max_detections: int = 20, nms_iou: float = 0.5, compile_graph: bool = False
+        self,
+        net: DetectorNet,
+        score_threshold: float,
+        max_detections: int = 20,
+        nms_iou: float = 0.5,
+        compile_graph: bool = False,
+        precision: str = "float32",
     ) -> None:
         if not 0.0 <= score_threshold <= 1.0:
             raise ValueError(f"score_threshold={score_threshold!r}: in [0, 1]")
@@ -60,7 +106,9 @@ class DroneDetector:
             raise ValueError(f"max_detections={max_detections!r}: an integer >= 1")
         if not 0.0 < nms_iou <= 1.0:
             raise ValueError(f"nms_iou={nms_iou!r}: in (0, 1]")
-        self.net = fold_batchnorm(net).to(memory_format=torch.channels_last)
+        self.precision = resolve_precision(precision)
+        self._dtype = torch.bfloat16 if self.precision == "bfloat16" else torch.float32
+        self.net = fold_batchnorm(net).to(memory_format=torch.channels_last, dtype=self._dtype)
         self.score_threshold = float(score_threshold)
         self.max_detections = max_detections
         self.nms_iou = nms_iou
@@ -86,8 +134,8 @@ class DroneDetector:
         return graph(x)
 
     @classmethod
-    def load(cls, path: str | Path | None = None) -> "DroneDetector":
-        """Load a checkpoint (default: the shipped ``data/detector/drone_detector.pt``).
+    def load(cls, path: str | Path | None = None, precision: str = "float32") -> "DroneDetector":
+        """Load a checkpoint (default: the shipped ``data/detector/drone_detector.pt``) to run at ``precision``.
 
         Raises:
             ValueError: one line ``detector weights=<path>: missing`` or
@@ -109,7 +157,7 @@ class DroneDetector:
         except (KeyError, TypeError, ValueError, RuntimeError) as exc:
             why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise _bad_weights(path, f"not a valid mpcde detector checkpoint ({why[:120]})") from None
-        return cls(net, threshold)
+        return cls(net, threshold, precision=precision)
 
     @property
     def in_channels(self) -> int:
@@ -137,10 +185,20 @@ class DroneDetector:
         thr = self.score_threshold if score_threshold is None else float(score_threshold)
         if not 0.0 <= thr <= 1.0:
             raise ValueError(f"score_threshold={thr!r}: in [0, 1]")
-        rgb = np.stack([f.rgb for f in frames])
-        depth = np.stack([f.depth_m for f in frames]) if self.in_channels == 4 else None
+        return self.detect_images([f.rgb for f in frames], [f.depth_m for f in frames], thr)
+
+    def detect_images(self, rgbs: Sequence[np.ndarray], depths: Sequence[np.ndarray], score_threshold: float) -> list[list[Detection]]:
+        """:meth:`detect` on bare images: B rgb (H, W, 3) uint8 and B depth (H, W) [m] (NaN invalid), H, W multiples of 16.
+
+        For callers that hold a drone's images without its frame (a render
+        worker, :func:`mpcde.onboard.detection.frame_detector`); the arguments are
+        not checked again.
+        """
+        if len(rgbs) == 0:
+            return []
+        shape = tuple(rgbs[0].shape[:2])
         with torch.inference_mode():
-            x = encode_frames(rgb, depth, self.in_channels).contiguous(memory_format=torch.channels_last)
-            out = self._forward(x)
-            decoded = decode_outputs(out, thr, self.max_detections, self.nms_iou, image_shape_px=shape)
+            x = encode_channels_last(rgbs, depths if self.in_channels == 4 else None, self.in_channels).to(self._dtype)
+            out = self._forward(x).float()
+            decoded = decode_outputs(out, score_threshold, self.max_detections, self.nms_iou, image_shape_px=shape)
         return [[Detection(box_xyxy=b, score=float(s)) for b, s in zip(boxes, scores)] for boxes, scores in decoded]

@@ -139,5 +139,6 @@ def encode_frames(rgb: np.ndarray, depth_m: np.ndarray | None, in_channels: int)
         return x
     if depth_m is None:
         raise ValueError("depth_m=None: an RGB-D model needs depth (B, H, W)")
-    d = torch.from_numpy(np.asarray(depth_m, np.float32)).nan_to_num_(nan=DEPTH_SCALE_M).clamp_(0.0, DEPTH_SCALE_M).mul_(1.0 / DEPTH_SCALE_M)
+    d = torch.from_numpy(np.array(depth_m, np.float32))  # a copy: the in-place ops below never touch the caller's array
+    d = d.nan_to_num_(nan=DEPTH_SCALE_M).clamp_(0.0, DEPTH_SCALE_M).mul_(1.0 / DEPTH_SCALE_M)
     return torch.cat([x, d[:, None]], dim=1)

@@ -183,3 +183,42 @@ def test_allocator_thresholds_are_applied_once_on_glibc():
     assert keep_large_allocations() is first
     if platform.system() == "Linux" and platform.libc_ver()[0] == "glibc":
         assert first is True
+
+
+def test_compiled_encoding_equals_the_torch_encoding_and_leaves_the_input_alone():
+    """encode_channels_last (one compiled pass) == encode_frames (the oracle), special depths included."""
+    from perception.detector.encode_kernel import encode_channels_last
+    from perception.detector.model import encode_frames
+
+    rng = np.random.default_rng(0)
+    rgb = rng.integers(0, 256, (3, 16, 32, 3), dtype=np.uint8)
+    depth = rng.uniform(-1.0, 12.0, (3, 16, 32)).astype(np.float32)
+    depth[0, 0, :5] = [np.nan, np.inf, -np.inf, 10.0, 0.0]
+    before = depth.copy()
+    fast = encode_channels_last(list(rgb), list(depth), 4)
+    assert fast.is_contiguous(memory_format=torch.channels_last)
+    assert torch.equal(fast, encode_frames(rgb, depth, 4))
+    assert torch.equal(encode_channels_last(list(rgb), None, 3), encode_frames(rgb, None, 3))
+    np.testing.assert_array_equal(depth, before)  # neither encoder writes into the caller's depth
+
+
+def test_bfloat16_detector_finds_the_same_drones_as_float32(rendered):
+    """Same boxes to 1 px and scores to 0.02 at the shipped threshold (bfloat16 keeps 8 mantissa bits)."""
+    frames, _, _ = rendered
+    f32 = DroneDetector.load(precision="float32").detect(frames)
+    b16 = DroneDetector.load(precision="bfloat16").detect(frames)
+    for a, b in zip(f32, b16):
+        assert len(a) == len(b)
+        for da, db in zip(a, b):
+            assert np.allclose(da.box_xyxy, db.box_xyxy, atol=1.0) and abs(da.score - db.score) < 0.02
+
+
+def test_precision_auto_follows_the_cpu_flags():
+    from perception.detector.detector import native_bfloat16, resolve_precision
+
+    assert native_bfloat16("processor\t: 0\nflags\t\t: fpu sse2 avx2 avx512f avx512_bf16\n") == torch.backends.mkldnn.is_available()
+    assert not native_bfloat16("flags\t\t: fpu sse2 avx2 avx512f\n")
+    assert resolve_precision("auto") in ("float32", "bfloat16")
+    assert resolve_precision("float32") == "float32"
+    with pytest.raises(ValueError, match="precision='half'"):
+        resolve_precision("half")
