@@ -72,18 +72,19 @@ def forest_frame(trees: np.ndarray) -> RgbdFrame:
 
 
 def insert_numpy(m: OccupancyMap, frame: RgbdFrame) -> None:
-    """Baseline insertion: sample each ray every half voxel, deduplicate with np.unique, hit wins."""
+    """Baseline insertion: sample the same rays (each from its start fraction) every half voxel, deduplicate with np.unique, hit wins."""
     cfg = m.config
     T = frame.transform_camera_to_world
     m.recenter(T[:3, 3])
-    ends_cam, is_hit = m._rays_camera(frame, ())
+    ends_cam, is_hit, start = m._rays_camera(frame, ())
     ends = ends_cam @ T[:3, :3].T + T[:3, 3]
-    o = (T[:3, 3] - m.origin_world) / cfg.voxel_m
+    o0 = (T[:3, 3] - m.origin_world) / cfg.voxel_m
     e = (ends - m.origin_world) / cfg.voxel_m
+    o = o0 + (e - o0) * start[:, None]  # an untraversed hit ray starts at its tail
     n_s = np.maximum(1, np.ceil(2 * np.linalg.norm(e - o, axis=1)).astype(np.int64))
     ray = np.repeat(np.arange(len(e)), n_s)
     k = np.arange(n_s.sum()) - np.repeat(np.cumsum(n_s) - n_s, n_s)
-    pts = o + (e[ray] - o) * (k / n_s[ray])[:, None]
+    pts = o[ray] + (e[ray] - o[ray]) * (k / n_s[ray])[:, None]
     shape = np.asarray(m._log_odds.shape)
     idx = np.floor(pts).astype(np.int64)
     inside = np.all((idx >= 0) & (idx < shape), axis=1)
@@ -182,7 +183,7 @@ def bench_backprojection(frame: RgbdFrame) -> None:
     T = frame.transform_camera_to_world
 
     def numpy_points() -> np.ndarray:
-        ends_cam, is_hit = m._rays_camera(frame, ())
+        ends_cam, is_hit, _ = m._rays_camera(frame, ())
         return ends_cam[is_hit] @ T[:3, :3].T + T[:3, 3]
 
     t_np = median_ms(numpy_points)

@@ -302,6 +302,29 @@ def _evaluate(coeffs, T, t, order):
     return out
 
 
+@njit(cache=True)
+def _pos_vel_acc(coeffs, T, t):
+    """Position, velocity and acceleration (3, 3) at one time ``t`` from the start (one piece lookup, one Horner pass)."""
+    m = T.shape[0]
+    tk = max(t, 0.0)
+    i = 0
+    while i < m - 1 and tk > T[i]:
+        tk -= T[i]
+        i += 1
+    tk = min(tk, T[i])
+    out = np.zeros((3, 3))
+    for d in range(3):
+        p = 0.0
+        v = 0.0
+        a = 0.0
+        for j in range(5, -1, -1):  # p, p', p'' by Horner together: a <- a t + 2 v, v <- v t + p, p <- p t + c_j
+            a = a * tk + 2.0 * v
+            v = v * tk + p
+            p = p * tk + coeffs[6 * i + j, d]
+        out[0, d], out[1, d], out[2, d] = p, v, a
+    return out
+
+
 class MincoTrajectory:
     """A MINCO trajectory: piece durations, coefficients and evaluation at times.
 
@@ -343,6 +366,14 @@ class MincoTrajectory:
     def acc(self, t: np.ndarray | float) -> np.ndarray:
         """Acceleration [m/s^2] at times ``t`` (n,) [s] from the start -> (n, 3)."""
         return self._at(t, 2)
+
+    def pos_vel_acc(self, t: float) -> np.ndarray:
+        """(3, 3) rows position [m], velocity [m/s], acceleration [m/s^2] at one time ``t`` [s] from the start.
+
+        The same values as :meth:`pos`, :meth:`vel` and :meth:`acc` (to rounding) in one compiled
+        call: what a 240 Hz reference reads six times per tick.
+        """
+        return _pos_vel_acc(self.coefficients, self.durations, float(t))
 
     def jerk(self, t: np.ndarray | float) -> np.ndarray:
         """Jerk [m/s^3] at times ``t`` (n,) [s] from the start -> (n, 3)."""

@@ -40,7 +40,7 @@ from mpcde.flight.run_types import RunLog, RunResult
 from mpcde.flight.tracking_score import TrackingScore
 from mpcde.onboard.base import OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
-from mpcde.onboard.detection import BatchedDetector
+from mpcde.onboard.detection import BatchedDetector, frame_detector
 from perception.types import Detection
 from sim.camera_rig import CameraRig
 from sim.faults import FaultInjector
@@ -116,8 +116,10 @@ class FlightSession:
         self.track_score = TrackingScore()
         self.metrics = MetricsAccumulator(prepared.goals, prepared.obstacles, cfg.physics.quadrotor.robot_radius_m, cfg.run.goal_tolerance_m)
         self.log: RunLog = RunLog()
-        self.workers = cfg.run.render_workers if cfg.run.render_workers >= 0 else (os.cpu_count() or 1)
-        self.pool = RenderPool(spec, cfg.camera, self.workers) if cfg.run.cameras else None
+        self.workers = cfg.run.render_workers if cfg.run.render_workers >= 0 else _default_workers(self.agents, self.detector is not None)
+        # the detector runs in the render workers when there are any (mpcde/onboard/detection.py)
+        processor = (frame_detector, self.detector.request) if self.detector is not None and self.workers > 0 else None
+        self.pool = RenderPool(spec, cfg.camera, self.workers, processor) if cfg.run.cameras else None
         self.bar = None
         if progress:
             from tqdm import tqdm
@@ -130,7 +132,7 @@ class FlightSession:
         self.invalid_px, self.pixels = 0, 0  # NaN depth pixels of the frames delivered, and all their pixels
         self.frame_index = 0
         self.in_flight: tuple[float, int, list, list] | None = None  # (capture time, index, estimates, true camera poses)
-        self.delivery: deque[tuple[float, list[RgbdFrame]]] = deque()
+        self.delivery: deque[tuple[float, list[RgbdFrame], list | None]] = deque()  # (capture time, frames, workers' detections)
         self.latest_frames: list[RgbdFrame | None] = [None] * n
         self.segmentations: list[GroundTruthSegmentation | None] = [None] * n
         self.truth = world.true_state()
@@ -138,7 +140,7 @@ class FlightSession:
         self.arrived_at: float | None = None
         self.stopped = False
         self._wall_s: float | None = None
-        if self.detector is not None:  # torch on one thread while the loop runs (mpcde/onboard/detection.py)
+        if self.detector is not None and processor is None:  # torch on one thread while the loop runs (mpcde/onboard/detection.py)
             self._threads.enter_context(self.detector.single_threaded())
         self.wall0 = time.perf_counter()
         self._events(world.time_s)  # the camera tick at t = 0 gives every agent its first pose estimate
@@ -200,7 +202,8 @@ class FlightSession:
                 if self.in_flight is not None:
                     self.delivery.append(self._finish_frames())
                 cams = [(i, self.rig.transform_camera_to_world(truth.pos_world[i], truth.rotation_body_to_world[i])) for i in range(self.n)]
-                pool.submit(truth.pos_world, truth.quat_xyzw, cams, sensor=(cfg.seed, self.frame_index))
+                detect = [i for i in range(self.n) if _wants_detections(agents[i], truth.failed[i])] if pool.has_processor else ()
+                pool.submit(truth.pos_world, truth.quat_xyzw, cams, sensor=(cfg.seed, self.frame_index), process=detect)
                 self.in_flight = (t, self.frame_index, estimates, [c[1] for c in cams])
                 self.frame_index += 1
             self.next_cam += self.cam_period
@@ -208,13 +211,17 @@ class FlightSession:
             self.delivery.append(self._finish_frames())
             self.in_flight = None
         while self.delivery and t >= self.delivery[0][0] + cfg.camera.latency_s - EPS_S:
-            _, frames = self.delivery.popleft()
+            _, frames, detected = self.delivery.popleft()
             if cfg.faults.any:
-                frames = [f for f in frames if not self.faults.frame_dropped(f.drone_id, f.time_s)]
+                kept = [k for k, f in enumerate(frames) if not self.faults.frame_dropped(f.drone_id, f.time_s)]
+                frames, detected = [frames[k] for k in kept], None if detected is None else [detected[k] for k in kept]
             self.invalid_px += sum(int(np.count_nonzero(np.isnan(f.depth_m))) for f in frames)
             self.pixels += sum(f.depth_m.size for f in frames)
-            with budget.measure("detect"):
-                detections = _detect(self.detector, frames, agents, truth.failed)
+            if detected is not None:  # the render workers ran the detector (a drone failed since capture: nothing)
+                detections = [None if truth.failed[f.drone_id] else d for f, d in zip(frames, detected)]
+            else:
+                with budget.measure("detect"):
+                    detections = _detect(self.detector, frames, agents, truth.failed)
             if cfg.faults.any:
                 detections = [None if d is None else _corrupt(self.faults, d) for d in detections]
             for f, dets in zip(frames, detections):
@@ -237,8 +244,8 @@ class FlightSession:
             self.radio_rounds += 1
             self.next_radio += self.radio_period
 
-    def _finish_frames(self) -> tuple[float, list[RgbdFrame]]:
-        """Collect the render batch in flight and turn it into onboard frames (+ truth labels)."""
+    def _finish_frames(self) -> tuple[float, list[RgbdFrame], list | None]:
+        """Collect the render batch in flight: onboard frames (+ truth labels), and the workers' detections if they ran it."""
         t_capture, index, estimates, true_poses = self.in_flight
         with self.budget.measure("render_wait"):
             raws = self.pool.collect()
@@ -246,7 +253,7 @@ class FlightSession:
         for i, raw in enumerate(raws):
             frames.append(self.rig.frame(i, index, t_capture, raw, estimates[i]))
             self.segmentations[i] = self.rig.segmentation(i, t_capture, raw, true_poses[i])
-        return t_capture, frames
+        return t_capture, frames, (list(self.pool.processed) if self.pool.has_processor else None)
 
     def close(self) -> None:
         """Free the render pool, PyBullet and the progress bar (idempotent); the wall clock stops here."""
@@ -258,6 +265,8 @@ class FlightSession:
             self._threads.close()
             if self.pool is not None:
                 self.budget.add("render", self.pool.render_s, self.pool.renders)
+                if self.pool.has_processor:
+                    self.budget.add("detect", self.pool.process_s, self.pool.processed_frames, off_main=True)
                 self.pool.close()
         finally:
             if self.world is not None:
@@ -274,6 +283,7 @@ class FlightSession:
             "frames_rendered": self.frame_index * self.n if self.pool is not None else 0,
             "render_workers": self.workers if self.pool is not None else None,
             "frames_received": int(sum(a.counters.frames for a in agents)),
+            "detector_precision": self.detector.detector.precision if self.detector is not None else None,
         }
         extra["compute_time"] = self.budget.result(self.world.time_s, self._wall_s)
         extra["faults"] = {
@@ -292,6 +302,21 @@ class FlightSession:
         return RunResult(cfg, prepared.obstacles, prepared.starts, prepared.goals, metrics, self.log)
 
 
+def _default_workers(agents: Sequence[OnboardAgent], detects: bool) -> int:
+    """Render workers for ``run.render_workers: -1``: one per core, or one fewer when the agents map their frames.
+
+    A mapping stack (``maps_frames``) keeps map insertion, the ESDF and planning
+    in the main process, which then needs a core to itself; the workers render
+    and, when a detector runs, detect on the rest. Measured on 2 cores
+    (docs/results/realtime.md): forest_swarm denied 0.98 with one worker
+    against 0.93 with two; comm and placeholder are faster with two.
+    """
+    cores = os.cpu_count() or 1
+    if detects and any(getattr(a, "maps_frames", False) for a in agents):
+        return max(cores - 1, 1)
+    return cores
+
+
 def _flies_formation(cfg: ScenarioConfig) -> bool:
     """Whether the planner keeps the goals' formation (then the metrics report chi)."""
     kind = cfg.planner.kind
@@ -302,8 +327,13 @@ def _detect(detector: BatchedDetector | None, frames: list[RgbdFrame], agents: l
     """Each frame's detections for the agents that ask for them (one batch), None for the others."""
     if detector is None:
         return [None] * len(frames)
-    wanted = [agents[f.drone_id].detector_request is not None and not failed[f.drone_id] for f in frames]
+    wanted = [_wants_detections(agents[f.drone_id], failed[f.drone_id]) for f in frames]
     return detector.detect(frames, wanted)
+
+
+def _wants_detections(agent: OnboardAgent, failed: bool) -> bool:
+    """Whether a drone's frame goes through the detector: its agent asks for detections and its computer is up."""
+    return getattr(agent, "detector_request", None) is not None and not failed
 
 
 def _corrupt(faults: FaultInjector, detections: list[Detection]) -> list[Detection]:

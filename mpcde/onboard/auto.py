@@ -79,6 +79,7 @@ class AutoAgent(OnboardAgent):
         self.comm, self.denied = comm, denied
         self.perception = denied.perception
         self.detector_request = denied.detector_request
+        self.maps_frames = denied.maps_frames  # its MP-CDE half maps every frame, in either mode
         self.counters = AgentCounters()
         self.mode = COMM
         self.last_heard_s: float | None = None  # newest send time heard (None: the first estimate's time)

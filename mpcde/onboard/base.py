@@ -52,12 +52,17 @@ class OnboardAgent(ABC):
         perception: the agent's neighbour tracks
             (:class:`mpcde.onboard.perception.NeighbourPerception`), which the
             loop scores against the truth for the metrics; None: it tracks nothing.
+        maps_frames: whether the agent integrates every frame into a map of its own
+            (MP-CDE's stacks): the heaviest per-frame work then stays in the flight's
+            main process, so by default the loop leaves it a core of its own and
+            renders (and detects) on the others (:class:`mpcde.flight.session.FlightSession`).
     """
 
     drone_id: int
     counters: "AgentCounters"
     detector_request: DetectorRequest | None = None
     perception: Any | None = None
+    maps_frames: bool = False
 
     @abstractmethod
     def on_pose_estimate(self, estimate: PoseEstimate) -> None:

@@ -17,7 +17,9 @@ was descheduled):
   the main process); ``render_wait``: wall time the main process blocked
   waiting for a render batch;
 * ``physics``: PyBullet step, SE(3) controller and motor model at 240 Hz;
-* ``detect``: the batched detector (pre-processing, forward, decoding);
+* ``detect``: the batched detector (pre-processing, forward, decoding); its
+  CPU time in the render workers when they run it (then, like ``render``, it
+  overlaps the main process), the main process's wall time otherwise;
 * ``track``: back-projection and the Kalman tracker;
 * ``map_insert``: depth-frame integration into the occupancy map;
 * ``esdf``: Euclidean distance transforms of the map;
@@ -51,11 +53,18 @@ class ComputeBudget:
     def __init__(self) -> None:
         self.total_s: dict[str, float] = {}
         self.calls: dict[str, int] = {}
+        self.off_main: set[str] = set(_OFF_MAIN)
 
-    def add(self, name: str, seconds: float, calls: int = 1) -> None:
-        """Add ``seconds`` [s] of wall time and ``calls`` calls to component ``name``."""
+    def add(self, name: str, seconds: float, calls: int = 1, off_main: bool = False) -> None:
+        """Add ``seconds`` [s] and ``calls`` calls to component ``name``.
+
+        ``off_main``: the seconds were spent outside the main process (CPU time of a
+        worker), so :meth:`result` does not subtract them from the main process's wall time.
+        """
         self.total_s[name] = self.total_s.get(name, 0.0) + float(seconds)
         self.calls[name] = self.calls.get(name, 0) + int(calls)
+        if off_main:
+            self.off_main.add(name)
 
     @contextmanager
     def measure(self, name: str) -> Iterator[None]:
@@ -75,7 +84,7 @@ class ComputeBudget:
         totals = dict(self.total_s)
         calls = dict(self.calls)
         if main_wall_s is not None:
-            on_main = sum(v for k, v in totals.items() if k not in _OFF_MAIN)
+            on_main = sum(v for k, v in totals.items() if k not in self.off_main)
             totals["other"] = max(main_wall_s - on_main, 0.0)
             calls["other"] = 1
         out = {}

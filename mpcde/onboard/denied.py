@@ -107,6 +107,7 @@ class DeniedAgent(OnboardAgent):
         self.counters = AgentCounters()
         self.stats = PlanningStats()
         self.map = OccupancyMap(config.map, on_esdf=lambda seconds: self.budget.add("esdf", seconds))
+        self.maps_frames = True
         self.trajectory: MincoTrajectory | None = None
         self.braking = False  # whether self.trajectory is a stopping piece (committed until a replan succeeds)
         self.last_plan_time_s = -np.inf
@@ -148,11 +149,11 @@ class DeniedAgent(OnboardAgent):
             frame: this drone's frame.
             detections: the boxes this drone's detector found in ``frame`` (None: no detector ran).
         """
-        snap = self.observe(frame, detections)
-        self.plan_step(frame.time_s, snap)
+        self.observe(frame, detections)
+        self.plan_step(frame.time_s)
 
-    def observe(self, frame: RgbdFrame, detections: list[Detection] | None = None) -> OccupancySnapshot:
-        """Track the detected neighbours and map the frame (no planning); returns the map's snapshot.
+    def observe(self, frame: RgbdFrame, detections: list[Detection] | None = None) -> None:
+        """Track the detected neighbours and map the frame (no planning).
 
         The ``auto`` agent calls this alone while it flies DMPC, so the map and
         the tracks are warm when it falls back to this stack.
@@ -167,27 +168,29 @@ class DeniedAgent(OnboardAgent):
             t = np.array([frame.time_s])
             near = np.array([nb.position(t)[0] for nb in self.neighbours(frame.time_s, count=False)]).reshape(-1, 3)
         self.map.update(frame, detections or (), near)
-        snap = self.map.snapshot()  # its ESDF is computed only if a planner reads it
         seconds = time.perf_counter() - t0
         self.budget.add("map_insert", seconds)
         self.stats.map_ms.append(1e3 * seconds)
-        return snap
 
-    def plan_step(self, t: float, snap: OccupancySnapshot) -> None:
-        """Heading and replanning at frame time ``t`` [s] on the map ``snap`` (module docstring)."""
+    def plan_step(self, t: float) -> None:
+        """Heading and replanning at frame time ``t`` [s] on the map's newest snapshot (module docstring).
+
+        The snapshot (a copy of the window; its ESDF deferred further) is taken only
+        when the yaw planner or a replan reads it, not on every frame.
+        """
         if t < self.config.start_delay_s or self.latest_estimate is None:
             return
         neighbours = self.neighbours(t)
         yaw_trigger = False
         if self.heading.due(t):  # Alg. 1 lines 1-12 every t_y; line 13's trigger is (e)
             with self.budget.measure("yaw"):
-                yaw_trigger = self.heading.update(t, snap, self.trajectory, self.hover_world, neighbours)
+                yaw_trigger = self.heading.update(t, self.map.snapshot(), self.trajectory, self.hover_world, neighbours)
         # the per-frame check reads the newest ESDF and the voxels occupied since (no transform)
         unsafe = self.trajectory is not None and not self._safe(self.trajectory, self.map.clearance, t)
         conflict = self.trajectory is not None and self._swarm_conflict(self.trajectory, neighbours, t)
         due = t - self.last_plan_time_s >= self.config.replan_period_s
         if self.trajectory is None or unsafe or conflict or yaw_trigger or due:
-            replanned = self._replan(snap, neighbours, t)
+            replanned = self._replan(self.map.snapshot(), neighbours, t)
             self.stats.swarm_replans += int(replanned and conflict)
             self.stats.yaw_replans += int(replanned and yaw_trigger)
             if not replanned and unsafe:
@@ -227,8 +230,7 @@ class DeniedAgent(OnboardAgent):
         """(3, 3) position, velocity, acceleration of the current reference at ``t``."""
         if self.trajectory is None:
             return np.stack([self.hover_world, np.zeros(3), np.zeros(3)])
-        tau = t - self.trajectory.t0_s
-        return np.stack([self.trajectory.pos(tau), self.trajectory.vel(tau), self.trajectory.acc(tau)])
+        return self.trajectory.pos_vel_acc(t - self.trajectory.t0_s)
 
     def _safe(self, traj: MincoTrajectory, distance: Callable[[np.ndarray], np.ndarray], t: float) -> bool:
         """Whether ``traj`` keeps 0.75 clearance_m from the map's obstacles from ``t`` [s] on.

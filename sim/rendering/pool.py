@@ -4,7 +4,9 @@ The physics client never renders. At a camera tick the loop :meth:`submit` s
 the true poses of all drones and the cameras due; each worker (its own
 PyBullet DIRECT client holding a copy of the scene) places the drones, renders
 its share of the cameras into shared memory and answers; :meth:`collect`
-waits for the answers and copies the images out. Between the two calls the
+waits for the answers and copies the images out. The constructor returns once
+every worker has built its scene (and frame processor), so a flight's first
+camera tick does not wait for a worker's start-up. Between the two calls the
 main process keeps stepping physics, so rendering overlaps with it. With
 ``n_workers = 0`` everything runs in-process (tests, dataset generation).
 
@@ -12,6 +14,15 @@ Renders are deterministic. When asked (``sensor``), the workers also
 apply the depth sensor model, seeded per (seed, drone, frame index) by
 :func:`sim.camera_rig.sensor_depth`, so results do not depend on the worker
 count and the noise costs the main process nothing.
+
+A pool may also carry a *frame processor*: onboard work that needs only a
+drone's own image and depth (the detector, :func:`mpcde.onboard.detection.frame_detector`).
+Each worker builds it once from a picklable ``(factory, argument)`` pair and
+runs it over its share of a tick's frames right after rendering them, so that
+work runs on the render workers' core, beside the main process instead of in
+it (measured: docs/results/realtime.md). Its outputs come back with the
+renders (:attr:`RenderPool.processed`), one per camera of the request, None
+for the drones not asked.
 """
 
 from __future__ import annotations
@@ -20,7 +31,7 @@ import multiprocessing as mp
 import pickle
 import time
 from multiprocessing import shared_memory
-from typing import Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -31,9 +42,13 @@ from sim.rendering.tiny import RawRender, SceneRenderer
 from sim.scene import RenderStyle, SceneSpec
 from sim.spawn import main_module_hidden, sigint_ignored
 
-__all__ = ["CameraRequest", "RenderPool", "make_renderer"]
+__all__ = ["CameraRequest", "FrameProcessor", "ProcessorSpec", "RenderPool", "make_renderer"]
 
 CameraRequest = tuple[int, np.ndarray]  # (drone index, true transform_camera_to_world (4, 4))
+FrameProcessor = Callable[[list[np.ndarray], list[np.ndarray]], list[Any]]
+"""Onboard work on B frames: (B rgb (H, W, 3) uint8, B sensor depth (H, W) [m]) -> B picklable outputs."""
+ProcessorSpec = tuple[Callable[[Any], FrameProcessor], Any]
+"""(module-level factory, picklable argument): each worker calls ``factory(argument)`` once."""
 
 
 SLOT_BYTES_PER_PX = 3 + 4 + 2 + 4  # rgb, true depth, mask, sensor depth
@@ -66,11 +81,33 @@ def _render_one(renderer: SceneRenderer | RaycastRenderer, drone: int, T_cw: np.
     return RawRender(r.rgb, r.depth_true_m, r.drone_index_mask, sensor_depth(r.depth_true_m, renderer.camera, seed, drone, frame_index))
 
 
-def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_slots: int) -> None:  # pragma: no cover - runs in a child
+def _process(processor: FrameProcessor, frames: list[tuple[int, np.ndarray, np.ndarray]]) -> tuple[dict[int, Any], float]:
+    """Run ``processor`` over ``(key, rgb, depth)`` frames: ({key: output}, CPU seconds)."""
+    if not frames:
+        return {}, 0.0
+    t0 = time.process_time()
+    outs = processor([f[1] for f in frames], [f[2] for f in frames])
+    return {f[0]: o for f, o in zip(frames, outs)}, time.process_time() - t0
+
+
+def _warm_up(renderer: SceneRenderer | RaycastRenderer, process: FrameProcessor | None, batch: int) -> None:
+    """One throw-away render and processor call, so the first camera tick pays no compilation or first-call set-up."""
+    T = np.eye(4)
+    T[:3, :3] = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])  # level, looking along +x
+    T[2, 3] = 1.5
+    r = renderer.render(T, None, None)
+    if process is not None and batch > 0:
+        process([r.rgb] * batch, [r.depth_true_m] * batch)
+
+
+def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_slots: int, processor: ProcessorSpec | None, batch: int) -> None:  # pragma: no cover - runs in a child
     shm = shared_memory.SharedMemory(name=shm_name)
     renderer = make_renderer(spec, camera)
+    process = processor[0](processor[1]) if processor is not None else None
     views = _slot_views(shm.buf, n_slots, camera.height_px, camera.width_px)
     try:
+        _warm_up(renderer, process, batch)
+        conn.send(("ready",))
         while True:
             try:
                 msg = conn.recv()
@@ -78,16 +115,21 @@ def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_s
                 break
             if msg[0] == "stop":
                 break
-            _, pos, quat, jobs, style, sensor = msg
+            _, pos, quat, jobs, style, sensor, wanted = msg
             t0 = time.process_time()
             renderer.set_drone_poses(pos, quat)
+            todo = []
             for slot, drone, T_cw in jobs:
                 r = _render_one(renderer, drone, T_cw, style, sensor)
                 rgb, depth, mask, sensor_view = views[slot]
                 rgb[:], depth[:], mask[:] = r.rgb, r.depth_true_m, r.drone_index_mask
                 if r.depth_sensor_m is not None:
                     sensor_view[:] = r.depth_sensor_m
-            conn.send(("done", len(jobs), time.process_time() - t0))
+                if process is not None and drone in wanted:
+                    todo.append((slot, rgb, sensor_view if r.depth_sensor_m is not None else depth))
+            render_s = time.process_time() - t0
+            outs, process_s = _process(process, todo) if process is not None else ({}, 0.0)
+            conn.send(("done", len(jobs), render_s, outs, len(todo), process_s))
     finally:
         del views
         renderer.close()
@@ -102,9 +144,17 @@ class RenderPool:
         spec: the scene (each worker builds its own copy).
         camera: camera settings (all drones share them).
         n_workers: worker processes; 0 renders in the calling process.
+        processor: a frame processor to run after rendering (module docstring), or None.
+
+    Attributes:
+        processed: after :meth:`collect`, the processor's output per camera of the
+            request (None where not asked, or without a processor).
+        render_s, renders: CPU time [s] spent rendering (in the workers, or here
+            with none), and renders made.
+        process_s, processed_frames: the same for the frame processor.
     """
 
-    def __init__(self, spec: SceneSpec, camera: CameraConfig, n_workers: int) -> None:
+    def __init__(self, spec: SceneSpec, camera: CameraConfig, n_workers: int, processor: ProcessorSpec | None = None) -> None:
         if n_workers < 0:
             raise ValueError(f"n_workers={n_workers!r}: must be >= 0")
         self.spec = spec
@@ -113,11 +163,18 @@ class RenderPool:
         self._pending: list[tuple[int, list[tuple[int, int]]]] | None = None
         self._local: SceneRenderer | RaycastRenderer | None = None
         self._local_result: list[RawRender] | None = None
+        self._local_processor: FrameProcessor | None = None
+        self._local_processed: list[Any] = []
         self._workers, self._conns, self._shms, self._views = [], [], [], []
-        self.render_s = 0.0  # CPU time [s] spent rendering (in the workers, or here with none), and renders made
+        self.render_s = 0.0
         self.renders = 0
+        self.process_s = 0.0
+        self.processed_frames = 0
+        self.processed: list[Any] = []
+        self.has_processor = processor is not None
         if n_workers == 0:
             self._local = make_renderer(spec, camera)
+            self._local_processor = processor[0](processor[1]) if processor is not None else None
             return
         ctx = mp.get_context("spawn")
         H, W = camera.height_px, camera.width_px
@@ -127,13 +184,21 @@ class RenderPool:
                 shm = shared_memory.SharedMemory(create=True, size=max(1, n_slots * H * W * SLOT_BYTES_PER_PX))
                 self._shms.append(shm)
                 parent, child = ctx.Pipe()
-                proc = ctx.Process(target=_worker_main, args=(child, spec, camera, shm.name, n_slots), daemon=True)
+                batch = -(-n_slots // n_workers)  # the most cameras a worker gets per tick
+                proc = ctx.Process(target=_worker_main, args=(child, spec, camera, shm.name, n_slots, processor, batch), daemon=True)
                 with main_module_hidden(), sigint_ignored():  # no __main__ guard needed (sim/spawn.py); no Ctrl-C traceback
                     proc.start()
                 child.close()
                 self._workers.append(proc)
                 self._conns.append(parent)
                 self._views.append(_slot_views(shm.buf, n_slots, H, W))
+            for w, conn in enumerate(self._conns):  # built their scene and processor (started together, so in parallel)
+                try:
+                    reply = conn.recv()
+                except EOFError:
+                    raise RuntimeError(f"render worker {w} exited while starting (exit code {self._workers[w].exitcode})") from None
+                if reply[0] != "ready":  # pragma: no cover - defensive
+                    raise RuntimeError(f"render worker {w} failed to start: {reply!r}")
         except BaseException:
             self.close()
             raise
@@ -145,21 +210,34 @@ class RenderPool:
         cameras: Sequence[CameraRequest],
         style: RenderStyle | None = None,
         sensor: tuple[int, int] | None = None,
+        process: Sequence[int] = (),
     ) -> None:
         """Start rendering ``cameras`` with the drones at (N, 3) / (N, 4) true poses.
 
         Args:
             sensor: (run seed, frame index) to also apply the depth sensor
                 model (``RawRender.depth_sensor_m``); None for true depth only.
+            process: drones whose frames the pool's processor runs on (sensor depth
+                when ``sensor`` is given, true depth otherwise); ignored without one.
         """
         if self._pending is not None:
             raise RuntimeError("RenderPool.submit: collect() the previous batch first")
+        wanted = frozenset(int(d) for d in process) if self.has_processor else frozenset()
         if self._local is not None:
             t0 = time.process_time()
             self._local.set_drone_poses(pos_world, quat_xyzw)
             self._local_result = [_render_one(self._local, d, T, style, sensor) for d, T in cameras]
             self.render_s += time.process_time() - t0
             self.renders += len(cameras)
+            todo = [
+                (k, r.rgb, r.depth_sensor_m if r.depth_sensor_m is not None else r.depth_true_m)
+                for k, ((d, _), r) in enumerate(zip(cameras, self._local_result))
+                if int(d) in wanted
+            ]
+            outs, process_s = _process(self._local_processor, todo) if self._local_processor is not None else ({}, 0.0)
+            self.process_s += process_s
+            self.processed_frames += len(todo)
+            self._local_processed = [outs.get(k) for k in range(len(cameras))]
             self._pending = []
             return
         assign: list[list[tuple[int, int, np.ndarray]]] = [[] for _ in range(self.n_workers)]
@@ -171,24 +249,31 @@ class RenderPool:
             order.append((w, slot))
         for w, jobs in enumerate(assign):
             if jobs:
-                self._conns[w].send(("render", np.asarray(pos_world, float), np.asarray(quat_xyzw, float), jobs, style, sensor))
+                self._conns[w].send(("render", np.asarray(pos_world, float), np.asarray(quat_xyzw, float), jobs, style, sensor, wanted))
         self._pending = [(w, []) for w, jobs in enumerate(assign) if jobs]
         self._order = order
         self._sensor = sensor is not None
 
     def collect(self) -> list[RawRender]:
-        """Wait for the submitted batch; renders in the order of the request."""
+        """Wait for the submitted batch; renders in the order of the request (processor outputs in :attr:`processed`)."""
         if self._pending is None:
             raise RuntimeError("RenderPool.collect: nothing submitted")
         if self._local is not None:
             out, self._local_result, self._pending = self._local_result, None, None
+            self.processed = self._local_processed
             return out
+        outs: dict[tuple[int, int], Any] = {}
         for w, _ in self._pending:
             reply = self._conns[w].recv()
             if reply[0] != "done":  # pragma: no cover - defensive
                 raise RuntimeError(f"render worker {w} failed: {reply!r}")
-            self.renders += reply[1]
-            self.render_s += reply[2]
+            _, n_rendered, render_s, processed, n_processed, process_s = reply
+            self.renders += n_rendered
+            self.render_s += render_s
+            self.processed_frames += n_processed
+            self.process_s += process_s
+            outs.update({(w, slot): o for slot, o in processed.items()})
+        self.processed = [outs.get(key) for key in self._order]
         out = []
         for w, slot in self._order:
             rgb, depth, mask, sensor = self._views[w][slot]
@@ -205,9 +290,10 @@ class RenderPool:
         cameras: Sequence[CameraRequest],
         style: RenderStyle | None = None,
         sensor: tuple[int, int] | None = None,
+        process: Sequence[int] = (),
     ) -> list[RawRender]:
         """Synchronous :meth:`submit` + :meth:`collect`."""
-        self.submit(pos_world, quat_xyzw, cameras, style, sensor)
+        self.submit(pos_world, quat_xyzw, cameras, style, sensor, process)
         return self.collect()
 
     @property

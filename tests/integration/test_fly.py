@@ -61,6 +61,47 @@ def test_rendering_in_worker_processes_gives_the_same_frames_as_in_process():
         assert np.array_equal(x.depth_true_m, y.depth_true_m)
 
 
+@pytest.mark.slow
+def test_workers_run_the_detector_on_the_frames_asked_for_as_the_main_process_would():
+    """The pool's frame processor (the detector in the render workers) gives each asked-for frame the detections
+    the main process's detector finds in the same frame (to float rounding of the batch), None for the others."""
+    from mpcde.config.perception import DetectorRequest
+    from mpcde.onboard.detection import BatchedDetector, frame_detector
+    from sim.camera import CameraConfig
+    from sim.camera_rig import CameraRig
+    from sim.rendering.pool import RenderPool
+    from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
+    from sim.scene import SceneSpec
+
+    prepared = prepare_run(load_scenario("forest_swarm"))
+    spec = SceneSpec(obstacles=prepared.obstacles, n_drones=6)
+    pos = prepared.starts.copy()
+    pos[1::2] = pos[0::2] + [1.5, 0.4, 0.1]  # every other drone ahead of the one before it, in its view
+    quat = np.stack([quat_xyzw_from_yaw(0.0) for _ in range(6)])
+    rig = CameraRig(CameraConfig(), 0)
+    cams = [(i, rig.transform_camera_to_world(pos[i], rotation_from_quat_xyzw(quat[i]))) for i in range(6)]
+    request = DetectorRequest(precision="float32")
+    asked = [0, 2, 3, 4]
+    with RenderPool(spec, CameraConfig(), 2, (frame_detector, request)) as pool, RenderPool(spec, CameraConfig(), 0, (frame_detector, request)) as local:
+        raws = pool.render(pos, quat, cams, sensor=(0, 5), process=asked)
+        in_workers = pool.processed
+        local.render(pos, quat, cams, sensor=(0, 5), process=asked)
+        in_process = local.processed
+        assert pool.processed_frames == 4 and pool.process_s > 0.0
+    main = BatchedDetector(request).detector.detect_images([r.rgb for r in raws], [r.depth_sensor_m for r in raws], 0.4)
+    found = 0
+    for i in range(6):
+        if i not in asked:
+            assert in_workers[i] is None and in_process[i] is None
+            continue
+        for got in (in_workers[i], in_process[i]):
+            assert len(got) == len(main[i])
+            for a, b in zip(got, main[i]):
+                assert np.allclose(a.box_xyxy, b.box_xyxy, atol=1e-3) and abs(a.score - b.score) < 1e-4
+        found += len(main[i])
+    assert found >= 2  # the drones ahead are seen
+
+
 def test_a_render_does_not_depend_on_what_the_client_rendered_before():
     """A pose where PyBullet's TinyRenderer gave one pixel 1 off on odd getCameraImage calls.
 

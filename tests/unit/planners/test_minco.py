@@ -74,6 +74,15 @@ def test_evaluation_matches_coefficients_and_is_clipped(rng):
     assert traj.t0_s == 5.0
 
 
+def test_fused_position_velocity_acceleration_equals_the_coefficients(rng):
+    """pos_vel_acc (one compiled pass) against the derivatives straight from the coefficients, clipping included."""
+    head, tail, q, T = _random_problem(rng, 4)
+    traj = minco_s3(head, tail, q, T)
+    for t, piece, local in ((0.1, 0, 0.1), (T[0] + 0.3, 1, 0.3), (T[:3].sum() + 0.2, 3, 0.2), (-1.0, 0, 0.0), (T.sum() + 2.0, 3, T[3])):
+        expected = np.stack([_derivative(traj.coefficients[6 * piece : 6 * piece + 6], local, o) for o in range(3)])
+        np.testing.assert_allclose(traj.pos_vel_acc(t), expected, atol=1e-10)
+
+
 def test_energy_matches_numeric_integration_of_squared_jerk(rng):
     head, tail, q, T = _random_problem(rng, 5)
     traj = minco_s3(head, tail, q, T)
