@@ -84,6 +84,7 @@ def fly_kinematic(
         for i, agent in enumerate(agents):
             agent.on_pose_estimate(PoseEstimate(t, pos[i].copy(), vel[i].copy(), _IDENTITY_QUAT, np.zeros(3)))
             agent.on_radio([m for m in inbox if m.sender_id != i])
+            agent.plan_round(t)  # the round's solve (outgoing only hands out what it computed)
             msg = agent.outgoing(t)
             messages.append(RadioMessage(i, t, t, msg))
         inbox = messages
