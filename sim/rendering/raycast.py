@@ -7,7 +7,10 @@ drone's pose), the ground plane z = 0 and the sky. For each camera, each
 primitive's oriented bounding box, clipped at the near plane, is projected to
 a pixel rectangle and only the pixels inside it are intersected with the
 primitive (compiled with numba; its bounding sphere rejects it first when it
-lies wholly behind the near plane or beyond the far one); the nearest hit wins. Depth is the exact ray parameter along the optical axis
+lies wholly behind the near plane or beyond the far one); the nearest hit wins.
+Primitives go nearest first (by their centre's depth), and a pixel already
+covered nearer than a primitive's bounding sphere skips its intersection, so
+a tree behind a tree costs little. Depth is the exact ray parameter along the optical axis
 (rays r_c = K^-1 [u, v, 1] have unit optical z), so cylinders are round, not
 tessellated as in TinyRenderer.
 
@@ -214,15 +217,22 @@ def _raycast(
     o_l = np.empty(3)
     d_l = np.empty(3)
     cam_corner = np.empty((8, 3))
-    for p in range(kind.shape[0]):
+    # nearest first, so that a pixel already covered nearer than a primitive's bounding sphere skips its intersection
+    n_prim = kind.shape[0]
+    z_centre = np.empty(n_prim)
+    for p in range(n_prim):
+        rel = centre[p] - t_wc
+        z_centre[p] = R_wc[0, 2] * rel[0] + R_wc[1, 2] * rel[1] + R_wc[2, 2] * rel[2]
+    for p in np.argsort(z_centre, kind="mergesort"):
         if owner[p] == own and own >= 0:
             continue
         # bounding sphere first (cheap reject), then the projected corners of the oriented bounding box
         rel = centre[p] - t_wc
-        zc = R_wc[0, 2] * rel[0] + R_wc[1, 2] * rel[1] + R_wc[2, 2] * rel[2]
+        zc = z_centre[p]
         rad = radius[p]
         if zc + rad < near or zc - rad > far:
             continue
+        z_min = zc - rad  # no point of the primitive lies nearer along the optical axis
         Rp = rot[p]
         # the box corners in the camera frame; the box clipped at the near plane is projected:
         # corners in front, and where the edges cross the near plane
@@ -267,6 +277,8 @@ def _raycast(
         for v in range(v0, v1 + 1):
             ry = (v - cy) / fy
             for u in range(u0, u1 + 1):
+                if depth[v, u] < z_min:  # a nearer primitive already covers this pixel
+                    continue
                 rx = (u - cx) / fx
                 # world direction R_wc [rx, ry, 1], then into the primitive's frame
                 dw0 = R_wc[0, 0] * rx + R_wc[0, 1] * ry + R_wc[0, 2]

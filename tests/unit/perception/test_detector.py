@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from perception.detector import DEFAULT_WEIGHTS, DroneDetector, box_iou_xyxy, decode_outputs, nms_xyxy
+from perception.detector.decode import decode_outputs_reference
 from perception.detector.model import DetectorNet, ModelConfig, fold_batchnorm
 from sim.camera import CameraConfig, apply_depth_sensor_model, intrinsics
 from sim.camera_rig import CameraRig
@@ -112,7 +113,8 @@ def test_nms_keeps_the_best_of_overlapping_boxes():
     assert box_iou_xyxy(boxes[:1], boxes[1:2])[0, 0] == pytest.approx(81 / 119)
 
 
-def test_decode_finds_local_peaks_and_places_boxes():
+@pytest.mark.parametrize("decode", [decode_outputs, decode_outputs_reference], ids=["compiled", "reference"])
+def test_decode_finds_local_peaks_and_places_boxes(decode):
     out = torch.full((1, 5, 8, 10), 0.0)
     out[0, 0] = -8.0
     out[0, 0, 2, 3] = 3.0  # a peak ...
@@ -120,11 +122,27 @@ def test_decode_finds_local_peaks_and_places_boxes():
     out[0, 0, 6, 8] = 0.5
     out[0, 1, 2, 3], out[0, 2, 2, 3] = np.log(2.0), np.log(1.5)  # 8 x 6 px box
     out[0, 3, 2, 3], out[0, 4, 2, 3] = 0.25, 0.75
-    boxes, scores = decode_outputs(out, 0.3)[0]
+    boxes, scores = decode(out, 0.3)[0]
     assert scores == pytest.approx([torch.sigmoid(torch.tensor(3.0)).item(), torch.sigmoid(torch.tensor(0.5)).item()])
     cu, cv = 4 * (3 + 0.25) - 0.5, 4 * (2 + 0.75) - 0.5
     assert boxes[0] == pytest.approx([cu - 4, cv - 3, cu + 4, cv + 3])
-    assert len(decode_outputs(out, 0.7)[0][0]) == 1
+    assert len(decode(out, 0.7)[0][0]) == 1
+
+
+@pytest.mark.parametrize("threshold", [0.02, 0.4])
+def test_compiled_decode_equals_the_reference_on_the_network_outputs(detector, rendered, threshold):
+    """Peaks, order, boxes (to 1e-9 px), scores (exactly) and NMS of the compiled decode equal the torch/numpy oracle's."""
+    from perception.detector.encode_kernel import encode_channels_last
+
+    frames, _, _ = rendered
+    with torch.inference_mode():
+        x = encode_channels_last([f.rgb for f in frames], [f.depth_m for f in frames], 4).to(detector.net.stem[0][0].weight.dtype)
+        out = detector.net(x).float()
+    # large boxes overlapping a little: NMS has work to do at a low threshold
+    for (ba, sa), (bb, sb) in zip(decode_outputs(out, threshold, 20, 0.3, (240, 320)), decode_outputs_reference(out, threshold, 20, 0.3, (240, 320))):
+        assert ba.shape == bb.shape and len(sa) > 0
+        np.testing.assert_allclose(ba, bb, atol=1e-9, rtol=0)
+        np.testing.assert_array_equal(sa, sb)
 
 
 def test_folded_batchnorm_gives_the_same_outputs():
