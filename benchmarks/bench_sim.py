@@ -111,16 +111,17 @@ def rtf_bench(duration_s: float, stacks: tuple[str, ...] = STACKS, peer: bool = 
         prepared = prepare_run(base)
         obstacles = [(*o.center_xy, o.footprint_radius_m, o.height_m) for o in prepared.obstacles]
         peer_rtf = pyflyt_peer_rtf(obstacles, prepared.starts, prepared.goals, duration_s)["real_time_factor"]
-    print(f"forest_swarm, 6 drones, {duration_s:.0f} s simulated, cameras 25 Hz at 320x240 ({renderer} renderer), render workers {os.cpu_count()}:")
-    print(f"{'stack':>12} {'real-time factor':>17} {'vs PyFlyt':>10}   collisions  frames")
+    print(f"forest_swarm, 6 drones, {duration_s:.0f} s simulated, cameras 25 Hz at 320x240 ({renderer} renderer), {os.cpu_count()} cores:")
+    print(f"{'stack':>12} {'real-time factor':>17} {'vs PyFlyt':>10}   collisions  frames  workers  detector")
     for stack, m in rows.items():
         ratio = f"{m['real_time_factor'] / peer_rtf:9.2f}x" if peer_rtf else f"{'-':>10}"
-        print(f"{stack:>12} {m['real_time_factor']:17.3f} {ratio}   {m['collisions']:10d}  {m['frames_rendered']:6d}")
+        det = m.get("detector_precision") or "-"
+        print(f"{stack:>12} {m['real_time_factor']:17.3f} {ratio}   {m['collisions']:10d}  {m['frames_rendered']:6d}  {m['render_workers']:7d}  {det}")
     if peer_rtf:
         print(f"{'PyFlyt peer':>12} {peer_rtf:17.3f} {'1.00x':>10}   (6 QuadX, 320x240 camera each at 24 Hz, renders and flies only)")
     else:
         print(f"{'PyFlyt peer':>12} skipped: {note}")
-    print("compute per simulated second [ms] (ms per call); render in the workers, the rest in the main process:")
+    print("compute per simulated second [ms] (ms per call, detect per frame); render and detect in the workers, the rest in the main process:")
     print(f"{'component':>12} " + " ".join(f"{s:>20}" for s in rows))
     for comp in BUDGET_ROWS:
         cells = []
