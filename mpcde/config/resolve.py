@@ -9,6 +9,9 @@ flight. Derived fields (target <- source):
   and ``pose_yaw_std_rad`` <- ``pose_estimate.yaw_noise_rad``: a drone's
   back-projection uncertainty includes its own localisation noise, what its
   VIO reports (MP-CDE Eq. 8);
+* ``denied.v_max_mps`` (with ``planner.kind`` ``mpcde`` or ``auto``) and
+  ``dmpc.qp.v_max`` (``dmpc`` or ``auto``) <- ``planner.cruise_speed_mps``
+  when it is set: the scenario's speed is each stack's speed limit;
 * ``denied.yaw.v_max_mps`` <- ``denied.v_max_mps``, ``denied.yaw.yaw_rate_max_radps``
   <- ``denied.yaw_rate_max_radps``, ``denied.yaw.t_hold_s`` <-
   ``perception.tracker.t_hold_s``, ``denied.yaw.fov_h_deg`` / ``fov_v_deg`` <-
@@ -39,6 +42,14 @@ _MISSING = object()
 
 # (target path, source named in errors, derivation, applies to this scenario)
 DERIVED: tuple[tuple[str, str, Callable[[ScenarioConfig], Any], Callable[[ScenarioConfig], bool]], ...] = (
+    (
+        "denied.v_max_mps", "planner.cruise_speed_mps", lambda c: c.planner.cruise_speed_mps,
+        lambda c: c.planner.cruise_speed_mps is not None and c.planner.kind in ("mpcde", "auto"),
+    ),
+    (
+        "dmpc.qp.v_max", "planner.cruise_speed_mps", lambda c: c.planner.cruise_speed_mps,
+        lambda c: c.planner.cruise_speed_mps is not None and c.planner.kind in ("dmpc", "auto"),
+    ),
     ("perception.backprojection.pose_pos_std_m", "pose_estimate.pos_noise_m", lambda c: c.pose_estimate.pos_noise_m, lambda c: True),
     ("perception.backprojection.pose_yaw_std_rad", "pose_estimate.yaw_noise_rad", lambda c: c.pose_estimate.yaw_noise_rad, lambda c: True),
     ("denied.yaw.v_max_mps", "denied.v_max_mps", lambda c: c.denied.v_max_mps, lambda c: True),
@@ -102,10 +113,10 @@ def resolve(cfg: ScenarioConfig, written: dict | None = None) -> ScenarioConfig:
     """
     check_ranges(cfg, SCENARIO_RANGES)
     out = cfg
-    for target, source, derive, applies in DERIVED:
-        if not applies(cfg):
+    for target, source, derive, applies in DERIVED:  # in order: a derived field may be the source of a later one
+        if not applies(out):
             continue
-        value = derive(cfg)
+        value = derive(out)
         current = _get(cfg, target)
         given = _written(written, target) if written is not None else (current if not _same(current, _default(target)) else _MISSING)
         if given is not _MISSING and not _same(given, value):

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal, get_args
+from typing import ClassVar, Literal, get_args
 
 import numpy as np
 
@@ -184,19 +184,38 @@ class PlannerConfig:
             (Stomberg et al.; the goals are the formation; settings in
             ``admm``; obstacle-free scenarios whose drones start in formation;
             the radio runs at the ADMM exchange rate; :mod:`mpcde.onboard.admm`).
-        cruise_speed_mps: peak speed along the line [m/s] (MP-CDE flights: 1 m/s).
+        cruise_speed_mps: the swarm's speed [m/s] (MP-CDE's "target velocity"
+            regimes, Sec. V-B: 0.5, 1 and 2 m/s), for every stack that flies a
+            speed: the peak speed of the placeholder's and ADMM's lines, the
+            speed limit of MP-CDE's optimiser (``denied.v_max_mps``, with
+            ``mpcde`` and ``auto``) and DMPC's per-axis speed limit
+            (``dmpc.qp.v_max``, with ``dmpc`` and ``auto``), derived at load
+            time (:mod:`mpcde.config.resolve`; a file that also sets one of
+            those to another value is refused). null (the default): each
+            stack's own setting (lines 1 m/s, MP-CDE 1 m/s, DMPC 2 m/s per
+            axis). ``mlr`` has no single speed and refuses it.
         start_delay_s: hover time before departure [s].
     """
 
     kind: PlannerKind = "min_jerk_line"
-    cruise_speed_mps: float = 1.0
+    cruise_speed_mps: float | None = None
     start_delay_s: float = 0.5
+
+    LINE_SPEED_MPS: ClassVar[float] = 1.0
+    """The lines' peak speed [m/s] when ``cruise_speed_mps`` is null."""
+
+    @property
+    def line_speed_mps(self) -> float:
+        """Peak speed [m/s] of the placeholder's and ADMM's straight lines."""
+        return self.LINE_SPEED_MPS if self.cruise_speed_mps is None else float(self.cruise_speed_mps)
 
     def __post_init__(self) -> None:
         if self.kind not in get_args(PlannerKind):  # from_dict checks the Literal; this catches dataclasses.replace
             raise ConfigError("kind", self.kind, f"allowed: {', '.join(repr(a) for a in get_args(PlannerKind))}")
-        if not 0 < self.cruise_speed_mps <= 10:
-            raise ConfigError("cruise_speed_mps", self.cruise_speed_mps, "in (0, 10] m/s")
+        if self.cruise_speed_mps is not None and not 0 < self.cruise_speed_mps <= 10:
+            raise ConfigError("cruise_speed_mps", self.cruise_speed_mps, "in (0, 10] m/s, or null")
+        if self.cruise_speed_mps is not None and self.kind == "mlr":
+            raise ConfigError("cruise_speed_mps", self.cruise_speed_mps, "null for planner.kind 'mlr' (its speed limits are mlr's)")
         if self.start_delay_s < 0:
             raise ConfigError("start_delay_s", self.start_delay_s, ">= 0 s")
 

@@ -45,13 +45,13 @@ def make_agent(
     goal_world = np.asarray(goals_world[drone_id], float)
     kind = cfg.planner.kind
     if kind == "min_jerk_line":
-        return Agent(drone_id, np.asarray(goal_world, float), cfg.planner.cruise_speed_mps, cfg.planner.start_delay_s)
+        return Agent(drone_id, np.asarray(goal_world, float), cfg.planner.line_speed_mps, cfg.planner.start_delay_s)
     if kind == "mlr":  # MLR-DMPC does not perceive: no detector, no tracks
         mlr = cfg.mlr.planner_config(len(goals_world), cfg.world.arena_size_m)
         return MlrAgent(drone_id, goals_world, mlr, cfg.planner.start_delay_s, cfg.mlr.ignore_message_loss)
     if kind == "admm":  # the ADMM formation DMPC does not perceive either; the goals are its formation
         p = cfg.planner
-        return AdmmAgent(drone_id, goals_world, cfg.admm, cfg.world.arena_size_m, p.start_delay_s, p.cruise_speed_mps)
+        return AdmmAgent(drone_id, goals_world, cfg.admm, cfg.world.arena_size_m, p.start_delay_s, p.line_speed_mps)
     # cfg is resolved (prepare_run): the back-projection's pose noise and the yaw planner's limits are derived
     perception = cfg.perception
     if kind == "mpcde":

@@ -195,7 +195,7 @@ class SpyAgent(placeholder_module.Agent):
 def test_onboard_agent_sees_only_its_frames_its_estimate_and_its_inbox(monkeypatch):
     import mpcde.flight.loop as loop
 
-    monkeypatch.setattr(loop, "make_agent", lambda cfg, i, goals, obstacles, budget=None: SpyAgent(i, goals[i], cfg.planner.cruise_speed_mps, cfg.planner.start_delay_s))
+    monkeypatch.setattr(loop, "make_agent", lambda cfg, i, goals, obstacles, budget=None: SpyAgent(i, goals[i], cfg.planner.line_speed_mps, cfg.planner.start_delay_s))
     SpyAgent.seen = []
     run_scenario(prepare_run(short("crossing", 0.5, render_workers=0)))
     kinds = {k for k, _, _ in SpyAgent.seen}

@@ -46,6 +46,8 @@ def test_every_derived_field_equals_its_source_after_loading(tmp_path):
         ("denied:\n  yaw:\n    v_max_mps: 5\n", "denied.yaw.v_max_mps", "denied.v_max_mps"),
         ("perception:\n  backprojection:\n    pose_pos_std_m: 0.3\n", "perception.backprojection.pose_pos_std_m", "pose_estimate.pos_noise_m"),
         ("denied:\n  yaw:\n    fov_h_deg: 90\n", "denied.yaw.fov_h_deg", "camera.hfov_deg"),
+        ("planner:\n  kind: mpcde\n  cruise_speed_mps: 2.0\ndenied:\n  v_max_mps: 1.0\n", "denied.v_max_mps", "planner.cruise_speed_mps"),
+        ("planner:\n  kind: dmpc\n  cruise_speed_mps: 0.5\ndmpc:\n  qp:\n    v_max: 2.0\n", "dmpc.qp.v_max", "planner.cruise_speed_mps"),
         ("planner:\n  kind: admm\nradio:\n  rate_hz: 5.0\nworld:\n  obstacle_density_per_100m2: 0\n"
          "drones:\n  starts: [[0, 0, 1.5], [1, 0, 1.5]]\n  goals: [[3, 0, 1.5], [4, 0, 1.5]]\n", "radio.rate_hz", "2 admm.l_max"),
     ],
@@ -54,6 +56,25 @@ def test_a_set_value_that_a_derivation_would_replace_is_refused_in_one_line(tmp_
     with pytest.raises(ConfigError) as info:
         load_scenario(write(tmp_path, text))
     assert info.value.field == field and source in info.value.allowed and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("kind", ["min_jerk_line", "mpcde", "dmpc", "auto"])
+def test_the_cruise_speed_is_every_stack_s_speed(kind):
+    """planner.cruise_speed_mps reaches the stacks that fly it (MP-CDE's optimiser limit, DMPC's per-axis limit,
+    the lines' peak speed); unset, each keeps its own default."""
+    default = mpcde.load_scenario("forest_swarm", mode={"min_jerk_line": "placeholder", "mpcde": "denied", "dmpc": "comm", "auto": "auto"}[kind])
+    assert default.planner.cruise_speed_mps is None and default.planner.line_speed_mps == 1.0
+    assert (default.denied.v_max_mps, default.dmpc.qp.v_max) == (1.0, 2.0)
+    cfg = load_scenario("forest_swarm", {"planner": {"kind": kind, "cruise_speed_mps": 0.5}})
+    assert cfg.planner.line_speed_mps == 0.5
+    assert cfg.denied.v_max_mps == (0.5 if kind in ("mpcde", "auto") else 1.0)
+    assert cfg.denied.yaw.v_max_mps == cfg.denied.v_max_mps
+    assert cfg.dmpc.qp.v_max == (0.5 if kind in ("dmpc", "auto") else 2.0)
+
+
+def test_mlr_refuses_a_cruise_speed():
+    with pytest.raises(ConfigError, match=r"^planner\.cruise_speed_mps=1\.0: null for planner\.kind 'mlr'"):
+        load_scenario("antipodal", {"planner": {"kind": "mlr", "cruise_speed_mps": 1.0}, "world": {"obstacle_density_per_100m2": 0}})
 
 
 def test_a_derived_value_that_breaks_its_section_names_the_whole_path(tmp_path):
