@@ -1,4 +1,4 @@
-"""Plots of a run: top-down trajectories with obstacles, minimum distance, yaw."""
+"""Plots of a run: top-down trajectories with obstacles, the observed area, minimum distance, yaw."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from matplotlib.patches import Circle, Polygon  # noqa: E402
 
 from sim.obstacles import ObstacleSpec  # noqa: E402
 
-__all__ = ["box_corners_xy", "draw_obstacles", "min_inter_drone_distance", "plot_min_distance", "plot_top_down", "plot_yaw"]
+__all__ = ["box_corners_xy", "draw_obstacles", "min_inter_drone_distance", "plot_min_distance", "plot_observed_area", "plot_top_down", "plot_yaw"]
 
 
 def box_corners_xy(ob: ObstacleSpec) -> np.ndarray:
@@ -58,6 +58,35 @@ def plot_top_down(path: Path, obstacles: Sequence[ObstacleSpec], pos_world: np.n
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title(title)
+    ax.legend(loc="upper right", fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_observed_area(
+    path: Path, seen: np.ndarray, extent: tuple[float, float, float, float], obstacles: Sequence[ObstacleSpec],
+    pos_world: np.ndarray, areas_m2: Sequence[float], swarm_m2: float, arena_size_m: tuple[float, float], title: str,
+) -> None:
+    """Top view of what the cameras saw (MP-CDE Fig. 5): each drone's seen cells ``seen`` (N, nx, ny) shaded in its colour.
+
+    ``extent`` (x0, x1, y0, y1) [m] of the raster; ``areas_m2`` and ``swarm_m2`` the S_obs figures for the legend.
+    """
+    fig, ax = plt.subplots(figsize=(7, 7))
+    colours = plt.cm.tab10(np.arange(seen.shape[0]) % 10)
+    for i in range(seen.shape[0]):
+        rgba = np.zeros((*seen.shape[2:0:-1], 4))  # (ny, nx, 4): imshow's rows are y
+        rgba[..., :3] = colours[i, :3]
+        rgba[..., 3] = 0.25 * seen[i].T
+        ax.imshow(rgba, origin="lower", extent=extent, interpolation="nearest")
+        ax.plot(pos_world[:, i, 0], pos_world[:, i, 1], color=colours[i], lw=1.2, label=f"drone {i}: S_obs {areas_m2[i]:.1f} m^2")
+    draw_obstacles(ax, obstacles)
+    ax.set_xlim(-arena_size_m[0] / 2, arena_size_m[0] / 2)
+    ax.set_ylim(-arena_size_m[1] / 2, arena_size_m[1] / 2)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{title}: observed area, swarm {swarm_m2:.1f} m^2")
     ax.legend(loc="upper right", fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -4,7 +4,8 @@ Everything goes into a sibling staging folder ``<out>.partial-<pid>`` that is
 renamed to ``<out>`` only when complete, so a failed or interrupted run leaves
 no half-written ``<out>``. Contents: ``config.yaml`` (the resolved scenario),
 ``metrics.json``, ``states.npz`` (the state log), ``obstacles.json``,
-``top_down.png``, ``min_distance.png``, ``yaw.png`` and, with video,
+``top_down.png``, ``min_distance.png``, ``yaw.png``, ``observed_area.png``
+(with cameras) and, with video,
 ``video.mp4``.
 """
 
@@ -23,7 +24,7 @@ import yaml
 from mpcde.config.io import to_dict
 from mpcde.errors import ConfigError, MpcdeError
 from mpcde.flight.loop import RunResult
-from mpcde.flight.plots import plot_min_distance, plot_top_down, plot_yaw
+from mpcde.flight.plots import plot_min_distance, plot_observed_area, plot_top_down, plot_yaw
 
 __all__ = ["RunFolder", "staged_output"]
 
@@ -66,6 +67,12 @@ class RunFolder:
             plot_top_down(self.staging / "top_down.png", result.obstacles, arrays["pos_world"], result.starts, result.goals, cfg.world.arena_size_m, f"{cfg.name} (seed {cfg.seed})")
             plot_min_distance(self.staging / "min_distance.png", arrays["time_s"], arrays["pos_world"], 2 * cfg.physics.quadrotor.robot_radius_m)
             plot_yaw(self.staging / "yaw.png", arrays["time_s"], arrays["yaw"])
+            if result.observed is not None:
+                m = result.metrics
+                plot_observed_area(
+                    self.staging / "observed_area.png", result.observed.seen, result.observed.extent(), result.obstacles, arrays["pos_world"],
+                    m["observed_area_m2"], m["observed_area_swarm_m2"], cfg.world.arena_size_m, f"{cfg.name} (seed {cfg.seed})",
+                )
 
     def publish(self) -> Path:
         """Move the staged folder to ``out``.

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from mpcde.config.scenario import ScenarioConfig
 from sim.types import ObstacleSpec
+
+if TYPE_CHECKING:
+    from mpcde.flight.observed_area import ObservedRaster
 
 __all__ = ["PreparedRun", "RunLog", "RunResult"]
 
@@ -45,6 +48,8 @@ class RunResult:
     goals: np.ndarray
     metrics: dict[str, Any]
     log: RunLog
+    observed: ObservedRaster | None = None
+    """The cells each drone's camera saw (mpcde/flight/observed_area.py); None without cameras."""
 
 
 @dataclass(frozen=True)

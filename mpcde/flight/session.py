@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence
 import numpy as np
 
 from mpcde.flight.metrics import MetricsAccumulator, formation_metrics, pose_error_m
+from mpcde.flight.observed_area import ObservedArea
 from mpcde.flight.run_types import RunLog, RunResult
 from mpcde.flight.tracking_score import TrackingScore
 from mpcde.onboard.base import OnboardAgent
@@ -114,6 +115,7 @@ class FlightSession:
         self.radio = Radio(cfg.radio, n, cfg.seed, line_of_sight=lambda a, b: _line_of_sight(world, a, b))
         self.faults = FaultInjector(cfg.faults, n, cfg.seed, (cfg.camera.width_px, cfg.camera.height_px))
         self.track_score = TrackingScore()
+        self.observed = ObservedArea(prepared.obstacles, cfg.world.arena_size_m, n, cfg.camera.hfov_deg, cfg.camera.depth_max_m) if cfg.run.cameras else None
         self.metrics = MetricsAccumulator(prepared.goals, prepared.obstacles, cfg.physics.quadrotor.robot_radius_m, cfg.run.goal_tolerance_m)
         self.log: RunLog = RunLog()
         self.workers = cfg.run.render_workers if cfg.run.render_workers >= 0 else _default_workers(self.agents, self.detector is not None)
@@ -202,6 +204,9 @@ class FlightSession:
                 if self.in_flight is not None:
                     self.delivery.append(self._finish_frames())
                 cams = [(i, self.rig.transform_camera_to_world(truth.pos_world[i], truth.rotation_body_to_world[i])) for i in range(self.n)]
+                for i, T in cams:  # the observed-area metric (truth; mpcde/flight/observed_area.py)
+                    if not truth.failed[i]:
+                        self.observed.add_frame(i, T)
                 detect = [i for i in range(self.n) if _wants_detections(agents[i], truth.failed[i])] if pool.has_processor else ()
                 pool.submit(truth.pos_world, truth.quat_xyzw, cams, sensor=(cfg.seed, self.frame_index), process=detect)
                 self.in_flight = (t, self.frame_index, estimates, [c[1] for c in cams])
@@ -293,13 +298,16 @@ class FlightSession:
             **pose_error_m(self.log.arrays),
         }
         extra.update(self.track_score.result())
+        if self.observed is not None:
+            extra["observed_area_m2"], extra["observed_area_swarm_m2"] = self.observed.areas_m2()
         if _flies_formation(cfg):
             extra.update(formation_metrics(self.log.arrays["pos_world"], prepared.goals))
         agent_metrics = [m for m in (a.extra_metrics() for a in agents) if m is not None]
         if agent_metrics:
             extra["agents"] = agent_metrics
         metrics = self.metrics.result(self._wall_s, self.truth.failed, extra)
-        return RunResult(cfg, prepared.obstacles, prepared.starts, prepared.goals, metrics, self.log)
+        observed = self.observed.raster() if self.observed is not None else None
+        return RunResult(cfg, prepared.obstacles, prepared.starts, prepared.goals, metrics, self.log, observed)
 
 
 def _default_workers(agents: Sequence[OnboardAgent], detects: bool) -> int:
