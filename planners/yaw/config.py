@@ -128,6 +128,14 @@ class YawPlannerConfig:
         still_speed_mps: in tracking mode, below this horizontal speed the
             direction of travel is undefined and the yaw is held [m/s]
             (chosen: 0.1 m/s).
+        exploring_mode: MP-CDE's exploring mode is on (default). False is the
+            paper's "ours w/o exploring mode" (Table III): where it would
+            explore, the heading follows travel instead (as tracking does;
+            observing is unchanged).
+        tracking_mode: MP-CDE's tracking mode is on (default). False is the
+            paper's "ours w/o tracking mode": the planner never turns the
+            camera to the direction of travel for safety; whatever S(0) says,
+            it observes or explores (the regime is still computed and reported).
     """
 
     period_s: float = 0.1
@@ -159,6 +167,8 @@ class YawPlannerConfig:
     still_speed_mps: float = 0.1
     tracking_sweep_deg: float = 35.0
     tracking_sweep_period_s: float = 1.4
+    exploring_mode: bool = True
+    tracking_mode: bool = True
 
     def __post_init__(self) -> None:
         for name in (

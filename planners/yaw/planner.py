@@ -19,6 +19,10 @@ predictions, and gets a :class:`YawPlan` of n + 1 yaws over the next n t_y:
 5. Otherwise *tracking*: yaw along the direction of travel (swinging about it by
    ``tracking_sweep_deg`` when that is set; not in the paper).
 
+The paper's ablations (Table III) switch modes off: ``exploring_mode: false``
+flies heading-along-travel where exploring would run; ``tracking_mode:
+false`` never takes the safety turn of step 5.
+
 Every mode's output starts at the current yaw, is unwrapped and changes by
 at most yaw_rate_max t_y per step. The planner also remembers the sectors of
 the yaws it was called with during the last ``window_s`` (the coverage
@@ -104,8 +108,9 @@ class YawPlanner:
         recent = [q for q in active if time_s - q.stamp_s <= cfg.t_hold_s]
         self._remember_sector(time_s, yaw, positions[0], snapshot)
         self.last_path = None
-        if not self._in_safe_regime:
-            mode = "tracking"
+        safe = self._in_safe_regime or not cfg.tracking_mode  # without tracking mode, never the safety turn
+        if not safe or not (cfg.exploring_mode or (active and len(recent) == len(active))):
+            mode = "tracking"  # unsafe; or, without exploring mode, where exploring would run: heading along travel
             targets = track_targets(trajectory.velocities(times[1:]), cfg.still_speed_mps, yaw)
             swing = math.radians(cfg.tracking_sweep_deg)
             targets = targets + sweep_offsets(times[1:], swing, cfg.tracking_sweep_period_s)

@@ -92,6 +92,25 @@ def test_hysteresis_keeps_the_mode_inside_the_band():
     assert not planner.in_safe_regime
 
 
+def test_the_paper_ablations_switch_one_mode_off_each():
+    """Table III: w/o exploring, the heading follows travel where exploring would run (observing unchanged);
+    w/o tracking, a small margin keeps exploring or observing instead of turning to travel."""
+    from dataclasses import replace
+
+    fwd = line(np.array([1.0, 0.0, 0.0]))
+    seen = neighbour((2.0, 1.0, 1.1), stamp_s=0.9)
+    no_explore = YawPlanner(replace(paper_config(), exploring_mode=False))
+    plan = no_explore.plan(1.0, 0.5, fwd, uniform_snapshot(3.0))
+    assert plan.mode == "tracking" and no_explore.in_safe_regime
+    assert plan.yaws[-1] == pytest.approx(0.0, abs=1e-9)  # turned to travel (+x) within the rate limit
+    assert no_explore.plan(1.1, 0.0, fwd, uniform_snapshot(3.0), [seen]).mode == "observing"
+    no_track = YawPlanner(replace(paper_config(), tracking_mode=False))
+    plan = no_track.plan(1.0, 0.0, fwd, uniform_snapshot(1.0))  # S(0) = 1 s < tau_thr: the full planner tracks
+    assert plan.mode == "exploring" and not no_track.in_safe_regime
+    assert no_track.plan(1.1, 0.0, fwd, uniform_snapshot(1.0), [seen]).mode == "observing"
+    assert YawPlanner(paper_config()).plan(1.0, 0.0, fwd, uniform_snapshot(1.0)).mode == "tracking"
+
+
 def test_observing_needs_every_neighbour_recently_seen():
     planner = YawPlanner(paper_config())
     snap = uniform_snapshot(3.0)
