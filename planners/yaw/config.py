@@ -136,6 +136,15 @@ class YawPlannerConfig:
             paper's "ours w/o tracking mode": the planner never turns the
             camera to the direction of travel for safety; whatever S(0) says,
             it observes or explores (the regime is still computed and reported).
+        method: ``"mpcde"`` (default) or ``"zhou"``, MP-CDE's comparison [26]
+            in Table III: Zhou et al.'s perception-aware yaw planning (RAPTOR,
+            T-RO 2021, and FUEL, RA-L 2021: after the position trajectory, a
+            graph search over candidate yaws at its waypoints for the most
+            unknown space in view, under the yaw-rate limit). Implemented as
+            the same lattice (n, m, rate limit, turn penalty) whose edge reward
+            is only the unknown area in view (Eq. 3 without the coverage window
+            W), always: no safety metric, no tracking or observing mode, no
+            neighbour visibility term.
     """
 
     period_s: float = 0.1
@@ -169,6 +178,7 @@ class YawPlannerConfig:
     tracking_sweep_period_s: float = 1.4
     exploring_mode: bool = True
     tracking_mode: bool = True
+    method: str = "mpcde"
 
     def __post_init__(self) -> None:
         for name in (
@@ -191,6 +201,8 @@ class YawPlannerConfig:
         if self.alpha + self.beta <= 0.0:
             raise ConfigError("beta", self.beta, f"allowed alpha + beta > 0 (alpha={self.alpha!r})")
         require_positive("free_max_age_s", self.free_max_age_s, inf_means="free space never ages")
+        if self.method not in ("mpcde", "zhou"):
+            raise ConfigError("method", self.method, "allowed 'mpcde' or 'zhou'")
         if self.free_distance not in ("horizontal", "voxel"):
             raise ConfigError("free_distance", self.free_distance, "allowed 'horizontal' or 'voxel'")
         require_integer_at_least("n_steps", self.n_steps, 1)

@@ -21,7 +21,10 @@ predictions, and gets a :class:`YawPlan` of n + 1 yaws over the next n t_y:
 
 The paper's ablations (Table III) switch modes off: ``exploring_mode: false``
 flies heading-along-travel where exploring would run; ``tracking_mode:
-false`` never takes the safety turn of step 5.
+false`` never takes the safety turn of step 5. ``method: zhou`` is the
+paper's comparison, Zhou et al.'s perception-aware yaw (see
+:class:`planners.yaw.config.YawPlannerConfig`): the lattice with the unknown
+area in view as its only reward, in every situation.
 
 Every mode's output starts at the current yaw, is unwrapped and changes by
 at most yaw_rate_max t_y per step. The planner also remembers the sectors of
@@ -109,7 +112,10 @@ class YawPlanner:
         self._remember_sector(time_s, yaw, positions[0], snapshot)
         self.last_path = None
         safe = self._in_safe_regime or not cfg.tracking_mode  # without tracking mode, never the safety turn
-        if not safe or not (cfg.exploring_mode or (active and len(recent) == len(active))):
+        if cfg.method == "zhou":  # Zhou et al.'s yaw: the most unknown space in view along the trajectory, always
+            mode = "exploring"
+            yaws = self._explore(yaw, times, positions, snapshot, (), zhou=True)
+        elif not safe or not (cfg.exploring_mode or (active and len(recent) == len(active))):
             mode = "tracking"  # unsafe; or, without exploring mode, where exploring would run: heading along travel
             targets = track_targets(trajectory.velocities(times[1:]), cfg.still_speed_mps, yaw)
             swing = math.radians(cfg.tracking_sweep_deg)
@@ -158,16 +164,25 @@ class YawPlanner:
         positions: np.ndarray,
         snapshot: OccupancySnapshot,
         unseen: Sequence[NeighborPrediction],
+        zhou: bool = False,
     ) -> np.ndarray:
-        """Exploring mode: the maximum-reward yaw sequence (n + 1,) on the lattice (Eq. 3-5)."""
+        """Exploring mode: the maximum-reward yaw sequence (n + 1,) on the lattice (Eq. 3-5).
+
+        ``zhou``: Zhou et al.'s reward instead: the unknown area in view only (no coverage window, no V).
+        """
         cfg, fan = self.config, self._fan
         m, q = cfg.n_candidates, cfg.max_hop
-        covered = past_coverage(snapshot, np.concatenate([pts for _, pts in self._window]))
+        if zhou:
+            nx, ny, _ = snapshot.shape
+            covered = np.zeros((nx + 2) * (ny + 2), dtype=bool)
+        else:
+            covered = past_coverage(snapshot, np.concatenate([pts for _, pts in self._window]))
         cast = cast_fans(snapshot, positions[1:], fan.azimuths(yaw), fan.ranges_m)
         gains, e_max = edge_gains(ray_gains(cast, covered, fan.areas_m2), fan, m, q)
         e = gains / e_max  # Eq. 3, normalised to [0, 1]
         candidate_yaws = yaw + np.arange(m) * cfg.candidate_spacing_rad
         v = visibility_rewards(positions[1:], times[1:], candidate_yaws, unseen, cfg)  # Eq. 4, in [0, 1]
-        path = shortest_path(edge_costs(e, v, cfg.alpha, cfg.beta, cfg.turn_penalty))  # Eq. 5
+        alpha, beta = (1.0, 0.0) if zhou else (cfg.alpha, cfg.beta)
+        path = shortest_path(edge_costs(e, v, alpha, beta, cfg.turn_penalty))  # Eq. 5
         self.last_path = path
         return yaw + cfg.candidate_spacing_rad * np.concatenate([[0.0], np.cumsum(path.hops)])

@@ -111,6 +111,26 @@ def test_the_paper_ablations_switch_one_mode_off_each():
     assert YawPlanner(paper_config()).plan(1.0, 0.0, fwd, uniform_snapshot(1.0)).mode == "tracking"
 
 
+def test_zhou_s_method_always_looks_for_the_most_unknown_space():
+    """Zhou et al.'s yaw (Table III's comparison): with a small safety margin and a neighbour in view it still
+    explores, towards the unknown half of the map (left of +x travel), where MP-CDE tracks."""
+    from dataclasses import replace
+
+    state = np.full(SHAPE, FREE, np.int8)
+    state[CENTRES[..., 1] > DRONE[1] + 0.5] = UNKNOWN  # everything left of the drone unknown
+    snap = make_snapshot(state)
+    fwd = line(np.array([1.0, 0.0, 0.0]))
+    near = replace(paper_config(), method="zhou")
+    seen = neighbour((2.0, -1.0, 1.1), stamp_s=0.95)
+    plan = YawPlanner(near).plan(1.0, 0.0, fwd, uniform_snapshot(1.0), [seen])
+    assert plan.mode == "exploring"
+    plan = YawPlanner(near).plan(1.0, 0.0, fwd, snap, [seen])
+    assert plan.mode == "exploring" and plan.yaws[-1] > 0.5  # turned left, to the unknown
+    assert YawPlanner(paper_config()).plan(1.0, 0.0, fwd, uniform_snapshot(1.0), [seen]).mode == "tracking"
+    with pytest.raises(ValueError, match="^method='fuel'"):
+        YawPlannerConfig(method="fuel")
+
+
 def test_observing_needs_every_neighbour_recently_seen():
     planner = YawPlanner(paper_config())
     snap = uniform_snapshot(3.0)
