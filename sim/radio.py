@@ -7,9 +7,14 @@ generator, so a run is reproducible. A message is lost when any of these holds
 1. ``blackout``: nothing is ever delivered;
 2. ``range``: sender-receiver distance above ``range_m`` at send time;
 3. ``line_of_sight``: an obstacle blocks the straight line (when enabled);
-4. ``jamming``: the delivery time falls in a jamming window (receivers deaf
+4. ``view``: with ``view_gated``, the sender is not in the receiver's camera
+   view at send time (outside its field of view or depth range, or hidden by
+   an obstacle): MP-CDE's rule for making the communicating baselines
+   comparable (Sec. V-B 3: "communication is permitted only when other
+   quadrotors are within the FoV");
+5. ``jamming``: the delivery time falls in a jamming window (receivers deaf
    from t1 to t2, closed-open);
-5. ``loss``: the link's loss model drops it: Bernoulli with probability p, or
+6. ``loss``: the link's loss model drops it: Bernoulli with probability p, or
    Gilbert-Elliott, a two-state Markov chain per directed link advanced once
    per message (good -> bad with ``ge_p_good_to_bad``, bad -> good with
    ``ge_p_bad_to_good``; loss probability ``ge_loss_good`` / ``ge_loss_bad``
@@ -48,6 +53,8 @@ class RadioConfig:
         ge_loss_bad: drop probability in the bad state.
         range_m: maximum link distance [m] (``inf`` for no limit).
         line_of_sight_only: drop messages whose straight path an obstacle blocks.
+        view_gated: deliver a message only if its sender was in the receiver's
+            camera view at send time (module docstring, cause 4).
         jamming_windows_s: ((t1, t2), ...) windows [s] when receivers are deaf.
         blackout: deliver nothing at all.
     """
@@ -62,6 +69,7 @@ class RadioConfig:
     ge_loss_bad: float = 1.0
     range_m: float = float("inf")
     line_of_sight_only: bool = False
+    view_gated: bool = False
     jamming_windows_s: tuple[tuple[float, float], ...] = field(default=())
     blackout: bool = False
 
@@ -105,13 +113,19 @@ class Radio:
         seed: seed of the channel's random decisions.
         line_of_sight: ``f(p_a (3,), p_b (3,)) -> bool``, needed when
             ``config.line_of_sight_only`` (the world's ray test).
+        in_view: ``f(receiver, sender) -> bool``, whether the sender is in the
+            receiver's camera view now; needed when ``config.view_gated``.
     """
 
     def __init__(
-        self, config: RadioConfig, n_drones: int, seed: int, line_of_sight: Callable[[np.ndarray, np.ndarray], bool] | None = None
-    ) -> None:
+        self, config: RadioConfig, n_drones: int, seed: int, line_of_sight: Callable[[np.ndarray, np.ndarray], bool] | None = None,
+        in_view: Callable[[int, int], bool] | None = None,
+    ) -> None:  # fmt: skip
         if config.line_of_sight_only and line_of_sight is None:
             raise ValueError("line_of_sight_only=True needs a line_of_sight function")
+        if config.view_gated and in_view is None:
+            raise ValueError("view_gated=True needs an in_view function")
+        self.in_view = in_view
         self.config = config
         self.n = n_drones
         self.rng = np.random.default_rng([seed, 0x4AD10])
@@ -158,6 +172,8 @@ class Radio:
                 cause = "range"
             elif c.line_of_sight_only and not self.line_of_sight(pos_world[sender], pos_world[r]):
                 cause = "line_of_sight"
+            elif c.view_gated and not self.in_view(r, sender):
+                cause = "view"
             elif c.jammed(receive_time):
                 cause = "jamming"
             elif dropped:

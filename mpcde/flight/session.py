@@ -112,7 +112,7 @@ class FlightSession:
         self.estimator = PoseEstimator(cfg.pose_estimate, n, cfg.seed)
         self.rig = CameraRig(cfg.camera, cfg.seed)
         world = self.world
-        self.radio = Radio(cfg.radio, n, cfg.seed, line_of_sight=lambda a, b: _line_of_sight(world, a, b))
+        self.radio = Radio(cfg.radio, n, cfg.seed, line_of_sight=lambda a, b: _line_of_sight(world, a, b), in_view=self._in_view)
         self.faults = FaultInjector(cfg.faults, n, cfg.seed, (cfg.camera.width_px, cfg.camera.height_px))
         self.track_score = TrackingScore()
         self.observed = ObservedArea(prepared.obstacles, cfg.world.arena_size_m, n, cfg.camera.hfov_deg, cfg.camera.depth_max_m) if cfg.run.cameras else None
@@ -248,6 +248,18 @@ class FlightSession:
                         self.radio.broadcast(a.drone_id, t, msg, truth.pos_world)
             self.radio_rounds += 1
             self.next_radio += self.radio_period
+
+    def _in_view(self, receiver: int, sender: int) -> bool:
+        """Whether ``sender`` is in ``receiver``'s camera view now (the view-gated radio): inside the field of view and
+        depth range of the receiver's true camera pose, and not hidden by an obstacle (truth: the channel's physics)."""
+        truth, cam = self.truth, self.config.camera
+        T = self.rig.transform_camera_to_world(truth.pos_world[receiver], truth.rotation_body_to_world[receiver])
+        p = T[:3, :3].T @ (truth.pos_world[sender] - T[:3, 3])  # the sender in the receiver's camera frame
+        if not cam.depth_min_m <= p[2] <= cam.depth_max_m:
+            return False
+        if abs(p[0]) > p[2] * np.tan(np.radians(cam.hfov_deg) / 2) or abs(p[1]) > p[2] * np.tan(np.radians(cam.vfov_deg) / 2):
+            return False
+        return _line_of_sight(self.world, T[:3, 3], truth.pos_world[sender])
 
     def _finish_frames(self) -> tuple[float, list[RgbdFrame], list | None]:
         """Collect the render batch in flight: onboard frames (+ truth labels), and the workers' detections if they ran it."""

@@ -61,6 +61,34 @@ def test_blackout_range_and_line_of_sight():
     assert not received[2] and radio.lost["line_of_sight"] > 0
 
 
+def test_a_view_gated_radio_delivers_only_what_the_receiver_sees():
+    """view_gated: j's message reaches i only while in_view(i, j); drone 0 sees 1 only, the others see nobody."""
+    sees = {(0, 1)}
+    radio = Radio(RadioConfig(view_gated=True), 3, seed=1, in_view=lambda r, s: (r, s) in sees)
+    for s in range(3):
+        radio.broadcast(s, 0.0, s, POS[:3])
+    got = [[m.sender_id for m in radio.receive(r, 0.0)] for r in range(3)]
+    assert got == [[1], [], []]
+    assert radio.lost["view"] == 5
+    with pytest.raises(ValueError, match="in_view"):
+        Radio(RadioConfig(view_gated=True), 3, seed=1)
+
+
+@pytest.mark.slow
+def test_a_view_gated_flight_loses_the_messages_of_unseen_drones():
+    """In flight, the session's in_view (camera field of view, depth range, line of sight): antipodal drones face the
+    centre, so the plans of those in front get through and the rest are lost to "view"."""
+    import mpcde
+
+    cfg = mpcde.load_scenario("antipodal", mode="comm", duration_s=3.0)
+    from dataclasses import replace
+
+    cfg = replace(cfg, radio=replace(cfg.radio, view_gated=True))
+    m = mpcde.fly(cfg).metrics
+    lost = m["radio"]["lost"]
+    assert lost.get("view", 0) > 0 and m["radio"]["delivered"] > 0
+
+
 def test_delay_shifts_delivery_and_same_seed_gives_same_deliveries():
     cfg = RadioConfig(delay_s=0.15, loss_model="bernoulli", loss_probability=0.3)
     _, a = run_rounds(cfg, 50, seed=11)
