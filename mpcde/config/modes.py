@@ -8,7 +8,9 @@ scenario config (:class:`mpcde.config.scenario.PlannerConfig`) that selects its 
 * ``comm`` -> ``dmpc``: distributed MPC on plans exchanged over the radio;
 * ``auto`` -> ``auto``: ``comm``, falling back to camera tracks and to ``denied`` when the radio fails;
 * ``mlr`` -> ``mlr``: MLR-DMPC (DMPC-Swarm): compute units on the first drones, message-loss recovery;
-* ``admm`` -> ``admm``: cooperative formation DMPC solved by ADMM across neighbours (Stomberg et al.).
+* ``admm`` -> ``admm``: cooperative formation DMPC solved by ADMM across neighbours (Stomberg et al.);
+* ``minco_comm`` -> ``minco_comm``: MP-CDE's map and MINCO planner against the plans other drones broadcast
+  (the EGO-Swarm analogue, MP-CDE Fig. 6's communicating baseline; :mod:`mpcde.onboard.minco_comm`).
 
 Code that takes a mode validates it against the keys of :data:`MODES` (never
 a list of its own), so a stack added here is accepted everywhere at once.
@@ -20,4 +22,5 @@ __all__ = ["MODES"]
 
 MODES: dict[str, str] = {  # --mode -> planner.kind
     "placeholder": "min_jerk_line", "denied": "mpcde", "comm": "dmpc", "auto": "auto", "mlr": "mlr", "admm": "admm",
+    "minco_comm": "minco_comm",
 }

@@ -9,7 +9,7 @@ flight. Derived fields (target <- source):
   and ``pose_yaw_std_rad`` <- ``pose_estimate.yaw_noise_rad``: a drone's
   back-projection uncertainty includes its own localisation noise, what its
   VIO reports (MP-CDE Eq. 8);
-* ``denied.v_max_mps`` (with ``planner.kind`` ``mpcde`` or ``auto``) and
+* ``denied.v_max_mps`` (with ``planner.kind`` ``mpcde``, ``auto`` or ``minco_comm``) and
   ``dmpc.qp.v_max`` (``dmpc`` or ``auto``) <- ``planner.cruise_speed_mps``
   when it is set: the scenario's speed is each stack's speed limit;
 * ``denied.yaw.v_max_mps`` <- ``denied.v_max_mps``, ``denied.yaw.yaw_rate_max_radps``
@@ -44,7 +44,7 @@ _MISSING = object()
 DERIVED: tuple[tuple[str, str, Callable[[ScenarioConfig], Any], Callable[[ScenarioConfig], bool]], ...] = (
     (
         "denied.v_max_mps", "planner.cruise_speed_mps", lambda c: c.planner.cruise_speed_mps,
-        lambda c: c.planner.cruise_speed_mps is not None and c.planner.kind in ("mpcde", "auto"),
+        lambda c: c.planner.cruise_speed_mps is not None and c.planner.kind in ("mpcde", "auto", "minco_comm"),
     ),
     (
         "dmpc.qp.v_max", "planner.cruise_speed_mps", lambda c: c.planner.cruise_speed_mps,

@@ -160,7 +160,7 @@ class DronesConfig:
             raise ConfigError("altitude_m", self.altitude_m, "in [0.3, 20] m")
 
 
-PlannerKind = Literal["min_jerk_line", "mpcde", "dmpc", "auto", "mlr", "admm"]
+PlannerKind = Literal["min_jerk_line", "mpcde", "dmpc", "auto", "mlr", "admm", "minco_comm"]
 
 
 @dataclass(frozen=True)
@@ -183,12 +183,16 @@ class PlannerConfig:
             cooperative formation DMPC solved by ADMM across neighbours
             (Stomberg et al.; the goals are the formation; settings in
             ``admm``; obstacle-free scenarios whose drones start in formation;
-            the radio runs at the ADMM exchange rate; :mod:`mpcde.onboard.admm`).
+            the radio runs at the ADMM exchange rate; :mod:`mpcde.onboard.admm`),
+            or ``"minco_comm"``, the communicating MINCO swarm (the denied
+            stack's map and planner against the plans other drones broadcast,
+            heading along travel; the EGO-Swarm analogue of MP-CDE's Fig. 6;
+            settings in ``denied``; :mod:`mpcde.onboard.minco_comm`).
         cruise_speed_mps: the swarm's speed [m/s] (MP-CDE's "target velocity"
             regimes, Sec. V-B: 0.5, 1 and 2 m/s), for every stack that flies a
             speed: the peak speed of the placeholder's and ADMM's lines, the
             speed limit of MP-CDE's optimiser (``denied.v_max_mps``, with
-            ``mpcde`` and ``auto``) and DMPC's per-axis speed limit
+            ``mpcde``, ``auto`` and ``minco_comm``) and DMPC's per-axis speed limit
             (``dmpc.qp.v_max``, with ``dmpc`` and ``auto``), derived at load
             time (:mod:`mpcde.config.resolve`; a file that also sets one of
             those to another value is refused). null (the default): each

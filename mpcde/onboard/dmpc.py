@@ -67,7 +67,7 @@ from planners.dmpc.half_spaces import obstacle_half_spaces
 from planners.dmpc.plan_sampler import PlanSampler
 from sim.types import ObstacleSpec, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
 
-__all__ = ["DmpcAgent", "DmpcRoundStats"]
+__all__ = ["DmpcAgent", "DmpcRoundStats", "plan_prediction"]
 
 HALT_TOLERANCE_MPS = 1e-3
 """A received plan whose last velocity is below this on every axis [m/s] halts (OSQP meets v[K] = 0 to its tolerance)."""
@@ -244,7 +244,7 @@ class DmpcAgent(SampledPlanAgent):
             else:
                 self.stats.stale_plans += 1
             self.stats.neighbour_age_s.append(age)
-            out.append(_plan_prediction(j, msg))
+            out.append(plan_prediction(j, msg))
         self._renewed = set()
         if self.fusion is None:
             return out
@@ -260,7 +260,7 @@ class DmpcAgent(SampledPlanAgent):
         The ``auto`` agent's memory of the radio while it flies the denied stack.
         """
         plans = sorted(self.neighbour_plans.items())
-        return [_plan_prediction(j, msg) for j, msg in plans if time_s - msg.time_s <= max_age_s]
+        return [plan_prediction(j, msg) for j, msg in plans if time_s - msg.time_s <= max_age_s]
 
     def take_over(self, plan: DmpcPlan, yaw: float) -> None:
         """Start flying DMPC from another stack's reference (the ``auto`` agent's return to the radio).
@@ -419,7 +419,7 @@ def _halts(msg: PlanMessage) -> bool:
     return bool(np.all(np.abs(np.asarray(msg.vel_world)[-1]) < HALT_TOLERANCE_MPS))
 
 
-def _plan_prediction(neighbor_id: int, msg: PlanMessage) -> NeighborPrediction:
+def plan_prediction(neighbor_id: int, msg: PlanMessage) -> NeighborPrediction:
     """A received plan as an exact (zero-covariance) radio prediction."""
     return NeighborPrediction(
         neighbor_id=neighbor_id, source="radio", stamp_s=msg.time_s, times_s=np.asarray(msg.times_s, float),

@@ -20,6 +20,7 @@ from mpcde.onboard.base import OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
 from mpcde.onboard.denied import DeniedAgent
 from mpcde.onboard.dmpc import DmpcAgent
+from mpcde.onboard.minco_comm import MincoCommAgent
 from mpcde.onboard.mlr import MlrAgent
 from mpcde.onboard.perception import NeighbourPerception
 from mpcde.onboard.placeholder import Agent
@@ -58,6 +59,8 @@ def make_agent(
         return DeniedAgent(drone_id, goal_world, cfg.denied, perception, budget=budget)
     if kind == "dmpc":
         return _dmpc_agent(cfg, drone_id, goals_world, obstacles, perception, cfg.dmpc, budget=budget)
+    if kind == "minco_comm":  # the denied stack's planner and map, neighbours from the radio
+        return MincoCommAgent(drone_id, goal_world, cfg.denied, budget=budget)
     if kind == "auto":
         denied = DeniedAgent(drone_id, goal_world, cfg.denied, perception, budget=budget)
         # one perception for both halves; denied.perceive_neighbours: false turns it off for both
