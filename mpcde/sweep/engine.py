@@ -78,7 +78,11 @@ def fly_task(task: FlightTask) -> FlightOutcome:
     from mpcde.api import fly
     from mpcde.flight.loop import run_scenario
 
+    from mpcde.errors import Terminated
+
     t0 = time.perf_counter()
+    global _FLYING
+    _FLYING = True
     try:
         prepared = task.prepared() if callable(task.prepared) else task.prepared
         out = task.run_folder
@@ -86,11 +90,23 @@ def fly_task(task: FlightTask) -> FlightOutcome:
             result = run_scenario(prepared)
         else:  # mpcde.fly writes the run folder (and the video) all or nothing
             result = fly(prepared.config, out=out, overwrite=True, video=task.video)
+    except Terminated:
+        if _IN_POOL:  # the flight has closed its session on the way here; a stopped worker takes no further flight
+            os._exit(143)
+        raise
     except Exception as e:  # a failed flight is a result of the sweep, not the end of it
         last = traceback.extract_tb(e.__traceback__)[-1] if e.__traceback__ else None
         where = f" at {Path(last.filename).name}:{last.lineno}" if last else ""
         return FlightOutcome(task.key, None, f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}{where}", time.perf_counter() - t0)
+    finally:
+        _FLYING = False
     return FlightOutcome(task.key, result.metrics, None, time.perf_counter() - t0, result if task.keep_result else None)
+
+
+_IN_POOL = False
+"""Whether this process is a local pool's worker (set by :func:`_warm`)."""
+_FLYING = False
+"""Whether this process is inside :func:`fly_task` (a SIGTERM then unwinds the flight; otherwise it exits at once)."""
 
 
 def share_cores_count(jobs: int, cpus: int | None = None) -> int:
@@ -147,7 +163,9 @@ def _warm() -> None:
     """A pool worker's first job: import the simulator and the stacks (what every flight needs) before a flight waits on it.
 
     It also makes SIGTERM raise :class:`mpcde.errors.Terminated` in the worker, so that a flight stopped by
-    an interrupted sweep closes its session (render pool, shared memory) on the way out, and it ignores
+    an interrupted sweep closes its session (render pool, shared memory) on the way out; the worker then
+    exits (:func:`fly_task`) instead of taking the flight its pool had already queued for it (it used to:
+    one SIGTERM stopped one flight, and the sweep's exit waited for the next). It ignores
     SIGINT: Ctrl-C reaches the whole process group, and the main process answers it by stopping the
     workers with SIGTERM (a second Ctrl-C must not interrupt that cleanup).
     """
@@ -155,7 +173,12 @@ def _warm() -> None:
     import mpcde.onboard.factory  # noqa: F401
     from mpcde.errors import Terminated
 
+    global _IN_POOL
+    _IN_POOL = True
+
     def raise_terminated(signum: int, frame: object) -> None:
+        if not _FLYING:  # idle, between flights: nothing to close, and no next flight may start
+            os._exit(143)
         raise Terminated()
 
     signal.signal(signal.SIGTERM, raise_terminated)

@@ -85,3 +85,33 @@ def test_a_second_ctrl_c_while_a_sweep_shuts_down_adds_no_traceback(tmp_path):
     _, err = p.communicate(timeout=120)
     assert p.returncode == 130, err[-3000:]
     assert len(err.strip().splitlines()) == 1 and err.startswith("mpcde: interrupted;"), err[-3000:]
+
+
+def test_sigterm_to_a_sweep_stops_its_workers_and_starts_no_queued_flight(tmp_path):
+    """`kill` (SIGTERM to the main process only) during a --jobs 2 camera sweep with flights queued: 143 within
+    seconds, every worker and render worker gone, no further row. Each worker used to stop its flight and then
+    take the one its pool had queued for it, and the sweep's exit waited for those."""
+    out = tmp_path / "sweep"
+    sweep = tmp_path / "cameras.yaml"
+    sweep.write_text("base: radio_outage\nseeds: 10\noverrides:\n  duration_s: 6.0\naxes:\n  planner.kind: [dmpc]\n")
+    cmd = [sys.executable, "-m", "mpcde", "sweep", str(sweep), "--out", str(out), "--jobs", "2", "--quiet"]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, cwd=Path(__file__).resolve().parents[2])
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline and not (out / "results.jsonl").exists():
+        time.sleep(0.1)
+    time.sleep(1.0)  # the next flights are running, more are queued
+    os.kill(p.pid, signal.SIGTERM)
+    t0 = time.monotonic()
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 143 and time.monotonic() - t0 < 30, err[-3000:]
+    rows = (out / "results.jsonl").read_text().count("\n")
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline:
+        try:
+            os.killpg(p.pid, 0)  # anyone left in the sweep's process group?
+        except ProcessLookupError:
+            break
+        time.sleep(0.2)
+    else:
+        pytest.fail("sweep workers still running 15 s after the sweep exited")
+    assert (out / "results.jsonl").read_text().count("\n") == rows < 10
