@@ -29,6 +29,12 @@ class DeniedAgentConfig:
         perceive_neighbours: run the detector and tracker (False: map only, blind to other drones);
             their settings are the scenario's ``perception:`` section.
         active_yaw: plan the heading with MP-CDE's active yaw planner (False: heading along travel).
+        look_around: before the first departure, hover and turn the camera through one full
+            revolution at ``yaw_rate_max_radps`` (2 pi / 2 rad/s = 3.1 s), so that every neighbour
+            in range is detected and becomes a track the yaw planner keeps looking for (Alg. 1
+            line 8 looks only for neighbours it has tracked). Not in MP-CDE. Why: every collision of
+            the denied swarm measured so far was between neighbours that start side by side and
+            never saw each other (docs/results/safety.md). Off by default until that sweep measures it.
         map: occupancy map settings.
         yaw: active yaw planner settings; its speed limit, yaw-rate limit, t_hold
             and field of view are taken from ``v_max_mps``, ``yaw_rate_max_radps``,
@@ -47,6 +53,7 @@ class DeniedAgentConfig:
     conflict_horizon_s: float = 1.2
     perceive_neighbours: bool = True
     active_yaw: bool = True
+    look_around: bool = False
     map: MapConfig = field(default_factory=MapConfig)
     yaw: YawPlannerConfig = field(default_factory=YawPlannerConfig)
 
@@ -58,6 +65,7 @@ class DeniedAgentConfig:
         for name, unit in units.items():
             require_positive(name, getattr(self, name), unit)
         require_non_negative("start_delay_s", self.start_delay_s, "s")
+        require_boolean("look_around", self.look_around)
         require_at_least("swarm_z_scale", self.swarm_z_scale, 1.0)
         require_boolean("perceive_neighbours", self.perceive_neighbours)
         require_boolean("active_yaw", self.active_yaw)

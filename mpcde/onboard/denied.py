@@ -108,6 +108,7 @@ class DeniedAgent(OnboardAgent):
         self.stats = PlanningStats()
         self.map = OccupancyMap(config.map, on_esdf=lambda seconds: self.budget.add("esdf", seconds))
         self.maps_frames = True
+        self._scan: tuple[float, float, float] | None = None  # (start [s], start yaw [rad], end [s]) of the look-around turn
         self.trajectory: MincoTrajectory | None = None
         self.braking = False  # whether self.trajectory is a stopping piece (committed until a replan succeeds)
         self.last_plan_time_s = -np.inf
@@ -137,6 +138,8 @@ class DeniedAgent(OnboardAgent):
             yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
             c = self.config
             self.heading = ActiveYaw(self.yaw_config, c.active_yaw, yaw, c.swarm_clearance_m, c.swarm_z_scale)
+            if c.look_around:  # one revolution from the first estimate on (config.look_around)
+                self._scan = (float(estimate.time_s), yaw, float(estimate.time_s) + 2.0 * np.pi / c.yaw_rate_max_radps)
 
     def on_radio(self, messages: list[RadioMessage]) -> None:
         """Denied: the radio is not used (messages are counted only)."""
@@ -178,7 +181,7 @@ class DeniedAgent(OnboardAgent):
         The snapshot (a copy of the window; its ESDF deferred further) is taken only
         when the yaw planner or a replan reads it, not on every frame.
         """
-        if t < self.config.start_delay_s or self.latest_estimate is None:
+        if t < self.config.start_delay_s or self.latest_estimate is None or self._scanning(t):
             return
         neighbours = self.neighbours(t)
         yaw_trigger = False
@@ -224,6 +227,18 @@ class DeniedAgent(OnboardAgent):
         if self.heading is not None:
             self.heading.restart(yaw, time_s)
 
+
+    def _scanning(self, t: float) -> bool:
+        """Whether the look-around turn (config.look_around) is still on at ``t`` [s]; when it ends, the heading
+        continues from where the turn left it."""
+        if self._scan is None:
+            return False
+        t0, yaw0, t_end = self._scan
+        if t < t_end - 1e-9:
+            return True
+        self._scan = None
+        self.heading.restart(yaw0 + 2.0 * np.pi, t)
+        return False
 
     # planning ---------------------------------------------------------------
     def state_at(self, t: float) -> np.ndarray:
@@ -320,6 +335,10 @@ class DeniedAgent(OnboardAgent):
         """Reference at ``time_s`` [s]: the current MINCO trajectory and the heading of :mod:`mpcde.onboard.heading`."""
         if self.heading is None:  # no pose estimate yet
             return FlatOutputReference.hover(np.zeros(3), 0.0)
+        if self._scanning(time_s):  # config.look_around: hover, turning at the yaw-rate limit
+            t0, yaw0, _ = self._scan
+            rate = self.config.yaw_rate_max_radps
+            return FlatOutputReference(self.hover_world, np.zeros(3), np.zeros(3), yaw0 + rate * (time_s - t0), rate)
         if self.trajectory is None:
             yaw, yaw_rate = self.heading.reference(time_s, None)
             return FlatOutputReference(self.hover_world, np.zeros(3), np.zeros(3), yaw, yaw_rate)
