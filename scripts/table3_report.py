@@ -41,7 +41,6 @@ def main() -> None:
         r = json.loads(line)
         if not r.get("metrics"):
             continue
-        v = r["values"] if "values" in r else None
         cells[r["cell"]].append(r)
     yaw_values = dict(spec["axes"])["denied.yaw"]
     print(f"{'density /100m^2':>15}  {'method':<20} {'flights':>7}  {'S_obs m^2 mean +- sd':>21}  {'success':>7}  {'95% CI':>9}  {'paper S_obs':>11}")

@@ -32,9 +32,8 @@ class DeniedAgentConfig:
         look_around: before the first departure, hover and turn the camera through one full
             revolution at ``yaw_rate_max_radps`` (2 pi / 2 rad/s = 3.1 s), so that every neighbour
             in range is detected and becomes a track the yaw planner keeps looking for (Alg. 1
-            line 8 looks only for neighbours it has tracked). Not in MP-CDE. Why: every collision of
-            the denied swarm measured so far was between neighbours that start side by side and
-            never saw each other (docs/results/safety.md). Off by default until that sweep measures it.
+            line 8 looks only for neighbours it has tracked). Not in MP-CDE. Why, and what it has
+            done so far: docs/results/safety.md. Off by default until that sweep measures it.
         map: occupancy map settings.
         yaw: active yaw planner settings; its speed limit, yaw-rate limit, t_hold
             and field of view are taken from ``v_max_mps``, ``yaw_rate_max_radps``,

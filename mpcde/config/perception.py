@@ -39,9 +39,8 @@ class PerceptionConfig:
         detector_score_threshold: keep detections scoring >= this; None: the checkpoint's own.
         detector_precision: arithmetic of the detector's forward pass: "float32",
             "bfloat16", or "auto" (bfloat16 where the CPU has bfloat16 dot-product
-            instructions, float32 elsewhere). bfloat16 halves the network's time on
-            such a CPU and keeps precision and recall within 0.01 of float32
-            (docs/results/detector.md); metrics.json records the one used.
+            instructions, float32 elsewhere). Its time and its precision and recall
+            against float32: docs/results/detector.md; metrics.json records the one used.
         tracker: neighbour tracker settings (MP-CDE Sec. IV-B, Table I).
         backprojection: detection back-projection settings (Eq. 7-8); its pose-noise
             terms are replaced by the scenario's ``pose_estimate`` white noise.

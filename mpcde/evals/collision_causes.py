@@ -222,7 +222,7 @@ def explain_flight(cfg: ScenarioConfig) -> tuple[dict[str, Any], list[CollisionC
     field_ = ObstacleField(prepared.obstacles)
     r = cfg.physics.quadrotor.robot_radius_m
     causes: list[CollisionCause] = []
-    pending: list[tuple[dict, float]] = []  # events waiting for the second of truth after them
+    pending: list[tuple[dict, float]] = []  # events waiting for the second of truth after them (all flushed once done)
     future: deque[tuple[float, np.ndarray]] = deque()
     seen_events = 0
     last_delivery = None
@@ -240,10 +240,7 @@ def explain_flight(cfg: ScenarioConfig) -> tuple[dict[str, Any], list[CollisionC
                 seen_events += 1
             while pending and (session.done or truth.time_s >= pending[0][0]["time_s"] + 1.0):
                 ev, ref = pending.pop(0)
-                causes.append(_classify(ev, ref, rec, future, field_, prepared.obstacles, r, session))
-        while pending:
-            ev, ref = pending.pop(0)
-            causes.append(_classify(ev, ref, rec, future, field_, prepared.obstacles, r, session))
+                causes.append(_classify(ev, ref, rec, future, field_, r, session))
         return session.result().metrics, causes
     finally:
         session.close()
@@ -258,7 +255,7 @@ def _ref_at(session: Any, t: float) -> np.ndarray | None:
     return np.asarray(rows["ref_pos_world"][max(k, 0)], float)
 
 
-def _classify(ev: dict, ref: np.ndarray | None, rec: _Recorder, future: deque, field_: ObstacleField, obstacles, r: float, session: Any) -> CollisionCause:
+def _classify(ev: dict, ref: np.ndarray | None, rec: _Recorder, future: deque, field_: ObstacleField, r: float, session: Any) -> CollisionCause:
     t = float(ev["time_s"])
     drones = list(ev["drones"])
     tick = rec.at(t)

@@ -25,7 +25,7 @@ S_obs"); the paper does not define the computation, so this package does:
 
 The camera's pitch and roll are ignored (the footprint is the level fan at
 the camera's height), as is the vertical field of view: the paper's Fig. 5
-shades the same kind of top-view region. Cost: about 50 us per frame.
+shades the same kind of top-view region.
 """
 
 from __future__ import annotations

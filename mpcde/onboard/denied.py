@@ -57,7 +57,7 @@ from mpcde.onboard.budget import ComputeBudget
 from mpcde.onboard.heading import ActiveYaw
 from mpcde.onboard.perception import NeighbourPerception, onboard_perception
 from perception.occupancy_map import OccupancyMap
-from perception.types import Detection, NeighborPrediction, OccupancySnapshot
+from perception.types import Detection, NeighborPrediction
 from planners.dmpc.collision import ellipsoidal_distance
 from planners.minco import MincoTrajectory, minco_s3
 from planners.neighbour_field import with_neighbour_capsules

@@ -175,7 +175,7 @@ class DmpcAgent(SampledPlanAgent):
         self.obstacle_range_m = config.obstacle_range_m
         if config.commit_when_unheard:
             # a plan flown to its halt unrevised reaches sqrt(2) v_max K h horizontally: every obstacle it can
-            # reach must have its plane (radio_outage seed 18 flew a plan into a tree 3-6 m out of range)
+            # reach must have its plane (the flight that showed it: docs/results/comm_safety.md)
             self.obstacle_range_m = max(self.obstacle_range_m, float(np.sqrt(2.0) * qp.v_max * qp.horizon_s) + self.inflation_m)
         self.counters = AgentCounters()
         self.stats = DmpcRoundStats()

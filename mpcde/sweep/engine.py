@@ -189,7 +189,7 @@ _ONE_THREAD = {
     "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
     # A flight stopped by an interrupted sweep while its render pool starts can leave a shared-memory
     # segment to multiprocessing's resource tracker, which unlinks it at exit with a UserWarning on the
-    # terminal after our one line (seen in 1 of 3 runs of tests/integration/test_signals.py); the
+    # terminal after our one line (seen in tests/integration/test_signals.py's sweep runs); the
     # segment is freed either way, so the tracker started by a worker keeps the notice to itself.
     "PYTHONWARNINGS": "ignore::UserWarning:multiprocessing.resource_tracker",
 }  # fmt: skip

@@ -79,8 +79,7 @@ def decode_outputs(
     neighbours' (the sigmoid is monotone, so this is the max-pool rule on
     scores), kept when its score is >= ``score_threshold``; the best
     ``max_detections`` by score, boxes from the size and offset heads, greedy
-    NMS. About 0.04 ms per 320 x 240 frame against 0.2 ms for the reference.
-    Arguments and result as the reference's.
+    NMS (timings: docs/results/realtime.md). Arguments and result as the reference's.
     """
     out = np.ascontiguousarray(outputs.detach().float().numpy())
     H, W = image_shape_px if image_shape_px is not None else (-1, -1)

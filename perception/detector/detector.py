@@ -45,9 +45,9 @@ _BF16_CPU_FLAGS = ("avx512_bf16", "amx_bf16")
 def native_bfloat16(cpuinfo: str | None = None) -> bool:
     """Whether this CPU has bfloat16 dot-product instructions (``avx512_bf16`` or ``amx_bf16``; Linux only).
 
-    oneDNN runs a bfloat16 convolution on such a CPU at about twice the float32
-    rate (the detector's forward pass: docs/results/detector.md); elsewhere it
-    would emulate bfloat16 or refuse it, so "auto" keeps float32 there.
+    oneDNN computes a bfloat16 convolution natively on such a CPU (what it saves
+    the detector: docs/results/detector.md); elsewhere it would emulate
+    bfloat16 or refuse it, so "auto" keeps float32 there.
 
     Args:
         cpuinfo: text of ``/proc/cpuinfo`` (read when None; absent: False).

@@ -4,9 +4,9 @@ Same encoding as :func:`perception.detector.model.encode_frames` (the tests'
 oracle): RGB / 255 - 0.5, and for RGB-D a fourth channel
 ``clip(depth_m, 0, DEPTH_SCALE_M) / DEPTH_SCALE_M`` with invalid (NaN) depth
 read as ``DEPTH_SCALE_M``. The torch form stacks the frames, permutes,
-converts and concatenates (five passes over 7.4 MB for six 320 x 240 frames,
-about 0.45 ms per frame on one thread); this reads each frame once and writes
-the (B, H, W, C) buffer that a channels-last (B, C, H, W) tensor views.
+converts and concatenates (five passes over 7.4 MB for six 320 x 240 frames);
+this reads each frame once and writes the (B, H, W, C) buffer that a
+channels-last (B, C, H, W) tensor views (timings: docs/results/realtime.md).
 """
 
 from __future__ import annotations

@@ -67,17 +67,23 @@ def test_publishing_never_deletes_a_folder_that_appeared_during_the_run(tmp_path
     assert folder.publish() == empty and not list(tmp_path.glob(".empty.partial-*"))
 
 
+def _start_camera_sweep(tmp_path: Path, seeds: int, duration_s: float, wait_s: float) -> tuple[subprocess.Popen, Path]:
+    """Start a --jobs 2 sweep of comm camera flights on radio_outage in its own process group; return once its first row landed."""
+    out = tmp_path / "sweep"
+    sweep = tmp_path / "cameras.yaml"
+    sweep.write_text(f"base: radio_outage\nseeds: {seeds}\noverrides:\n  duration_s: {duration_s}\naxes:\n  planner.kind: [dmpc]\n")
+    cmd = [sys.executable, "-m", "mpcde", "sweep", str(sweep), "--out", str(out), "--jobs", "2", "--quiet"]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, cwd=Path(__file__).resolve().parents[2])
+    deadline = time.monotonic() + wait_s
+    while time.monotonic() < deadline and not (out / "results.jsonl").exists():
+        time.sleep(0.1)
+    return p, out
+
+
 def test_a_second_ctrl_c_while_a_sweep_shuts_down_adds_no_traceback(tmp_path):
     """Ctrl-C twice during camera flights in a --jobs 2 sweep (a user who presses again, or a `timeout` forwarding
     its own): the one line, exit 130; the flights in progress are stopped (their render workers leave quietly)."""
-    out = tmp_path / "sweep"
-    sweep = tmp_path / "cameras.yaml"
-    sweep.write_text("base: radio_outage\nseeds: 6\noverrides:\n  duration_s: 4.0\naxes:\n  planner.kind: [dmpc]\n")
-    cmd = [sys.executable, "-m", "mpcde", "sweep", str(sweep), "--out", str(out), "--jobs", "2", "--quiet"]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, cwd=Path(__file__).resolve().parents[2])
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and not (out / "results.jsonl").exists():
-        time.sleep(0.1)
+    p, _ = _start_camera_sweep(tmp_path, seeds=6, duration_s=4.0, wait_s=120)
     os.killpg(p.pid, signal.SIGINT)
     time.sleep(0.5)
     if p.poll() is None:
@@ -91,14 +97,7 @@ def test_sigterm_to_a_sweep_stops_its_workers_and_starts_no_queued_flight(tmp_pa
     """`kill` (SIGTERM to the main process only) during a --jobs 2 camera sweep with flights queued: 143 within
     seconds, every worker and render worker gone, no further row. Each worker used to stop its flight and then
     take the one its pool had queued for it, and the sweep's exit waited for those."""
-    out = tmp_path / "sweep"
-    sweep = tmp_path / "cameras.yaml"
-    sweep.write_text("base: radio_outage\nseeds: 10\noverrides:\n  duration_s: 6.0\naxes:\n  planner.kind: [dmpc]\n")
-    cmd = [sys.executable, "-m", "mpcde", "sweep", str(sweep), "--out", str(out), "--jobs", "2", "--quiet"]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, cwd=Path(__file__).resolve().parents[2])
-    deadline = time.monotonic() + 180
-    while time.monotonic() < deadline and not (out / "results.jsonl").exists():
-        time.sleep(0.1)
+    p, out = _start_camera_sweep(tmp_path, seeds=10, duration_s=6.0, wait_s=180)
     time.sleep(1.0)  # the next flights are running, more are queued
     os.kill(p.pid, signal.SIGTERM)
     t0 = time.monotonic()
