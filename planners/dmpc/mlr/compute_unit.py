@@ -68,6 +68,7 @@ from typing import Any
 import numpy as np
 
 from planners.dmpc.mlr.config import MlrConfig
+from planners.dmpc.mlr.make_room import MakeRoomPlanner
 from planners.dmpc.mlr.qp import MlrProblem, MlrQpResult
 from planners.dmpc.mlr.tracker import InformationTrackers, TrackerUpdate
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId, positions_at_each
@@ -140,6 +141,8 @@ class ComputeUnit:
             self.trackers.deprecate_all()
         self.targets_world = np.array(initial_targets_world, float).reshape(config.n_uavs, 3)
         self.problem = MlrProblem(config)
+        starts = np.array([t.positions_at(np.array([t.t_start_s]))[0] for t in initial])
+        self.make_room = MakeRoomPlanner(config, starts, self.targets_world) if config.make_room else None
         self._own_last: CuTrajectoryMessage | RecoveryRequest | None = None  # what this CU sent last round
         self._donate_now = False
         self._heard_requests: set[int] = set()  # CUs whose request this CU received last round
@@ -158,6 +161,8 @@ class ComputeUnit:
         replies = {m.slot_cu_id: m for m in inbox if isinstance(m, RecoveryReply)}
         for i, m in states.items():
             self.targets_world[i] = m.target_world
+        if self.make_room is not None:
+            self.make_room.observe(k, states)
         new = {
             m.uav_id: m.trajectory
             for m in cu_msgs.values()
@@ -181,6 +186,7 @@ class ComputeUnit:
             update = self.trackers.update(
                 {i: m.following for i, m in states.items()}, new,
                 {r.uav_id: r.trajectory for r in replies.values()}, not missed or bool(suspects), suspects,
+                cfg.max_candidates if cfg.keep_ambiguous else 0,
             )  # fmt: skip
         self._heard_requests = {v for v, m in cu_msgs.items() if isinstance(m, RecoveryRequest)}
         self._pending_replies = {m.uav_id for m in cu_msgs.values() if isinstance(m, RecoveryRequest)}
@@ -248,7 +254,10 @@ class ComputeUnit:
                 midway.append(j in a_et)  # Eq. 15: midway for j in A_ET(k), relaxed otherwise
         others = np.array(pos).reshape(-1, cfg.n_checks, 3)
         own = self.trackers[uav].candidates[0]
-        return self.problem.solve(own, t_start, self.targets_world[uav], others, np.array(midway, bool),
+        target = self.targets_world[uav]
+        if self.make_room is not None:
+            target = self.make_room.target(uav, target)
+        return self.problem.solve(own, t_start, target, others, np.array(midway, bool),
                                   TrajectoryId(k, self.cu_index))
 
     def _priorities(self, k: int, just_computed: int | None) -> np.ndarray:

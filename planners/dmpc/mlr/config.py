@@ -101,6 +101,36 @@ class MlrConfig:
             so the lost message of CU v can only have carried a trajectory for
             the UAV at rank (k - 1 + v) mod M of it: only that tracker is
             deprecated. Otherwise every tracker is, as in the paper.
+        keep_ambiguous: what a lost UAV state message does to a tracker that
+            holds the UAV's old and new trajectory (Alg. 2 Line 13). False:
+            deprecated, as in the paper. True (chosen): the tracker keeps both
+            candidates, not deprecated, until a state message names one (or
+            a third candidate arrives: then deprecated). Both candidates stay
+            in every QP, so the true trajectory is always among the
+            constrained ones (Lemma 1 holds); Lemma 2's equality across CUs
+            becomes inclusion, which keeps Theorem 3's argument
+            (:mod:`planners.dmpc.mlr.tracker`, step 2b).
+        make_room: run the high-level planner against deadlocks (Appendix,
+            "High-level path planner"; :mod:`planners.dmpc.mlr.make_room`):
+            while every UAV away from its target stands still, a UAV that
+            blocks one farther from its target gets an intermediate target
+            away from it. It changes only the QP's cost, never its constraints.
+            Chosen off: it frees the one swap that deadlocks on an ideal radio
+            but slows the swarm under 10 % loss (docs/results/mlr_dmpc.md).
+        make_room_progress_m: a UAV away from its target that came less than
+            this much closer to it over ``make_room_rounds`` rounds is stuck
+            [m] (chosen 0.1).
+        make_room_rounds: the window of that progress in rounds (chosen 10:
+            2 s; UAVs not yet computed after the start stand still for about
+            N / M rounds).
+        make_room_arrived_m: a UAV this close to its target has arrived and
+            does not count as deadlocked [m] (chosen 0.1).
+        make_room_radius_m: how close UAV j must be for UAV i to make room,
+            and the half-width of j's corridor to its target [m] (chosen 1.0).
+        make_room_step_m: distance of the intermediate target from UAV i,
+            away from j [m] (chosen 0.6).
+        make_room_noise_m: norm of the random horizontal offset of the
+            intermediate target [m] (chosen 0.15).
         trigger: event trigger of Appendix A: ``"rr"`` (round-robin, A1),
             ``"db"`` (distance-based, A2) or ``"ht"`` (hybrid, A3).
         priority_scale_rr: one 8-bit priority unit of RR in rounds (chosen 1).
@@ -137,6 +167,14 @@ class MlrConfig:
     max_kept_deprecated: int = 8
     lazy_recovery: bool = True
     precise_cu_loss: bool = True
+    keep_ambiguous: bool = True
+    make_room: bool = False
+    make_room_progress_m: float = 0.1
+    make_room_rounds: int = 10
+    make_room_arrived_m: float = 0.1
+    make_room_radius_m: float = 1.0
+    make_room_step_m: float = 0.6
+    make_room_noise_m: float = 0.15
     trigger: str = "ht"
     priority_scale_rr: float = 1.0
     priority_scale_db_m: float = 0.02
@@ -168,6 +206,12 @@ class MlrConfig:
         require_integer_at_least("max_kept_deprecated", self.max_kept_deprecated, 1)
         require_boolean("lazy_recovery", self.lazy_recovery)
         require_boolean("precise_cu_loss", self.precise_cu_loss)
+        require_boolean("keep_ambiguous", self.keep_ambiguous)
+        require_boolean("make_room", self.make_room)
+        for name in ("make_room_progress_m", "make_room_arrived_m", "make_room_radius_m", "make_room_step_m"):
+            require_positive(name, getattr(self, name))
+        require_non_negative("make_room_noise_m", self.make_room_noise_m)
+        require_integer_at_least("make_room_rounds", self.make_room_rounds, 1)
         if self.trigger not in TRIGGERS:
             raise ConfigError("trigger", self.trigger, f"one of {', '.join(TRIGGERS)}")
         for name in ("priority_scale_rr", "priority_scale_db_m", "priority_scale_ht", "osqp_eps_abs", "osqp_eps_rel"):

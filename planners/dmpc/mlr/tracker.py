@@ -11,6 +11,18 @@ In round k's computation phase, with the messages of round k - 1:
 2. Missing metadata (Line 13): if the state message was lost and the tracker
    holds more than one candidate, the CU cannot tell which one i follows:
    deprecated. With one candidate it stays as it is (Lemma 1's proof).
+2b. With ``keep_ambiguous`` (``MlrConfig.keep_ambiguous``): instead of step
+   2, a tracker holding at most K candidates (K = ``max_candidates``, the
+   old and the new trajectory) stays usable with all of them; it is
+   deprecated when step 5 would give it more than K. Every QP constrains the
+   computed UAV against every candidate, so the true trajectory is always
+   among the constrained ones (Lemma 1 holds). Lemma 2's equality across CUs
+   weakens to "each non-deprecated tracker holds the true trajectory", which
+   is what the collision argument uses: a CU computes a UAV only when its
+   tracker of that UAV holds one candidate (then the true one), so for two
+   UAVs computed at once by two CUs both QPs contain the midway constraint of
+   the same true pair (Eq. 15); the extra candidate only adds constraints.
+   The QP stays sized for K candidates per UAV.
 3. Recovery replies: a reply of round k - 1 carries the trajectory i followed
    in round k - 1; the tracker becomes exactly that one, not deprecated.
 4. Missing CU messages (Line 18): if a CU slot of round k - 1 is unaccounted
@@ -121,6 +133,7 @@ class InformationTrackers:
         replies: Mapping[int, ReferenceTrajectory],
         all_cu_slots_accounted: bool,
         suspects: Iterable[int] = (),
+        keep_ambiguous: int = 0,
     ) -> TrackerUpdate:
         """Alg. 2 with the messages of the previous round (steps 1-5 of the module docstring).
 
@@ -133,6 +146,10 @@ class InformationTrackers:
             suspects: UAVs whose tracker is deprecated like in step 4, but alone
                 (step 4b): the UAVs a missed CU message can have carried a
                 trajectory for, when the caller can name them.
+            keep_ambiguous: 0 for the paper's step 2 (Line 13). K >= 2: a tracker
+                whose UAV's state message was lost keeps all its candidates, not
+                deprecated, as long as it holds at most K of them (step 2b,
+                module docstring); one that grows beyond K in step 5 is deprecated.
         """
         before = [e.deprecated for e in self.entries]
         restored = []
@@ -143,7 +160,7 @@ class InformationTrackers:
             if i in following:  # step 1 (Line 6)
                 match = [c for c in entry.candidates if c.meta == following[i]]
                 self.entries[i] = TrackerEntry((match[0],)) if match else TrackerEntry(entry.candidates, True, True)
-            elif len(entry.candidates) > 1:  # step 2 (Line 13)
+            elif len(entry.candidates) > max(keep_ambiguous, 1):  # step 2 (Line 13); 2b keeps up to K
                 self.entries[i] = TrackerEntry(entry.candidates, True, entry.missing)
         if not all_cu_slots_accounted:  # step 4 (Line 18)
             self.entries = [TrackerEntry(e.candidates, True, e.missing) for e in self.entries]
@@ -154,6 +171,9 @@ class InformationTrackers:
             cands = tuple(c for c in e.candidates if c.meta != traj.meta) + (traj,)
             if e.deprecated:
                 cands = cands[-self.max_kept:]
+            elif len(cands) > max(keep_ambiguous, 2):  # step 2b: too many to keep usable
+                self.entries[i] = TrackerEntry(cands[-self.max_kept:], True, e.missing)
+                continue
             self.entries[i] = TrackerEntry(cands, e.deprecated, e.missing)
         for i, e in enumerate(self.entries):
             if before[i] and not e.deprecated:

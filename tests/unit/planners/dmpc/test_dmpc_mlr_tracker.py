@@ -58,6 +58,20 @@ def test_unknown_metadata_deprecates_and_a_recovery_reply_restores() -> None:
     assert not tr.any_deprecated and tr[2].candidates == (reply,) and upd.restored == (2,)
 
 
+def test_keep_ambiguous_keeps_old_and_new_without_metadata_until_a_third_arrives() -> None:
+    strict, kept = _trackers(), _trackers()
+    new, newer = _traj(TrajectoryId(0, 1)), _traj(TrajectoryId(1, 2))
+    for tr, keep in ((strict, 0), (kept, 2)):
+        tr.update({}, {0: new}, {}, True, keep_ambiguous=keep)  # round 1: UAV 0 recomputed, {old, new}
+        tr.update({1: HOVER_META, 2: HOVER_META}, {}, {}, True, keep_ambiguous=keep)  # UAV 0's state message lost
+    assert strict.deprecated_ids == (0,)  # Alg. 2 Line 13
+    assert not kept.any_deprecated and kept[0].metas == (HOVER_META, TrajectoryId(0, 1))  # step 2b
+    kept.update({1: HOVER_META, 2: HOVER_META}, {0: newer}, {}, True, keep_ambiguous=2)
+    assert kept.deprecated_ids == (0,) and kept[0].metas[-1] == TrajectoryId(1, 2)  # three candidates: deprecated
+    kept.update({0: TrajectoryId(1, 2), 1: HOVER_META, 2: HOVER_META}, {}, {}, True, keep_ambiguous=2)
+    assert not kept.any_deprecated and kept[0].metas == (TrajectoryId(1, 2),)  # its metadata restores it
+
+
 def test_metadata_naming_a_kept_candidate_restores_a_deprecated_tracker() -> None:
     tr = _trackers()
     tr.update({}, {0: _traj(TrajectoryId(0, 0))}, {}, False)  # all deprecated, the new one still kept
@@ -84,13 +98,17 @@ class _FastCu(ComputeUnit):
         return MlrQpResult(traj, 0.0, 0, "solved", 0.0, 0.0, 0)
 
 
-def _simulate(seed: int, loss: float, rounds: int, n: int = 6, m: int = 3) -> tuple[int, int]:
+def _simulate(seed: int, loss: float, rounds: int, n: int = 6, m: int = 3, keep_ambiguous: bool = False) -> tuple[int, int]:
     """Run the CU/UAV protocol with random per-receiver loss; assert Lemma 1 and 2 every round.
+
+    With ``keep_ambiguous`` (step 2b) Lemma 2's equality is not expected; what
+    the collision argument needs instead is checked: every UAV a CU computes
+    has exactly one candidate in that CU's tracker, its true trajectory.
 
     Returns (non-deprecated tracker checks, rounds in which some CU was in MLR).
     """
     rng = np.random.default_rng(seed)
-    cfg = MlrConfig(n_uavs=n, n_cus=m, horizon_rounds=3, trigger="rr")
+    cfg = MlrConfig(n_uavs=n, n_cus=m, horizon_rounds=3, trigger="rr", keep_ambiguous=keep_ambiguous, make_room=False)
     initial = [ReferenceTrajectory.hover(HOVER_META, 0.0, [i, 0.0, 1.0], cfg.n_inputs, cfg.input_step_s)
                for i in range(n)]
     targets = np.zeros((n, 3))
@@ -108,6 +126,8 @@ def _simulate(seed: int, loss: float, rounds: int, n: int = 6, m: int = 3) -> tu
         for w, cu in enumerate(cus):
             msg, rep = cu.step(k, inbox[n + w])
             modes.append(rep.mode)
+            if rep.mode == "compute":  # the computed UAV's initial state is its true trajectory's
+                assert cu.trackers[rep.uav_id].metas[:1] == (truth[rep.uav_id],)
             if msg is not None:
                 sent.append((n + w, msg))
         mlr_rounds += any(md in ("request", "donate") for md in modes)
@@ -117,7 +137,9 @@ def _simulate(seed: int, loss: float, rounds: int, n: int = 6, m: int = 3) -> tu
                 assert truth[i] in entry.metas, f"Lemma 1 broken: round {k}, UAV {i}"  # Lemma 1
                 checks += 1
             for entry in fresh[1:]:
-                assert entry.metas == fresh[0].metas, f"Lemma 2 broken: round {k}, UAV {i}"  # Lemma 2
+                if not keep_ambiguous:
+                    assert entry.metas == fresh[0].metas, f"Lemma 2 broken: round {k}, UAV {i}"  # Lemma 2
+                assert len(entry.candidates) <= cfg.max_candidates
         inbox = [[] for _ in range(n + m)]
         for sender, payload in sent:
             for r in range(n + m):
@@ -126,11 +148,12 @@ def _simulate(seed: int, loss: float, rounds: int, n: int = 6, m: int = 3) -> tu
     return checks, mlr_rounds
 
 
+@pytest.mark.parametrize("keep_ambiguous", [False, True])
 @pytest.mark.parametrize("loss", [0.05, 0.2, 0.4])
-def test_lemma_1_and_2_hold_under_random_message_loss(loss: float) -> None:
+def test_lemma_1_and_2_hold_under_random_message_loss(loss: float, keep_ambiguous: bool) -> None:
     total_checks, total_mlr = 0, 0
     for seed in range(12):
-        checks, mlr = _simulate(seed, loss, rounds=40)
+        checks, mlr = _simulate(seed, loss, rounds=40, keep_ambiguous=keep_ambiguous)
         total_checks += checks
         total_mlr += mlr
     assert total_checks > 500  # the lemmas were exercised on many non-deprecated trackers
