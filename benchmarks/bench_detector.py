@@ -8,6 +8,11 @@ one-frame-at-a-time baseline measured in the same run, at ``--threads`` and
 at one thread (the flight's setting), in float32 and, where the CPU computes
 it natively, bfloat16 (``perception.detector_precision``). The network
 forward alone is also printed.
+
+Stems: the shipped network's compiled forward pass (as the flight runs it:
+one thread, ``detector_precision: auto``, batches of 3 and 6) against the same
+widths with the other stem (``ModelConfig.stem``, "conv" or "patch"), random
+weights: the cost of a convolution does not depend on its weights.
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ import torch
 
 from perception.detector import DroneDetector
 from perception.detector.detector import native_bfloat16
-from perception.detector.model import encode_frames
+from perception.detector.model import DetectorNet, ModelConfig, encode_frames
 from sim.types import RgbdFrame
 from timing import median_ms
 
@@ -68,7 +73,29 @@ def main() -> None:
             print(f"  bfloat16, batched     : {b16_ms:7.2f} ms per frame  (forward {b16_fwd:.2f}; x{batched_ms / b16_ms:.2f} vs float32 batched)")
         else:
             print("  bfloat16: skipped (no avx512_bf16 / amx_bf16 on this CPU; precision 'auto' keeps float32)")
+    _stems(frames, args.repeats)
     print("goal <= 1.5 ms per frame in flight (the flight runs one thread per process)")
+
+
+def _stems(frames: list[RgbdFrame], repeats: int) -> None:
+    """Compiled forward pass per frame, shipped stem against the other one (module docstring)."""
+    torch.set_num_threads(1)
+    shipped = DroneDetector.load(precision="auto")
+    cfg = shipped.net.cfg
+    other_stem = "conv" if cfg.stem == "patch" else "patch"
+    other = DroneDetector(DetectorNet(ModelConfig(cfg.in_channels, cfg.c1, cfg.c2, cfg.c3, cfg.c4, stem=other_stem)).eval(),
+                          0.5, precision="auto")
+    print(f"stems, 1 thread, {shipped.precision}, compiled forward pass per frame (widths {cfg.c1}/{cfg.c2}/{cfg.c3}/{cfg.c4}):")
+    for batch in (3, 6):
+        x = encode_frames(np.stack([f.rgb for f in frames[:batch]]), np.stack([f.depth_m for f in frames[:batch]]), cfg.in_channels)
+        x = x.contiguous(memory_format=torch.channels_last).to(shipped.net.head.weight.dtype)
+        times = {}
+        for name, det in ((cfg.stem, shipped), (other_stem, other)):
+            det.compile_graph = True
+            with torch.inference_mode():
+                times[name] = _median_ms(lambda: det._forward(x), repeats) / batch
+        print(f"  batch of {batch}: {cfg.stem} (shipped) {times[cfg.stem]:.3f} ms, {other_stem} {times[other_stem]:.3f} ms"
+              f" (x{times['conv'] / times['patch']:.2f} patch vs conv)")
 
 
 if __name__ == "__main__":

@@ -80,9 +80,12 @@ def build_parser() -> argparse.ArgumentParser:
     td.add_argument("--data", type=Path, default=None, help="dataset folder to reuse or fill (train/ and val/); default OUT/data")
     td.add_argument("--frames", type=int, default=8000, help="training frames (rendered when the dataset has fewer)")
     td.add_argument("--val-frames", type=int, default=640, help="validation frames (threshold choice and the card's metrics)")
-    td.add_argument("--epochs", type=int, default=20, help="passes over the training frames")
+    td.add_argument("--epochs", type=int, default=30, help="passes over the training frames")
     td.add_argument("--minutes", type=float, default=24.0, help="wall-clock budget of the optimisation [min]")
     td.add_argument("--seed", type=_seed, default=0, help="seed of the weights init and augmentation")
+    td.add_argument("--stem", choices=["conv", "patch"], default="patch", help="network stem: two 3x3 stride-2 convolutions, or one 4x4 stride-4 patch convolution")
+    td.add_argument("--widths", type=int, nargs=4, default=[8, 16, 32, 64], metavar=("C1", "C2", "C3", "C4"), help="channel widths at strides 2, 4, 8, 16 (C1 unused by the patch stem)")
+    td.add_argument("--threads", type=int, default=2, help="torch CPU threads of the optimisation")
     td.add_argument("--quiet", action="store_true")
     tde = sub.add_parser("eval-detector", help="score the detector on held-out renders -> results.json")
     tde.add_argument("--out", required=True, type=Path)
@@ -184,10 +187,15 @@ def _cmd_fly(args: argparse.Namespace) -> int:
 
 def _cmd_train_detector(args: argparse.Namespace) -> int:
     from mpcde.training.train import run_train_detector
+    from perception.detector.model import ModelConfig
 
     _at_least("--frames", args.frames, 16)
     _at_least("--val-frames", args.val_frames, 8)
     _at_least("--epochs", args.epochs, 1)
+    _at_least("--threads", args.threads, 1)
+    for name, width in zip(("C1", "C2", "C3", "C4"), args.widths):
+        if not 4 <= width <= 256:
+            raise ConfigError(f"--widths {name}", width, "an integer in [4, 256]")
     if not (args.minutes > 0):
         raise ConfigError("--minutes", args.minutes, "> 0")
     _check_out_dir(args.out)
@@ -195,7 +203,8 @@ def _cmd_train_detector(args: argparse.Namespace) -> int:
         _check_out_dir(args.data)
     card = run_train_detector(
         args.out, n_train_frames=args.frames, epochs=args.epochs, seed=args.seed, progress=not args.quiet,
-        data_dir=args.data, n_val_frames=args.val_frames, max_minutes=args.minutes,
+        data_dir=args.data, n_val_frames=args.val_frames, max_minutes=args.minutes, threads=args.threads,
+        model=ModelConfig(4, *args.widths, stem=args.stem),
     )  # fmt: skip
     v = card["val_metrics"]
     print(

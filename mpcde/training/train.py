@@ -184,7 +184,7 @@ def predict_dataset(net: DetectorNet, data: dict, batch: int = 16) -> list[tuple
 def run_train_detector(
     out_dir: Path,
     n_train_frames: int = 8000,
-    epochs: int = 20,
+    epochs: int = 30,
     seed: int = 0,
     progress: bool = True,
     data_dir: Path | None = None,
@@ -193,7 +193,7 @@ def run_train_detector(
     crop_hw_px: tuple[int, int] = (160, 224),
     lr: float = 3e-3,
     max_minutes: float = 24.0,
-    model: ModelConfig = ModelConfig(c1=8, c2=16, c3=32, c4=64),
+    model: ModelConfig = ModelConfig(c1=8, c2=16, c3=32, c4=64, stem="patch"),
     threads: int = 2,
 ) -> dict:
     """Generate (or reuse) data, train the detector on CPU, write weights and a model card.

@@ -3,7 +3,8 @@
 Architecture (``DetectorNet``; B frames, input (B, C, H, W) with H, W
 multiples of 16, C = 3 for RGB or 4 for RGB-D)::
 
-    stem    3x3 s2 C->c1, 3x3 s2 c1->c2            (stride 4)
+    stem    3x3 s2 C->c1, 3x3 s2 c1->c2            (stride 4; stem = "conv")
+         or 4x4 s4 C->c2, one patch per cell        (stride 4; stem = "patch", c1 unused)
     s4      3x3 c2->c2                              (stride 4)   = a
     s8      3x3 s2 c2->c3, 3x3 c3->c3               (stride 8)   = b
     s16     3x3 s2 c3->c4, 3x3 c4->c4               (stride 16)  = c
@@ -14,7 +15,11 @@ multiples of 16, C = 3 for RGB or 4 for RGB-D)::
 Every 3x3 conv is conv + BatchNorm + ReLU in training; :func:`fold_batchnorm`
 folds each BatchNorm into its conv for inference. The stride-16 level gives
 the receptive field (about 200 px) that near drones (boxes up to ~150 px)
-need; the costly convolutions stay at stride 4 and 8.
+need; the costly convolutions stay at stride 4 and 8. The "patch" stem
+(a 4x4 stride-4 convolution, as in ConvNeXt's patchify stem) reads each input
+pixel once and replaces two convolutions, the first of which works on only
+four input channels at stride 2; its cost against the "conv" stem is in
+``docs/results/detector.md``.
 
 Outputs on the (H/4, W/4) grid, cell (i, j) covering input pixels
 ``[4j, 4j + 4) x [4i, 4i + 4)``:
@@ -41,10 +46,12 @@ from torch import nn
 
 from sim.checks import ConfigError
 
-__all__ = ["STRIDE", "DEPTH_SCALE_M", "ModelConfig", "DetectorNet", "encode_frames", "fold_batchnorm"]
+__all__ = ["STRIDE", "STEMS", "DEPTH_SCALE_M", "ModelConfig", "DetectorNet", "encode_frames", "fold_batchnorm"]
 
 STRIDE = 4
 """Output stride of the heads [px per cell]."""
+STEMS = ("conv", "patch")
+"""The stem choices of :class:`ModelConfig`."""
 DEPTH_SCALE_M = 10.0
 """Depth channel = depth_m / DEPTH_SCALE_M; invalid depth reads as DEPTH_SCALE_M [m]."""
 
@@ -59,6 +66,8 @@ class ModelConfig:
         c2: width at stride 4 (heads).
         c3: width at stride 8.
         c4: width at stride 16.
+        stem: "conv" (two 3x3 stride-2 convolutions through width c1) or
+            "patch" (one 4x4 stride-4 convolution; c1 unused).
     """
 
     in_channels: int = 4
@@ -66,10 +75,13 @@ class ModelConfig:
     c2: int = 16
     c3: int = 32
     c4: int = 64
+    stem: str = "conv"
 
     def __post_init__(self) -> None:
         if self.in_channels not in (3, 4):
             raise ConfigError("in_channels", self.in_channels, "3 (RGB) or 4 (RGB-D)")
+        if self.stem not in STEMS:
+            raise ConfigError("stem", self.stem, " or ".join(repr(s) for s in STEMS))
         for name in ("c1", "c2", "c3", "c4"):
             v = getattr(self, name)
             if not (isinstance(v, int) and 4 <= v <= 256):
@@ -80,9 +92,10 @@ class ModelConfig:
         return asdict(self)
 
 
-def _cbr(c_in: int, c_out: int, stride: int = 1) -> nn.Sequential:
-    """3x3 conv (no bias) + BatchNorm + ReLU."""
-    return nn.Sequential(nn.Conv2d(c_in, c_out, 3, stride, 1, bias=False), nn.BatchNorm2d(c_out), nn.ReLU(inplace=True))
+def _cbr(c_in: int, c_out: int, stride: int = 1, kernel: int = 3) -> nn.Sequential:
+    """kernel x kernel conv (no bias; "same" padding for 3x3, none for a patch kernel = stride) + BatchNorm + ReLU."""
+    pad = 1 if kernel == 3 else 0
+    return nn.Sequential(nn.Conv2d(c_in, c_out, kernel, stride, pad, bias=False), nn.BatchNorm2d(c_out), nn.ReLU(inplace=True))
 
 
 class DetectorNet(nn.Module):
@@ -91,7 +104,10 @@ class DetectorNet(nn.Module):
     def __init__(self, cfg: ModelConfig = ModelConfig()) -> None:
         super().__init__()
         self.cfg = cfg
-        self.stem = nn.Sequential(_cbr(cfg.in_channels, cfg.c1, 2), _cbr(cfg.c1, cfg.c2, 2))
+        if cfg.stem == "patch":
+            self.stem = _cbr(cfg.in_channels, cfg.c2, STRIDE, kernel=STRIDE)
+        else:
+            self.stem = nn.Sequential(_cbr(cfg.in_channels, cfg.c1, 2), _cbr(cfg.c1, cfg.c2, 2))
         self.s4 = _cbr(cfg.c2, cfg.c2)
         self.s8 = nn.Sequential(_cbr(cfg.c2, cfg.c3, 2), _cbr(cfg.c3, cfg.c3))
         self.s16 = nn.Sequential(_cbr(cfg.c3, cfg.c4, 2), _cbr(cfg.c4, cfg.c4))

@@ -9,6 +9,7 @@ import torch
 from perception.detector import DEFAULT_WEIGHTS, DroneDetector, box_iou_xyxy, decode_outputs, nms_xyxy
 from perception.detector.decode import decode_outputs_reference
 from perception.detector.model import DetectorNet, ModelConfig, fold_batchnorm
+from sim.checks import ConfigError
 from sim.camera import CameraConfig, apply_depth_sensor_model, intrinsics
 from sim.camera_rig import CameraRig
 from sim.rendering.tiny import PARKED_POS, SceneRenderer
@@ -136,7 +137,7 @@ def test_compiled_decode_equals_the_reference_on_the_network_outputs(detector, r
 
     frames, _, _ = rendered
     with torch.inference_mode():
-        x = encode_channels_last([f.rgb for f in frames], [f.depth_m for f in frames], 4).to(detector.net.stem[0][0].weight.dtype)
+        x = encode_channels_last([f.rgb for f in frames], [f.depth_m for f in frames], 4).to(next(detector.net.parameters()).dtype)
         out = detector.net(x).float()
     # large boxes overlapping a little: NMS has work to do at a low threshold
     for (ba, sa), (bb, sb) in zip(decode_outputs(out, threshold, 20, 0.3, (240, 320)), decode_outputs_reference(out, threshold, 20, 0.3, (240, 320))):
@@ -145,9 +146,10 @@ def test_compiled_decode_equals_the_reference_on_the_network_outputs(detector, r
         np.testing.assert_array_equal(sa, sb)
 
 
-def test_folded_batchnorm_gives_the_same_outputs():
+@pytest.mark.parametrize("stem", ["conv", "patch"])
+def test_folded_batchnorm_gives_the_same_outputs(stem):
     torch.manual_seed(0)
-    net = DetectorNet(ModelConfig())
+    net = DetectorNet(ModelConfig(stem=stem))
     for m in net.modules():
         if isinstance(m, torch.nn.BatchNorm2d):
             m.running_mean.uniform_(-0.2, 0.2)
@@ -159,6 +161,26 @@ def test_folded_batchnorm_gives_the_same_outputs():
         ref = net(x)
         got = fold_batchnorm(net)(x)
     assert torch.allclose(ref, got, atol=1e-4)
+
+
+def test_patch_stem_sees_each_input_pixel_once_per_cell():
+    """The patch stem's output cell (i, j) depends on input pixels [4i, 4i + 4) x [4j, 4j + 4) only."""
+    torch.manual_seed(0)
+    net = DetectorNet(ModelConfig(stem="patch")).eval()
+    x = torch.randn(1, 4, 32, 48)
+    with torch.no_grad():
+        base = net.stem(x)
+        x2 = x.clone()
+        x2[0, :, 9, 13] += 5.0  # inside cell (2, 3)
+        diff = (net.stem(x2) - base).abs().sum(dim=1)[0]
+    assert base.shape == (1, 16, 8, 12)
+    changed = torch.nonzero(diff > 0).tolist()
+    assert changed == [[2, 3]]
+
+
+def test_unknown_stem_is_a_config_error():
+    with pytest.raises(ConfigError, match="stem"):
+        ModelConfig(stem="resnet")
 
 
 def test_bad_weights_raise_one_line_value_error(tmp_path):
