@@ -110,6 +110,18 @@ class MlrConfig:
             constrained ones (Lemma 1 holds); Lemma 2's equality across CUs
             becomes inclusion, which keeps Theorem 3's argument
             (:mod:`planners.dmpc.mlr.tracker`, step 2b).
+        soft_rotation: the Appendix's B4 soft constraint: every BVC row of
+            another trajectory is tightened by a slack eps >= 0 that the cost
+            rewards (linear reward, small quadratic), more for a UAV to the
+            right, so that approaching UAVs turn around each other. With
+            eps = 0 the rows are Eq. 15's, so Theorem 1's shifted trajectory
+            stays feasible and the guarantees hold (the paper, after Chen et
+            al. 2023). Chosen on: docs/results/mlr_dmpc.md.
+        soft_weight: reward per metre of slack, other UAV not to the right
+            [1/m] (chosen 0.5).
+        soft_weight_right: the same for a UAV to the right [1/m] (chosen 2.0).
+        soft_weight_quadratic: quadratic cost on the slack [1/m^2] (chosen 1.0).
+        soft_max_m: upper bound of the slack [m] (chosen 0.3).
         make_room: run the high-level planner against deadlocks (Appendix,
             "High-level path planner"; :mod:`planners.dmpc.mlr.make_room`):
             while every UAV away from its target stands still, a UAV that
@@ -168,6 +180,11 @@ class MlrConfig:
     lazy_recovery: bool = True
     precise_cu_loss: bool = True
     keep_ambiguous: bool = True
+    soft_rotation: bool = True
+    soft_weight: float = 0.5
+    soft_weight_right: float = 2.0
+    soft_weight_quadratic: float = 1.0
+    soft_max_m: float = 0.3
     make_room: bool = False
     make_room_progress_m: float = 0.1
     make_room_rounds: int = 10
@@ -207,6 +224,11 @@ class MlrConfig:
         require_boolean("lazy_recovery", self.lazy_recovery)
         require_boolean("precise_cu_loss", self.precise_cu_loss)
         require_boolean("keep_ambiguous", self.keep_ambiguous)
+        require_boolean("soft_rotation", self.soft_rotation)
+        for name in ("soft_weight", "soft_weight_right"):
+            require_non_negative(name, getattr(self, name))
+        for name in ("soft_weight_quadratic", "soft_max_m"):
+            require_positive(name, getattr(self, name))
         require_boolean("make_room", self.make_room)
         for name in ("make_room_progress_m", "make_room_arrived_m", "make_room_radius_m", "make_room_step_m"):
             require_positive(name, getattr(self, name))

@@ -21,6 +21,12 @@ open). The shifted current trajectory (inputs shifted by one round, zero
 jerk appended) meets every constraint (Theorem 1's feasibility argument), so
 the solver is warm-started from it (duals zero).
 
+With ``soft_rotation`` (Appendix B4) every other trajectory r gets a slack
+0 <= eps_r <= ``soft_max_m`` that tightens its rows (right-hand side + eps_r)
+and that the cost rewards, -w_r eps_r + ``soft_weight_quadratic`` eps_r^2, with
+w_r larger for a UAV to the right (:meth:`MlrProblem._soft_rewards`); eps = 0
+gives the rows above, so the guarantees stand.
+
 Build, then solve: :class:`MlrProblem` sets OSQP up once with a FIXED sparsity
 pattern sized for (N - 1) x ``max_candidates`` x h_c BVC rows; a round fills
 the rows it needs (structural entries of the rest stay, with value 0 and
@@ -155,7 +161,9 @@ class MlrProblem:
         Ts = cfg.input_step_s
         self._A1, self._B1 = A, B = discrete_model("triple", Ts)
         self._nx, self._n_u = 9 * hs, 3 * hs
-        n = self._nx + self._n_u
+        slots = (cfg.n_uavs - 1) * cfg.max_candidates
+        self._n_eps = slots if cfg.soft_rotation else 0  # Appendix B4: one slack per other trajectory
+        n = self._nx + self._n_u + self._n_eps
         self._n = n
         self._max_rows_bvc = (cfg.n_uavs - 1) * cfg.max_candidates * hc
         # Check time t_h = t_0 + h T_c. At a knot (t_h = t_0 + (m+1) T_s) p(t_h) is the position of
@@ -190,7 +198,6 @@ class MlrProblem:
         pat.add(row + np.arange(self._n_u), self._nx + np.arange(self._n_u), np.ones(self._n_u))
         row += self._n_u
         self._row_bvc = row  # 13f: one block of h_c rows per other trajectory
-        slots = (cfg.n_uavs - 1) * cfg.max_candidates
         for h in range(hc):
             if abs(tau[h] - Ts) < 1e-9:  # at knot x_{m+1}
                 checks.append((np.arange(xcol(m[h] + 1), xcol(m[h] + 1) + 3), np.eye(3)))
@@ -207,7 +214,14 @@ class MlrProblem:
         c_one = np.concatenate([c for c, _ in checks])
         rows = (np.arange(slots)[:, None] * hc + r_one[None, :]).ravel()
         self._bvc_slice = pat.add(row + rows, np.tile(c_one, slots), np.zeros(rows.size))
+        self._eps_col = self._nx + self._n_u
+        if self._n_eps:  # B4: a^T p(t_h) - eps_s >= b on every row of slot s
+            pat.add(row + np.arange(slots * hc), self._eps_col + np.repeat(np.arange(slots), hc), np.full(slots * hc, -1.0))
         row += self._max_rows_bvc
+        self._row_eps = row  # B4: 0 <= eps_s <= soft_max_m (eps_s = 0 on unused slots)
+        if self._n_eps:
+            pat.add(row + np.arange(slots), self._eps_col + np.arange(slots), np.ones(slots))
+            row += slots
         self._n_rows = row
         A_mat, self._coo_to_csc = pat.to_csc((row, n))
         self._Ax = A_mat.data.copy()
@@ -215,7 +229,7 @@ class MlrProblem:
 
         w = np.r_[np.full(3, cfg.weight_pos), np.full(3, cfg.weight_vel), np.full(3, cfg.weight_acc)]
         self._Qbar = np.tile(w, hs)  # diagonal of blockdiag(Q), (9 h_s,)
-        diag = 2.0 * np.r_[self._Qbar, np.full(self._n_u, cfg.weight_jerk)]
+        diag = 2.0 * np.r_[self._Qbar, np.full(self._n_u, cfg.weight_jerk), np.full(self._n_eps, cfg.soft_weight_quadratic)]
         self._P = sp.diags(diag).tocsc()  # diagonal, stays upper triangular
         self._l = np.full(row, -_INF)
         self._u = np.full(row, _INF)
@@ -293,7 +307,7 @@ class MlrProblem:
         l[last:self._row_jerk] = u[last:self._row_jerk] = 0.0
         rj = slice(self._row_jerk, self._row_bvc)
         l[rj], u[rj] = -cfg.j_max, cfg.j_max  # 13c
-        rb = slice(self._row_bvc, self._n_rows)
+        rb = slice(self._row_bvc, self._row_bvc + self._max_rows_bvc)
         l[rb], u[rb] = -_INF, _INF
         n_slots = self._max_rows_bvc // hc
         normal = np.zeros((n_slots, hc, 3))  # unused slots: zero coefficients, bounds (-inf, inf)
@@ -310,6 +324,11 @@ class MlrProblem:
         target[:3] = np.asarray(target_world, float).reshape(3)
         q = np.zeros(self._n)
         q[:self._nx] = -2.0 * self._Qbar * np.tile(target, hs)  # 13a: ||x - x_t||_Q^2 linear term
+        if self._n_eps:  # B4: reward extra clearance, more from a UAV to the right (Chen et al. 2023)
+            re = slice(self._row_eps, self._row_eps + self._n_eps)
+            l[re], u[re] = 0.0, 0.0
+            u[self._row_eps:self._row_eps + R] = cfg.soft_max_m
+            q[self._eps_col:self._eps_col + R] = -self._soft_rewards(x0[:3], target, others[:, 0])
         x_ws = self._warm_start(own, t_start_s)
         t1 = time.perf_counter()
         self._osqp.update(q=q, l=l, u=u, Ax=self._Ax)
@@ -323,7 +342,7 @@ class MlrProblem:
         self._snapshot = QpSnapshot(self._P, q.copy(), A, l.copy(), u.copy(), x, y, status)
         if res.info.status_val not in _ACCEPTED:
             raise DmpcSolveError(status, self._snapshot)
-        U = x[self._nx:]
+        U = x[self._nx:self._nx + self._n_u]
         U = U - self._G_u_pinv @ (self._G_x @ x0 + self._G_u @ U)  # minimum-norm fix: 13e exactly
         U = U.reshape(hs, 3)
         traj = ReferenceTrajectory(meta, float(t_start_s), x0, U, cfg.input_step_s)
@@ -331,12 +350,26 @@ class MlrProblem:
         cost = float(np.sum(self._Qbar * (X - np.tile(target, hs)) ** 2) + cfg.weight_jerk * np.sum(U**2))
         return MlrQpResult(traj, cost, int(res.info.iter), status, t2 - t1, t1 - t0, R * hc)
 
+    def _soft_rewards(self, own_pos: np.ndarray, target: np.ndarray, others_first: np.ndarray) -> np.ndarray:
+        """(R,) B4's reward per metre of extra clearance from each other trajectory.
+
+        ``soft_weight_right`` when the other trajectory's first check point lies
+        to the right of UAV i's horizontal direction to its target, else
+        ``soft_weight``: each UAV keeps more room to its right, so two UAVs
+        that meet turn around each other the same way (Chen et al. 2023).
+        """
+        cfg = self.config
+        heading = target[:2] - own_pos[:2]
+        rel = others_first[:, :2] - own_pos[None, :2]
+        right = heading[0] * rel[:, 1] - heading[1] * rel[:, 0] < 0.0  # z of heading x rel < 0
+        return np.where(right, cfg.soft_weight_right, cfg.soft_weight)
+
     def _warm_start(self, own: ReferenceTrajectory, t_start_s: float) -> np.ndarray:
-        """(n,) ``own`` shifted to t_0 (zero jerk after its end): Theorem 1's feasible candidate."""
+        """(n,) ``own`` shifted to t_0 (zero jerk after its end): Theorem 1's feasible candidate; slacks 0."""
         U = self._shifted_inputs(own, t_start_s).reshape(-1, 3)
         x0 = own.states_at(np.array([t_start_s]))[0]
         X = rollout_states(self._A1, self._B1, x0, U)
-        return np.r_[X.ravel(), U.ravel()]
+        return np.r_[X.ravel(), U.ravel(), np.zeros(self._n_eps)]
 
     def _shifted_inputs(self, own: ReferenceTrajectory, t_start_s: float) -> np.ndarray:
         """(3 h_s,) ``own``'s inputs from t_0 on, zero jerk after its end (Theorem 1's candidate)."""

@@ -36,7 +36,7 @@ def _scene(cfg: MlrConfig, rng: np.random.Generator, n_others: int = 6):
 
 
 def test_solution_meets_every_constraint_and_the_kkt_conditions(rng: np.random.Generator) -> None:
-    cfg = MlrConfig(n_uavs=8, n_cus=2, bvc_margin_m=0.0, **TIGHT)
+    cfg = MlrConfig(n_uavs=8, n_cus=2, bvc_margin_m=0.0, soft_rotation=False, **TIGHT)  # Eq. 13 alone
     problem = MlrProblem(cfg)
     own, others, mid = _scene(cfg, rng)
     t0 = cfg.round_s
@@ -143,3 +143,28 @@ def test_sub_round_check_times_use_interior_rows(rng) -> None:
     rows = time_varying_bvc(own.positions_at(times), others, mid, cfg.d_hat_min_m, cfg.downwash)
     assert np.all(np.einsum("rhd,hd->rh", rows.normal, res.trajectory.positions_at(times)) >= rows.offset - 5e-5)
     assert dataclasses.replace(cfg).n_checks == 2 * cfg.horizon_rounds
+
+
+def test_soft_rotation_meets_eq_15_and_the_kkt_conditions_and_keeps_more_room_to_the_right(rng) -> None:
+    """Appendix B4: the slack only tightens Eq. 15, and a UAV to the right earns the larger reward."""
+    cfg = MlrConfig(n_uavs=8, n_cus=2, bvc_margin_m=0.0, soft_rotation=True, **TIGHT)
+    problem = MlrProblem(cfg)
+    own, others, mid = _scene(cfg, rng)
+    t0 = cfg.round_s
+    res = problem.solve(own, t0, np.array([2.5, 0.3, 1.5]), others, mid, TrajectoryId(0, 1))
+    assert res.status == "solved"
+    snap = problem.snapshot()
+    assert_kkt(snap)
+    times = problem.check_times(t0)
+    rows = time_varying_bvc(own.positions_at(times), others, mid, cfg.d_hat_min_m, cfg.downwash)
+    assert np.all(np.einsum("rhd,hd->rh", rows.normal, res.trajectory.positions_at(times)) >= rows.offset - 5e-5)
+    eps = snap.x[-problem._n_eps:]
+    assert np.all(eps >= -1e-6) and np.all(eps <= cfg.soft_max_m + 1e-6)
+    assert np.all(eps[len(others):] == pytest.approx(0.0, abs=1e-9))  # unused slots stay 0
+    # Two UAVs ahead, one on the left (+y) and one on the right, 1.17 m away; the goal 0.3 m ahead
+    # leaves 0.46 m of slack to each, more than soft_max_m: only the right one is rewarded.
+    problem = MlrProblem(dataclasses.replace(cfg, soft_weight=0.0, soft_weight_right=5.0))
+    two = np.stack([_hover(cfg, [1.0, 0.6, 1.2]).positions_at(times), _hover(cfg, [1.0, -0.6, 1.2]).positions_at(times)])
+    problem.solve(own, t0, np.array([0.3, 0.0, 1.2]), two, np.array([False, False]), TrajectoryId(0, 1))
+    eps = problem.snapshot().x[-problem._n_eps:]
+    assert eps[1] == pytest.approx(cfg.soft_max_m, abs=1e-4) and eps[0] == pytest.approx(0.0, abs=1e-4)
