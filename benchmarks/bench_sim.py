@@ -14,7 +14,7 @@
    run: PyFlyt flying and rendering six camera drones on the same scene
    (``benchmarks/peer_pyflyt.py``; skipped with a note when PyFlyt is absent).
 
-Usage: python benchmarks/bench_sim.py [--quick] [--stacks ...] [--no-peer] [--only-rtf]
+Usage: python benchmarks/bench_sim.py [--quick] [--stacks ...] [--no-peer] [--only-rtf] [--detector-weights PATH]
 """
 
 from __future__ import annotations
@@ -92,18 +92,24 @@ STACKS = ("placeholder", "comm", "denied", "auto")  # mpcde.config.modes.MODES n
 BUDGET_ROWS = (*COMPONENTS, "other")
 
 
-def rtf_bench(duration_s: float, stacks: tuple[str, ...] = STACKS, peer: bool = True, renderer: str = "raycast") -> None:
+def rtf_bench(duration_s: float, stacks: tuple[str, ...] = STACKS, peer: bool = True, renderer: str = "raycast",
+              detector_weights: str | None = None) -> None:
     """Real-time factor of forest_swarm (6 drones, cameras 25 Hz at 320 x 240) per stack, with each stack's budget.
 
     Every stack flies the same seed for ``duration_s`` simulated seconds (no
     early stop at arrival), render workers one per core, as ``mpcde fly``
     does. The peer row is PyFlyt on the same scene (benchmarks/peer_pyflyt.py),
     skipped with a note when PyFlyt does not import; the ratios are against it.
+    ``detector_weights`` flies another checkpoint (``perception.detector_weights``),
+    e.g. an earlier detector as the baseline of a detector change.
     """
     base = load_scenario("forest_swarm", {"duration_s": duration_s})
     rows = {}
     for stack in stacks:
-        cfg = load_scenario("forest_swarm", {"duration_s": duration_s, "planner": {"kind": MODES[stack]}, "camera": {"renderer": renderer}})
+        over = {"duration_s": duration_s, "planner": {"kind": MODES[stack]}, "camera": {"renderer": renderer}}
+        if detector_weights is not None:
+            over["perception"] = {"detector_weights": detector_weights}
+        cfg = load_scenario("forest_swarm", over)
         cfg = replace(cfg, run=replace(cfg.run, stop_when_arrived=False))
         rows[stack] = run_scenario(prepare_run(cfg)).metrics
     peer_rtf, note = None, pyflyt_available() if peer else "not asked (--no-peer)"
@@ -111,7 +117,8 @@ def rtf_bench(duration_s: float, stacks: tuple[str, ...] = STACKS, peer: bool = 
         prepared = prepare_run(base)
         obstacles = [(*o.center_xy, o.footprint_radius_m, o.height_m) for o in prepared.obstacles]
         peer_rtf = pyflyt_peer_rtf(obstacles, prepared.starts, prepared.goals, duration_s)["real_time_factor"]
-    print(f"forest_swarm, 6 drones, {duration_s:.0f} s simulated, cameras 25 Hz at 320x240 ({renderer} renderer), {os.cpu_count()} cores:")
+    weights = f", detector {detector_weights}" if detector_weights else ""
+    print(f"forest_swarm, 6 drones, {duration_s:.0f} s simulated, cameras 25 Hz at 320x240 ({renderer} renderer{weights}), {os.cpu_count()} cores:")
     print(f"{'stack':>12} {'real-time factor':>17} {'vs PyFlyt':>10}   collisions  frames  workers  detector")
     for stack, m in rows.items():
         ratio = f"{m['real_time_factor'] / peer_rtf:9.2f}x" if peer_rtf else f"{'-':>10}"
@@ -139,11 +146,13 @@ def main() -> None:
     ap.add_argument("--no-peer", action="store_true", help="skip the PyFlyt row")
     ap.add_argument("--only-rtf", action="store_true", help="only the real-time rows (no render / physics micro-benchmarks)")
     ap.add_argument("--renderer", choices=["tiny", "raycast"], default="raycast", help="camera.renderer of the real-time rows")
+    ap.add_argument("--detector-weights", default=None, help="detector checkpoint of the real-time rows (default: the shipped one)")
     args = ap.parse_args()
     if not args.only_rtf:
         render_bench(3 if args.quick else 10)
         physics_bench(5 if args.quick else 20)
-    rtf_bench(5.0 if args.quick else 20.0, tuple(args.stacks), peer=not args.no_peer, renderer=args.renderer)
+    rtf_bench(5.0 if args.quick else 20.0, tuple(args.stacks), peer=not args.no_peer, renderer=args.renderer,
+              detector_weights=args.detector_weights)
 
 
 if __name__ == "__main__":
