@@ -100,6 +100,15 @@ def _warm_up(renderer: SceneRenderer | RaycastRenderer, process: FrameProcessor 
         process([r.rgb] * batch, [r.depth_true_m] * batch)
 
 
+def _send(conn, msg: tuple) -> bool:
+    """Send ``msg`` to the flight's process; False if it is gone (interrupted while this worker was busy)."""
+    try:
+        conn.send(msg)
+    except (BrokenPipeError, EOFError, OSError):
+        return False
+    return True
+
+
 def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_slots: int, processor: ProcessorSpec | None, batch: int) -> None:  # pragma: no cover - runs in a child
     shm = shared_memory.SharedMemory(name=shm_name)
     renderer = make_renderer(spec, camera)
@@ -107,7 +116,8 @@ def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_s
     views = _slot_views(shm.buf, n_slots, camera.height_px, camera.width_px)
     try:
         _warm_up(renderer, process, batch)
-        conn.send(("ready",))
+        if not _send(conn, ("ready",)):  # the flight was stopped during the warm-up: leave quietly
+            return
         while True:
             try:
                 msg = conn.recv()
@@ -129,7 +139,8 @@ def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_s
                     todo.append((slot, rgb, sensor_view if r.depth_sensor_m is not None else depth))
             render_s = time.process_time() - t0
             outs, process_s = _process(process, todo) if process is not None else ({}, 0.0)
-            conn.send(("done", len(jobs), render_s, outs, len(todo), process_s))
+            if not _send(conn, ("done", len(jobs), render_s, outs, len(todo), process_s)):
+                break
     finally:
         del views
         renderer.close()

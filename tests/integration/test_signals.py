@@ -20,13 +20,15 @@ import pytest
 from mpcde.errors import MpcdeError
 from mpcde.flight.run_folder import RunFolder
 
+from interruptible import start_interruptible  # tests/integration/interruptible.py
+
 pytestmark = pytest.mark.slow
 
 
 def _start_and_signal(tmp_path: Path, sig: int, group: bool) -> tuple[int, str, Path]:
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "mpcde", "fly", "forest_swarm", "--mode", "denied", "--duration", "20", "--out", str(out), "--quiet"]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    p = start_interruptible(cmd)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and not list(tmp_path.glob(".run.partial-*")):
         time.sleep(0.1)
@@ -73,7 +75,7 @@ def _start_camera_sweep(tmp_path: Path, seeds: int, duration_s: float, wait_s: f
     sweep = tmp_path / "cameras.yaml"
     sweep.write_text(f"base: radio_outage\nseeds: {seeds}\noverrides:\n  duration_s: {duration_s}\naxes:\n  planner.kind: [dmpc]\n")
     cmd = [sys.executable, "-m", "mpcde", "sweep", str(sweep), "--out", str(out), "--jobs", "2", "--quiet"]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, cwd=Path(__file__).resolve().parents[2])
+    p = start_interruptible(cmd, cwd=Path(__file__).resolve().parents[2])
     deadline = time.monotonic() + wait_s
     while time.monotonic() < deadline and not (out / "results.jsonl").exists():
         time.sleep(0.1)

@@ -14,6 +14,8 @@ from mpcde.sweep.runner import run_sweep
 from mpcde.sweep.spec import sweep_from_dict
 from mpcde.sweep.store import ResultsStore, without_wall_clock
 
+from interruptible import start_interruptible  # tests/integration/interruptible.py
+
 pytestmark = pytest.mark.slow
 
 TINY = {
@@ -50,7 +52,7 @@ def test_ctrl_c_records_what_finished_and_the_same_command_flies_only_the_rest(t
     )
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "mpcde", "sweep", str(sweep), "--out", str(out), "--jobs", "2", "--quiet"]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    p = start_interruptible(cmd)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and not ((out / "results.jsonl").exists() and len((out / "results.jsonl").read_text().splitlines()) >= 2):
         time.sleep(0.2)
