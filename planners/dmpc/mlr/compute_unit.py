@@ -260,6 +260,26 @@ class ComputeUnit:
         return self.problem.solve(own, t_start, target, others, np.array(midway, bool),
                                   TrajectoryId(k, self.cu_index))
 
+    def _deadlocked(self, firsts: Sequence[ReferenceTrajectory], k: int, dist: np.ndarray) -> np.ndarray:
+        """(N,) bool: UAVs whose trajectory, computed within the last ``deadlock_rounds``
+        rounds, holds them (motion < ``deadlock_motion_m``) away from their target.
+
+        A recomputation of such a UAV would most likely return the same halt
+        (DMPC-Swarm Appendix A, deadlock-aware triggering; the paper detects
+        deadlock by Chen et al. 2024's condition, this is a cheaper proxy). A
+        trajectory older than ``deadlock_rounds`` is not counted, so a held UAV
+        is tried again as its neighbours move.
+        """
+        cfg = self.config
+        t_now = k * cfg.round_s
+        out = np.zeros(cfg.n_uavs, bool)
+        for i, t in enumerate(firsts):
+            calc = t.meta.calc_round
+            if calc < self.first_round or k - calc > cfg.deadlock_rounds or dist[i] <= cfg.make_room_arrived_m:
+                continue
+            out[i] = _planned_motion_m(t, max(t_now, t.t_start_s)) < cfg.deadlock_motion_m
+        return out
+
     def _priorities(self, k: int, just_computed: int | None) -> np.ndarray:
         """J_{i,w}(k) (Appendix A) from the first candidate of each tracker, quantised; 0 for ``just_computed``."""
         cfg = self.config
@@ -270,9 +290,19 @@ class ComputeUnit:
         dist = np.linalg.norm(self.targets_world - pos, axis=1)
         scale = {"rr": cfg.priority_scale_rr, "db": cfg.priority_scale_db_m, "ht": cfg.priority_scale_ht}[cfg.trigger]
         q = quantize(raw_priorities(cfg.trigger, k, calc, dist), scale)
+        if cfg.deadlock_trigger:  # Appendix A: a deadlocked UAV gets priority 1
+            q[self._deadlocked(firsts, k, dist)] = 1
         if just_computed is not None:
             q[just_computed] = 0  # Appendix A: just recomputed
         return q
+
+
+def _planned_motion_m(traj: ReferenceTrajectory, t_from_s: float) -> float:
+    """Largest distance [m] of ``traj``'s positions from ``t_from_s`` on (its knots) from its position at ``t_from_s``."""
+    times = np.r_[t_from_s, traj.t_start_s + traj.input_step_s * np.arange(1, traj.inputs.shape[0] + 1)]
+    times = times[times >= t_from_s]
+    p = traj.positions_at(times)
+    return float(np.max(np.linalg.norm(p - p[0], axis=1)))
 
 
 def summarize_reports(reports: Sequence[CuStepReport]) -> dict[str, Any]:

@@ -122,6 +122,14 @@ class MlrConfig:
         soft_weight_right: the same for a UAV to the right [1/m] (chosen 2.0).
         soft_weight_quadratic: quadratic cost on the slack [1/m^2] (chosen 1.0).
         soft_max_m: upper bound of the slack [m] (chosen 0.3).
+        deadlock_trigger: Appendix A's deadlock-aware triggering: a UAV held
+            away from its target by a trajectory computed within the last
+            ``deadlock_rounds`` rounds (planned motion < ``deadlock_motion_m``)
+            gets priority 1, so the CUs compute UAVs that can move.
+        deadlock_motion_m: planned motion below which a trajectory holds its
+            UAV [m] (chosen 0.02).
+        deadlock_rounds: how long such a trajectory lowers the priority
+            [rounds] (chosen 40: 8 s, docs/results/mlr_dmpc.md).
         make_room: run the high-level planner against deadlocks (Appendix,
             "High-level path planner"; :mod:`planners.dmpc.mlr.make_room`):
             while every UAV away from its target stands still, a UAV that
@@ -185,6 +193,9 @@ class MlrConfig:
     soft_weight_right: float = 2.0
     soft_weight_quadratic: float = 1.0
     soft_max_m: float = 0.3
+    deadlock_trigger: bool = True
+    deadlock_motion_m: float = 0.02
+    deadlock_rounds: int = 40
     make_room: bool = False
     make_room_progress_m: float = 0.1
     make_room_rounds: int = 10
@@ -229,6 +240,9 @@ class MlrConfig:
             require_non_negative(name, getattr(self, name))
         for name in ("soft_weight_quadratic", "soft_max_m"):
             require_positive(name, getattr(self, name))
+        require_boolean("deadlock_trigger", self.deadlock_trigger)
+        require_positive("deadlock_motion_m", self.deadlock_motion_m)
+        require_integer_at_least("deadlock_rounds", self.deadlock_rounds, 1)
         require_boolean("make_room", self.make_room)
         for name in ("make_room_progress_m", "make_room_arrived_m", "make_room_radius_m", "make_room_step_m"):
             require_positive(name, getattr(self, name))

@@ -51,3 +51,31 @@ def test_cus_with_the_same_priorities_select_the_same_set_and_distinct_uavs() ->
         assert all(s == sets[0] for s in sets)
         picks = [selected_uav(sets[w], k, w, m) for w in range(m)]  # rank (k + w) mod M
         assert len(set(picks)) == m
+
+
+def test_deadlock_aware_trigger_gives_priority_1_to_a_uav_held_away_from_its_target() -> None:
+    """Appendix A: a recent computed trajectory that keeps its UAV in place short of its target -> priority 1."""
+    from planners.dmpc.mlr.compute_unit import ComputeUnit
+    from planners.dmpc.mlr.config import MlrConfig
+    from planners.dmpc.mlr.tracker import TrackerEntry
+    from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
+    from planners.dmpc.mlr.uav import initial_trajectory
+
+    starts = np.array([[0.0, 0.0, 1.0], [2.0, 0.0, 1.0], [0.0, 2.0, 1.0], [2.0, 2.0, 1.0]])
+    goals = starts + np.array([2.0, 0.0, 0.0])
+    k = 50
+    cfgs = {on: MlrConfig(n_uavs=4, n_cus=1, horizon_rounds=5, trigger="db", deadlock_trigger=on) for on in (False, True)}
+    out = {}
+    for on, cfg in cfgs.items():
+        cu = ComputeUnit(cfg, 0, [initial_trajectory(cfg, p) for p in starts], goals)
+        t0 = (k - 1) * cfg.round_s
+        held = ReferenceTrajectory.hover(TrajectoryId(k - 2, 0), t0, starts[0], cfg.n_inputs, cfg.input_step_s)
+        moving = ReferenceTrajectory(TrajectoryId(k - 2, 0), t0, np.r_[starts[1], 0.5, 0, 0, 0, 0, 0],
+                                     np.zeros((cfg.n_inputs, 3)), cfg.input_step_s)  # 0.5 m/s along +x
+        stale = ReferenceTrajectory.hover(TrajectoryId(k - 2 - cfg.deadlock_rounds, 0), t0, starts[2], cfg.n_inputs,
+                                          cfg.input_step_s)  # held, but computed too long ago to count
+        cu.trackers.entries = [TrackerEntry((held,)), TrackerEntry((moving,)), TrackerEntry((stale,)),
+                               TrackerEntry((initial_trajectory(cfg, starts[3]),))]  # never computed: not counted
+        out[on] = cu._priorities(k, None)
+    assert out[False][0] == 100  # 2 m at 0.02 m per unit (A2)
+    np.testing.assert_array_equal(out[True], [1, out[False][1], out[False][2], out[False][3]])
