@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from sim.checks import ConfigError, require_integer_at_least, require_non_negative, require_positive
+from sim.checks import ConfigError, require_integer_at_least, require_non_negative, require_one_of, require_positive
 
 __all__ = ["YawPlannerConfig"]
 
@@ -201,10 +201,8 @@ class YawPlannerConfig:
         if self.alpha + self.beta <= 0.0:
             raise ConfigError("beta", self.beta, f"allowed alpha + beta > 0 (alpha={self.alpha!r})")
         require_positive("free_max_age_s", self.free_max_age_s, inf_means="free space never ages")
-        if self.method not in ("mpcde", "zhou"):
-            raise ConfigError("method", self.method, "allowed 'mpcde' or 'zhou'")
-        if self.free_distance not in ("horizontal", "voxel"):
-            raise ConfigError("free_distance", self.free_distance, "allowed 'horizontal' or 'voxel'")
+        require_one_of("method", self.method, ("mpcde", "zhou"))
+        require_one_of("free_distance", self.free_distance, ("horizontal", "voxel"))
         require_integer_at_least("n_steps", self.n_steps, 1)
         require_integer_at_least("n_rays", self.n_rays, 2)
         m_min = math.ceil(2.0 * math.pi / (self.yaw_rate_max_radps * self.period_s) - 1e-9)

@@ -104,7 +104,7 @@ def _send(conn, msg: tuple) -> bool:
     """Send ``msg`` to the flight's process; False if it is gone (interrupted while this worker was busy)."""
     try:
         conn.send(msg)
-    except (BrokenPipeError, EOFError, OSError):
+    except OSError:  # BrokenPipeError and the like: the other end is closed
         return False
     return True
 

@@ -275,7 +275,7 @@ class ComputeUnit:
         out = np.zeros(cfg.n_uavs, bool)
         for i, t in enumerate(firsts):
             calc = t.meta.calc_round
-            if calc < self.first_round or k - calc > cfg.deadlock_rounds or dist[i] <= cfg.make_room_arrived_m:
+            if calc < self.first_round or k - calc > cfg.deadlock_rounds or dist[i] <= cfg.arrived_m:
                 continue
             out[i] = _planned_motion_m(t, max(t_now, t.t_start_s)) < cfg.deadlock_motion_m
         return out

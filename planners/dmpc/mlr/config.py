@@ -122,6 +122,9 @@ class MlrConfig:
         soft_weight_right: the same for a UAV to the right [1/m] (chosen 2.0).
         soft_weight_quadratic: quadratic cost on the slack [1/m^2] (chosen 1.0).
         soft_max_m: upper bound of the slack [m] (chosen 0.3).
+        arrived_m: a UAV this close to its target has arrived: neither
+            deadlock measure (``deadlock_trigger``, ``make_room``) counts it as
+            held or stuck [m] (chosen 0.1).
         deadlock_trigger: Appendix A's deadlock-aware triggering: a UAV held
             away from its target by a trajectory computed within the last
             ``deadlock_rounds`` rounds (planned motion < ``deadlock_motion_m``)
@@ -143,8 +146,6 @@ class MlrConfig:
         make_room_rounds: the window of that progress in rounds (chosen 10:
             2 s; UAVs not yet computed after the start stand still for about
             N / M rounds).
-        make_room_arrived_m: a UAV this close to its target has arrived and
-            does not count as deadlocked [m] (chosen 0.1).
         make_room_radius_m: how close UAV j must be for UAV i to make room,
             and the half-width of j's corridor to its target [m] (chosen 1.0).
         make_room_step_m: distance of the intermediate target from UAV i,
@@ -193,13 +194,13 @@ class MlrConfig:
     soft_weight_right: float = 2.0
     soft_weight_quadratic: float = 1.0
     soft_max_m: float = 0.3
+    arrived_m: float = 0.1
     deadlock_trigger: bool = True
     deadlock_motion_m: float = 0.02
     deadlock_rounds: int = 40
     make_room: bool = False
     make_room_progress_m: float = 0.1
     make_room_rounds: int = 10
-    make_room_arrived_m: float = 0.1
     make_room_radius_m: float = 1.0
     make_room_step_m: float = 0.6
     make_room_noise_m: float = 0.15
@@ -240,11 +241,12 @@ class MlrConfig:
             require_non_negative(name, getattr(self, name))
         for name in ("soft_weight_quadratic", "soft_max_m"):
             require_positive(name, getattr(self, name))
+        require_positive("arrived_m", self.arrived_m)
         require_boolean("deadlock_trigger", self.deadlock_trigger)
         require_positive("deadlock_motion_m", self.deadlock_motion_m)
         require_integer_at_least("deadlock_rounds", self.deadlock_rounds, 1)
         require_boolean("make_room", self.make_room)
-        for name in ("make_room_progress_m", "make_room_arrived_m", "make_room_radius_m", "make_room_step_m"):
+        for name in ("make_room_progress_m", "make_room_radius_m", "make_room_step_m"):
             require_positive(name, getattr(self, name))
         require_non_negative("make_room_noise_m", self.make_room_noise_m)
         require_integer_at_least("make_room_rounds", self.make_room_rounds, 1)

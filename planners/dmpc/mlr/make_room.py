@@ -9,7 +9,7 @@ target:
 
 * **detection** (chosen rule; the paper says "when all velocities fall below
   a threshold"): over the last ``make_room_rounds`` rounds the UAVs farther
-  than ``make_room_arrived_m`` from their targets came closer to them by less
+  than ``arrived_m`` from their targets came closer to them by less
   than ``make_room_progress_m`` on average (a UAV that moved away counts as
   0), as the CU knows from the UAVs' state messages (the last one received
   per UAV). Why not a speed threshold: docs/results/mlr_dmpc.md;
@@ -81,7 +81,7 @@ class MakeRoomPlanner:
         dist = np.linalg.norm(self.targets_world - self.pos_world, axis=1)
         self._history.append(dist)
         del self._history[: -(cfg.make_room_rounds + 1)]
-        away = dist > cfg.make_room_arrived_m
+        away = dist > cfg.arrived_m
         deadlock = False
         if len(self._history) > cfg.make_room_rounds and away.any():
             progress = np.clip(self._history[0] - dist, 0.0, None)  # UAVs making room do not count against it
