@@ -51,7 +51,7 @@ class MakeRoomPlanner:
     """The deadlock detector and make-room targets of one CU (module docstring).
 
     Args:
-        config: the shared :class:`MlrConfig` (its ``make_room_*`` fields).
+        config: the shared :class:`MlrConfig` (its ``make_room_*`` fields and ``arrived_m``).
         initial_pos_world: (N, 3) start positions [m] (until state messages arrive).
         initial_targets_world: (N, 3) targets [m].
     """
