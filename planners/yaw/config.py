@@ -116,15 +116,27 @@ class YawPlannerConfig:
             along travel, the paper's tracking mode; set it to 0 to fly
             MP-CDE exactly). Not in MP-CDE. Why: a neighbour on a converging
             course at the same speed keeps a constant bearing of 90 deg minus
-            half the crossing angle, outside a forward camera's +-fov_h/2 for
-            crossings shallower than 180 - fov_h = 95 deg, so in tracking mode
-            it is never seen; the swing widens the watched arc to
-            +-(fov_h/2 + sweep) while the direction of travel stays in view
-            (allowed below fov_h / 2). Chosen: 35 deg: on radio_outage seeds
-            0-11 it cut the denied stack's collisions and tied for auto
-            (measured: docs/results/yaw_planner.md).
-        tracking_sweep_period_s: period of that swing [s] (chosen 1.4 s: a
-            35 deg swing then turns at 100 deg/s, within the 2 rad/s limit).
+            half the crossing angle from the direction of travel, outside a
+            forward camera's +-fov_h/2 for crossings shallower than
+            180 - fov_h = 95 deg, so in tracking mode it is never seen; the
+            swing widens the watched arc to +-(fov_h/2 + sweep). Chosen from
+            that geometry: 60 deg. Drones that start side by side converge at
+            bearings up to 90 deg, and 90 - fov_h / 2 = 47.5 deg puts such a
+            neighbour only on the frame's edge; 12.5 deg more puts it inside
+            the frame for 0.2 s of each period, five frames at 25 Hz, enough
+            for the tracker's three confirming hits. The direction of travel
+            then leaves the view for the 29 % of each period where the swing
+            passes fov_h / 2 (the map keeps what was seen ahead). Allowed
+            below 90 deg (the camera never looks behind the drone), and the
+            swing's rate 4 sweep / period may not exceed
+            ``yaw_rate_max_radps``. The earlier 35 deg (travel always in view)
+            left a neighbour at 85-90 deg 5-10 deg outside the frame at the
+            swing's extreme: every collision of the forest sweep was of that
+            kind (measured: docs/results/safety.md, docs/results/yaw_planner.md).
+        tracking_sweep_period_s: period of that swing [s] (chosen 2.1 s: the
+            shortest period at which a 60 deg swing turns within the 2 rad/s
+            limit, 4 x 60 deg / 2.1 s = 1.99 rad/s, so the camera revisits
+            each side every 2.1 s).
         still_speed_mps: in tracking mode, below this horizontal speed the
             direction of travel is undefined and the yaw is held [m/s]
             (chosen: 0.1 m/s).
@@ -174,8 +186,8 @@ class YawPlannerConfig:
     visibility_sigma_ref_m: float = 0.5
     visibility_weight_max: float = 3.0
     still_speed_mps: float = 0.1
-    tracking_sweep_deg: float = 35.0
-    tracking_sweep_period_s: float = 1.4
+    tracking_sweep_deg: float = 60.0
+    tracking_sweep_period_s: float = 2.1
     exploring_mode: bool = True
     tracking_mode: bool = True
     method: str = "mpcde"
@@ -219,8 +231,16 @@ class YawPlannerConfig:
             raise ConfigError("fov_h_deg", self.fov_h_deg, allowed)
         require_positive("tracking_sweep_period_s", self.tracking_sweep_period_s)
         require_non_negative("tracking_sweep_deg", self.tracking_sweep_deg)
-        if not self.tracking_sweep_deg < self.fov_h_deg / 2:
-            raise ConfigError("tracking_sweep_deg", self.tracking_sweep_deg, "allowed 0 <= sweep < fov_h_deg / 2")
+        if not self.tracking_sweep_deg < 90.0:
+            raise ConfigError("tracking_sweep_deg", self.tracking_sweep_deg, "allowed 0 <= sweep < 90 (the camera never looks behind the drone)")
+        sweep_rate = 4.0 * math.radians(self.tracking_sweep_deg) / self.tracking_sweep_period_s
+        if sweep_rate > self.yaw_rate_max_radps * (1.0 + 1e-9):
+            shortest = 4.0 * math.radians(self.tracking_sweep_deg) / self.yaw_rate_max_radps
+            raise ConfigError(
+                "tracking_sweep_deg", self.tracking_sweep_deg,
+                f"allowed 4 * sweep / tracking_sweep_period_s <= yaw_rate_max_radps={self.yaw_rate_max_radps!r} rad/s "
+                f"(this swing turns at {sweep_rate:.2f} rad/s; a smaller sweep, or a period >= {shortest:.2f} s)",
+            )
         require_positive("visibility_weight_max", self.visibility_weight_max)
         if self.visibility_weight_max < 1.0:
             raise ConfigError("visibility_weight_max", self.visibility_weight_max, "allowed >= 1")

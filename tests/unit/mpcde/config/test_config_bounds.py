@@ -116,5 +116,5 @@ def test_a_setting_its_choice_would_ignore_is_refused(tmp_path):
         with pytest.raises(ConfigError) as e:
             load_scenario(path)
         assert e.value.field == field, str(e.value)
-    path.write_text("drones: {layout: antipodal, count: 3}\ndenied: {active_yaw: false, yaw: {tracking_sweep_deg: 35}}\n")
+    path.write_text("drones: {layout: antipodal, count: 3}\ndenied: {active_yaw: false, yaw: {tracking_sweep_deg: 60}}\n")
     assert load_scenario(path).drones.count == 3  # a field at its default is no choice ignored

@@ -78,8 +78,8 @@ def test_mlr_refuses_a_cruise_speed():
 
 
 def test_a_derived_value_that_breaks_its_section_names_the_whole_path(tmp_path):
-    with pytest.raises(ConfigError, match=r"^denied\.yaw\.tracking_sweep_deg=35\.0: allowed 0 <= sweep < fov_h_deg / 2"):
-        load_scenario(write(tmp_path, "camera:\n  hfov_deg: 70.0\n"))  # the 35 deg swing needs a wider camera
+    with pytest.raises(ConfigError, match=r"^denied\.yaw\.tracking_sweep_deg=60\.0: allowed 4 \* sweep / tracking_sweep_period_s <= yaw_rate_max_radps=1\.0"):
+        load_scenario(write(tmp_path, "denied:\n  yaw_rate_max_radps: 1.0\n"))  # the 60 deg swing needs a faster yaw
 
 
 def test_a_set_value_equal_to_its_derivation_is_accepted(tmp_path):

@@ -336,7 +336,6 @@ def test_tracking_sweep_swings_about_the_travel_direction_and_keeps_it_in_view()
     vel = np.array([math.cos(heading), math.sin(heading), 0.0])
     plain = YawPlanner(paper_config()).plan(0.0, heading, line(vel), uniform_snapshot(1.0))
     np.testing.assert_allclose(plain.yaws, heading)  # no sweep: straight along travel
-    assert YawPlannerConfig().tracking_sweep_deg == 35.0  # the package's default (measured in its docs)
     p = YawPlanner(cfg).plan(0.0, heading, line(vel), uniform_snapshot(1.0))
     assert p.mode == "tracking"
     # the swing turns at 4 * 35 deg / 1.4 s = 100 deg/s < 2 rad/s: the yaws follow it exactly
@@ -346,7 +345,37 @@ def test_tracking_sweep_swings_about_the_travel_direction_and_keeps_it_in_view()
     assert_rate_limited(p, heading, cfg)
 
 
-@pytest.mark.parametrize("value", [-1.0, 42.5, 60.0])
+def test_the_default_sweep_reaches_60_deg_within_the_rate_limit_and_leaves_travel_briefly():
+    from planners.yaw import sweep_offsets
+
+    cfg = YawPlannerConfig(free_distance="voxel")
+    assert (cfg.tracking_sweep_deg, cfg.tracking_sweep_period_s) == (60.0, 2.1)  # the package's default (docs/results/safety.md)
+    heading = -0.4
+    vel = np.array([math.cos(heading), math.sin(heading), 0.0])
+    offsets = []
+    for t in np.arange(0.0, 2.1, cfg.period_s * cfg.n_steps):  # consecutive plans over one period
+        yaw0 = heading + float(sweep_offsets(np.array([t]), math.radians(60.0), 2.1)[0])  # where the last plan left it
+        p = YawPlanner(cfg).plan(float(t), yaw0, line(vel), uniform_snapshot(1.0))
+        assert p.mode == "tracking"
+        # 4 * 60 deg / 2.1 s = 1.99 rad/s < 2 rad/s: the yaws follow the triangle exactly
+        np.testing.assert_allclose(p.yaws[1:] - heading, sweep_offsets(p.times_s[1:], math.radians(60.0), 2.1), atol=1e-9)
+        assert_rate_limited(p, yaw0, cfg)
+        offsets.extend(p.yaws - heading)
+    offsets = np.degrees(offsets)
+    # sampled every t_y = 0.1 s, the triangle's peaks (at 0.525 s + k 1.05 s) are met at 57.1 deg: a neighbour at
+    # 90 deg still enters the 85 deg frame by 9.6 deg on both sides
+    assert offsets.max() > 57.0 and offsets.min() < -57.0
+    outside = np.mean(np.abs(offsets) > cfg.fov_h_deg / 2)
+    assert 0.2 < outside < 0.35  # travel out of view 1 - 42.5 / 60 = 29 % of the time
+
+
+@pytest.mark.parametrize("value", [-1.0, 90.0, 120.0])
 def test_tracking_sweep_is_validated(value):
     with pytest.raises(ValueError, match="^tracking_sweep_deg="):
         YawPlannerConfig(tracking_sweep_deg=value)
+
+
+def test_a_sweep_faster_than_the_yaw_rate_limit_is_refused():
+    YawPlannerConfig(tracking_sweep_deg=60.0, tracking_sweep_period_s=2.1)  # 1.99 rad/s: accepted
+    with pytest.raises(ValueError, match=r"^tracking_sweep_deg=60\.0: allowed 4 \* sweep / tracking_sweep_period_s <= yaw_rate_max_radps=2\.0 .*a period >= 2\.09 s"):
+        YawPlannerConfig(tracking_sweep_deg=60.0, tracking_sweep_period_s=1.4)
