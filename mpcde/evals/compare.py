@@ -333,9 +333,9 @@ def run_compare(
     mode_of = dict(zip(range(len(modes)), modes))  # cell index -> mode (the one axis, in --modes order)
     prepared = {}
     for seed in seeds:
-        for cell in spec.cells():
-            run = prepare_run(spec.scenario(cell, seed))  # the kind is set before the checks
-            prepared[(mode_of[cell.index], seed)] = share_cores(run, jobs) if jobs > 1 else run
+        for c in spec.cells():  # not `cell`: that name is the table formatter the progress lines use
+            run = prepare_run(spec.scenario(c, seed))  # the kind is set before the checks
+            prepared[(mode_of[c.index], seed)] = share_cores(run, jobs) if jobs > 1 else run
     name = prepared[(modes[0], seeds[0])].config.name
 
     from tqdm import tqdm

@@ -133,6 +133,14 @@ def test_a_non_empty_out_dir_is_refused_without_overwrite(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["keep.txt"]
 
 
+def test_progress_prints_one_line_per_flight(tmp_path, capsys):
+    # the progress line formats its numbers with text_table.cell; a loop variable of that name once shadowed it,
+    # and every `mpcde compare` without --quiet died after its first flight
+    run_compare(tmp_path / "cmp", "crossing", modes=("placeholder",), seeds=(0,), duration_s=0.5, progress=True)
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("placeholder seed 0:")]
+    assert len(lines) == 1 and "min_distance=" in lines[0] and "mission_time=" in lines[0], lines
+
+
 def test_parallel_jobs_share_the_cores_only_where_render_workers_is_automatic(monkeypatch):
     from mpcde.config.scenario import load_scenario
     from mpcde.evals.compare import _share_cores
