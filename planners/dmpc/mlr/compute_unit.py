@@ -171,6 +171,11 @@ class ComputeUnit:
         own = self._own_last
         if isinstance(own, CuTrajectoryMessage) and own.uav_id is not None:
             new[own.uav_id] = own.trajectory
+        late = {  # step 0 of the tracker: trajectories of round k - 2 sent again (repeat_trajectory)
+            m.repeat_uav_id: m.repeat_trajectory
+            for m in cu_msgs.values()
+            if isinstance(m, CuTrajectoryMessage) and m.repeat_uav_id is not None
+        }
         missed: list[int] = []
         if self.ignore_message_loss:
             update = self.trackers.update_ignoring_loss(new)
@@ -186,7 +191,7 @@ class ComputeUnit:
             update = self.trackers.update(
                 {i: m.following for i, m in states.items()}, new,
                 {r.uav_id: r.trajectory for r in replies.values()}, not missed or bool(suspects), suspects,
-                cfg.max_candidates if cfg.keep_ambiguous else 0,
+                cfg.max_candidates if cfg.keep_ambiguous else 0, late,
             )  # fmt: skip
         self._heard_requests = {v for v, m in cu_msgs.items() if isinstance(m, RecoveryRequest)}
         self._pending_replies = {m.uav_id for m in cu_msgs.values() if isinstance(m, RecoveryRequest)}
@@ -204,7 +209,7 @@ class ComputeUnit:
         if deprecated and not self.ignore_message_loss:  # MLR, Lines 22-32
             uav = self._recovery_target(k, deprecated, update)
             if uav is None:  # wait a round (lazy recovery): metadata or another CU's reply restores them
-                msg = CuTrajectoryMessage(w, k, self._priorities(k, None))
+                msg = CuTrajectoryMessage(w, k, self._priorities(k, None), **self._repeat(own))
                 self._own_last = msg
                 return msg, CuStepReport(k, "wait", None, a_et, deprecated, update)
             msg = RecoveryRequest(w, k, self._priorities(k, None), uav)
@@ -220,11 +225,17 @@ class ComputeUnit:
             except DmpcSolveError:
                 mode = "failed"
         if result is None:
-            msg = CuTrajectoryMessage(w, k, self._priorities(k, None))
+            msg = CuTrajectoryMessage(w, k, self._priorities(k, None), **self._repeat(own))
         else:
-            msg = CuTrajectoryMessage(w, k, self._priorities(k, uav), uav, result.trajectory)
+            msg = CuTrajectoryMessage(w, k, self._priorities(k, uav), uav, result.trajectory, **self._repeat(own))
         self._own_last = msg
         return msg, CuStepReport(k, mode, uav if mode != "idle" else None, a_et, deprecated, update, result)
+
+    def _repeat(self, own: object | None) -> dict[str, Any]:
+        """The repeat fields of this round's message: last round's own trajectory (``repeat_trajectory``), else none."""
+        if self.config.repeat_trajectory and isinstance(own, CuTrajectoryMessage) and own.uav_id is not None:
+            return {"repeat_uav_id": own.uav_id, "repeat_trajectory": own.trajectory}
+        return {}
 
     def _recovery_target(self, k: int, deprecated: tuple[int, ...], update: TrackerUpdate) -> int | None:
         """The deprecated UAV to request in round k, or None to wait a round (module docstring, step 5)."""

@@ -110,6 +110,17 @@ class MlrConfig:
             constrained ones (Lemma 1 holds); Lemma 2's equality across CUs
             becomes inclusion, which keeps Theorem 3's argument
             (:mod:`planners.dmpc.mlr.tracker`, step 2b).
+        repeat_trajectory: a CU's message of round k also carries the
+            trajectory it computed in round k - 1 (``CuTrajectoryMessage.
+            repeat_trajectory``). A CU that lost the round k - 1 message adds
+            it to that UAV's deprecated tracker one round late, where the
+            UAV's state message of round k, which names the trajectory it
+            follows, restores the tracker (Alg. 2 step 1) without a recovery
+            request and a donated slot. Not in DMPC-Swarm (a protocol change:
+            the CU message carries two trajectories); it only adds candidates
+            to deprecated trackers, so Lemma 1 and the collision argument are
+            untouched (:mod:`planners.dmpc.mlr.tracker`, step 0). Measured:
+            docs/results/mlr_dmpc.md.
         soft_rotation: the Appendix's B4 soft constraint: every BVC row of
             another trajectory is tightened by a slack eps >= 0 that the cost
             rewards (linear reward, small quadratic), more for a UAV to the
@@ -189,6 +200,7 @@ class MlrConfig:
     lazy_recovery: bool = True
     precise_cu_loss: bool = True
     keep_ambiguous: bool = True
+    repeat_trajectory: bool = True
     soft_rotation: bool = True
     soft_weight: float = 0.5
     soft_weight_right: float = 2.0
@@ -236,6 +248,7 @@ class MlrConfig:
         require_boolean("lazy_recovery", self.lazy_recovery)
         require_boolean("precise_cu_loss", self.precise_cu_loss)
         require_boolean("keep_ambiguous", self.keep_ambiguous)
+        require_boolean("repeat_trajectory", self.repeat_trajectory)
         require_boolean("soft_rotation", self.soft_rotation)
         for name in ("soft_weight", "soft_weight_right"):
             require_non_negative(name, getattr(self, name))

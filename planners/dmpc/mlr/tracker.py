@@ -5,6 +5,14 @@ as CU w knows. Alg. 2 is garbled in our copy of the paper; this is its
 reconstruction from the prose of Sec. 4.2.1 and the proofs of Appendix C.
 In round k's computation phase, with the messages of round k - 1:
 
+0. Late copies (``MlrConfig.repeat_trajectory``, not in the paper): a CU
+   message of round k - 1 may carry again the trajectory its CU computed in
+   round k - 2. It is added to that UAV's tracker when the tracker is
+   deprecated and lacks it (this CU lost the round k - 2 message), before
+   step 1, so that the UAV's state message of round k - 1, which names the
+   trajectory it follows, restores the tracker. Only deprecated trackers
+   (used in no QP) gain candidates, and a restore names the UAV's own
+   trajectory, as in step 1: Lemma 1 is untouched.
 1. Metadata (Line 6): if UAV i's state message of round k - 1 arrived, it
    names the trajectory i followed in round k - 1; keep only the candidate
    with that metadata. If no candidate has it, the tracker is deprecated.
@@ -134,6 +142,7 @@ class InformationTrackers:
         all_cu_slots_accounted: bool,
         suspects: Iterable[int] = (),
         keep_ambiguous: int = 0,
+        late: Mapping[int, ReferenceTrajectory] | None = None,
     ) -> TrackerUpdate:
         """Alg. 2 with the messages of the previous round (steps 1-5 of the module docstring).
 
@@ -150,9 +159,15 @@ class InformationTrackers:
                 whose UAV's state message was lost keeps all its candidates, not
                 deprecated, as long as it holds at most K of them (step 2b,
                 module docstring); one that grows beyond K in step 5 is deprecated.
+            late: UAV i -> a trajectory computed two rounds ago, carried again by
+                a CU message of the previous round (step 0).
         """
         before = [e.deprecated for e in self.entries]
         restored = []
+        for i, traj in (late or {}).items():  # step 0
+            e = self.entries[i]
+            if e.deprecated and all(c.meta != traj.meta for c in e.candidates):
+                self.entries[i] = TrackerEntry((e.candidates + (traj,))[-self.max_kept:], True, e.missing)
         for i, entry in enumerate(self.entries):
             if i in replies:  # step 3
                 self.entries[i] = TrackerEntry((replies[i],))

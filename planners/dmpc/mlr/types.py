@@ -68,6 +68,11 @@ class CuTrajectoryMessage:
         uav_id: the UAV it computed, or None (nothing computed this round).
         trajectory: the new trajectory for ``uav_id`` (meta (k, w), starts
             at (k + 1) T), or None.
+        repeat_uav_id, repeat_trajectory: with ``MlrConfig.repeat_trajectory``,
+            the trajectory this CU computed in round k - 1 (meta (k - 1, w)),
+            sent again so that a CU that lost that message gets it one round
+            late (:mod:`planners.dmpc.mlr.tracker`, step 0); None otherwise.
+            Not in DMPC-Swarm: it doubles the message's trajectory payload.
     """
 
     cu_id: int
@@ -75,11 +80,15 @@ class CuTrajectoryMessage:
     priorities: np.ndarray
     uav_id: int | None = None
     trajectory: ReferenceTrajectory | None = None
+    repeat_uav_id: int | None = None
+    repeat_trajectory: ReferenceTrajectory | None = None
 
     def __post_init__(self) -> None:
         _frozen_vector(self, "priorities", dtype=np.uint8)
         if (self.uav_id is None) != (self.trajectory is None):
             raise ValueError(f"uav_id={self.uav_id!r}: given exactly when a trajectory is given")
+        if (self.repeat_uav_id is None) != (self.repeat_trajectory is None):
+            raise ValueError(f"repeat_uav_id={self.repeat_uav_id!r}: given exactly when a repeat_trajectory is given")
 
 
 @dataclass(frozen=True)

@@ -72,6 +72,26 @@ def test_keep_ambiguous_keeps_old_and_new_without_metadata_until_a_third_arrives
     assert not kept.any_deprecated and kept[0].metas == (TrajectoryId(1, 2),)  # its metadata restores it
 
 
+def test_a_late_copy_lets_the_uav_metadata_restore_a_tracker_that_lost_it() -> None:
+    late = _traj(TrajectoryId(4, 1))  # computed for UAV 2 in round 4 by CU 1; this CU lost that message
+    tr, plain = _trackers(), _trackers()
+    for t in (tr, plain):
+        t.update({0: HOVER_META, 1: HOVER_META, 2: HOVER_META}, {}, {}, True, suspects=(2,))  # step 4b: UAV 2 suspect
+        assert t.deprecated_ids == (2,)
+    # next round: UAV 2 names the lost trajectory; without the copy only a recovery reply can restore it
+    plain.update({0: HOVER_META, 1: HOVER_META, 2: TrajectoryId(4, 1)}, {}, {}, True)
+    assert plain.deprecated_ids == (2,) and plain[2].missing
+    upd = tr.update({0: HOVER_META, 1: HOVER_META, 2: TrajectoryId(4, 1)}, {}, {}, True, late={2: late})
+    assert not tr.any_deprecated and tr[2].candidates == (late,) and 2 in upd.restored  # step 0, then step 1
+
+
+def test_a_late_copy_never_touches_a_tracker_in_use() -> None:
+    tr = _trackers()
+    before = tr[1].candidates
+    tr.update({0: HOVER_META, 1: HOVER_META, 2: HOVER_META}, {}, {}, True, late={1: _traj(TrajectoryId(4, 1))})
+    assert not tr.any_deprecated and tr[1].candidates == before  # not deprecated: no candidate added, QPs unchanged
+
+
 def test_metadata_naming_a_kept_candidate_restores_a_deprecated_tracker() -> None:
     tr = _trackers()
     tr.update({}, {0: _traj(TrajectoryId(0, 0))}, {}, False)  # all deprecated, the new one still kept
@@ -98,7 +118,8 @@ class _FastCu(ComputeUnit):
         return MlrQpResult(traj, 0.0, 0, "solved", 0.0, 0.0, 0)
 
 
-def _simulate(seed: int, loss: float, rounds: int, n: int = 6, m: int = 3, keep_ambiguous: bool = False) -> tuple[int, int]:
+def _simulate(seed: int, loss: float, rounds: int, n: int = 6, m: int = 3, keep_ambiguous: bool = False,
+              repeat: bool = False) -> tuple[int, int]:
     """Run the CU/UAV protocol with random per-receiver loss; assert Lemma 1 and 2 every round.
 
     With ``keep_ambiguous`` (step 2b) Lemma 2's equality is not expected; what
@@ -108,7 +129,8 @@ def _simulate(seed: int, loss: float, rounds: int, n: int = 6, m: int = 3, keep_
     Returns (non-deprecated tracker checks, rounds in which some CU was in MLR).
     """
     rng = np.random.default_rng(seed)
-    cfg = MlrConfig(n_uavs=n, n_cus=m, horizon_rounds=3, trigger="rr", keep_ambiguous=keep_ambiguous, make_room=False)
+    cfg = MlrConfig(n_uavs=n, n_cus=m, horizon_rounds=3, trigger="rr", keep_ambiguous=keep_ambiguous,
+                    repeat_trajectory=repeat, make_room=False)
     initial = [ReferenceTrajectory.hover(HOVER_META, 0.0, [i, 0.0, 1.0], cfg.n_inputs, cfg.input_step_s)
                for i in range(n)]
     targets = np.zeros((n, 3))
@@ -148,12 +170,12 @@ def _simulate(seed: int, loss: float, rounds: int, n: int = 6, m: int = 3, keep_
     return checks, mlr_rounds
 
 
-@pytest.mark.parametrize("keep_ambiguous", [False, True])
+@pytest.mark.parametrize(("keep_ambiguous", "repeat"), [(False, False), (True, False), (True, True)])
 @pytest.mark.parametrize("loss", [0.05, 0.2, 0.4])
-def test_lemma_1_and_2_hold_under_random_message_loss(loss: float, keep_ambiguous: bool) -> None:
+def test_lemma_1_and_2_hold_under_random_message_loss(loss: float, keep_ambiguous: bool, repeat: bool) -> None:
     total_checks, total_mlr = 0, 0
     for seed in range(12):
-        checks, mlr = _simulate(seed, loss, rounds=40, keep_ambiguous=keep_ambiguous)
+        checks, mlr = _simulate(seed, loss, rounds=40, keep_ambiguous=keep_ambiguous, repeat=repeat)
         total_checks += checks
         total_mlr += mlr
     assert total_checks > 500  # the lemmas were exercised on many non-deprecated trackers
@@ -168,6 +190,8 @@ def test_without_loss_no_tracker_is_ever_deprecated() -> None:
 def test_message_types_validate_their_fields() -> None:
     with pytest.raises(ValueError, match="uav_id"):
         CuTrajectoryMessage(0, 0, np.zeros(3, np.uint8), uav_id=1, trajectory=None)
+    with pytest.raises(ValueError, match="repeat_uav_id"):
+        CuTrajectoryMessage(0, 0, np.zeros(3, np.uint8), repeat_uav_id=1)
     with pytest.raises(ValueError, match="pos_world"):
         UavStateMessage(0, 0, np.zeros(2), np.zeros(3), np.zeros(3), HOVER_META)
     req = RecoveryRequest(1, 4, np.ones(3, np.uint8), 2)
