@@ -4,6 +4,8 @@ Usage: ``.venv/bin/python scripts/mlr_loss_sweep.py LOSS SEEDS [DURATION_S] [N_U
 ``scripts/mlr_loss_sweep.py 0.1 0,1,2,3,4,5,6,7,8,9`` (about 2 s per run on one core). The environment
 variable ``MLRKW`` passes extra :class:`planners.dmpc.mlr.config.MlrConfig` fields as JSON, e.g.
 ``MLRKW='{"lazy_recovery": false, "precise_cu_loss": false}'`` for the protocol before issue 29's fixes.
+``MLRRADIO`` passes :class:`sim.radio.RadioConfig` fields as JSON and replaces the Bernoulli channel (LOSS is
+then only the row's label), e.g. ``MLRRADIO='{"loss_model": "gilbert_elliott"}'`` for bursty loss.
 The setup is ``fig4_swap`` of :mod:`mpcde.evals.mlr`: ``circle_swap(n, jitter 0.05 m)``, 3 compute units.
 Prints one JSON row per seed and a summary line (docs/results/mlr_dmpc.md).
 """
@@ -32,6 +34,8 @@ def main(argv: list[str]) -> None:
     for seed in seeds:
         start, goal = circle_swap(n=n, jitter_m=0.05, seed=seed)
         radio = RadioConfig(loss_model="bernoulli", loss_probability=loss) if loss > 0 else RadioConfig()
+        if os.environ.get("MLRRADIO"):
+            radio = RadioConfig(**json.loads(os.environ["MLRRADIO"]))
         cfg = MlrSwarmConfig(mlr=MlrConfig(n_uavs=n, n_cus=3, **extra), seed=seed, duration_s=duration, radio=radio)
         t0 = time.perf_counter()
         r = run_mlr_swarm(cfg, start, [goal])
