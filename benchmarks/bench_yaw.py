@@ -51,6 +51,7 @@ from planners.yaw import (  # noqa: E402
     shortest_path,
     visibility_rewards,
 )
+from planners.yaw.safety import safety_margin  # noqa: E402
 
 VOXEL_M = 0.15
 SIZE_M = np.array([10.0, 10.0, 4.0])
@@ -218,6 +219,19 @@ def main() -> None:
     assert tracking.plan(time_s, yaw, trajectory, snapshot, preds).mode == "tracking"
     track_ms = median_ms(lambda: tracking.plan(time_s, yaw, trajectory, snapshot, preds), args.repeats)
     print(f"  other modes: observing {observe_ms:6.2f} ms   tracking {track_ms:6.2f} ms")
+    # the safety metric (Eq. 1) every mode pays: S(0) alone (what plan() computes) against the whole S(tau) profile
+    # (what it computed before); a trajectory climbing 0.1 m/s crosses voxel layers as flown ones do, so its samples
+    # fall in several altitude slabs, each a distance transform
+    climb = TrajectoryView(
+        position_at=lambda t: np.array([0.0, 0.0, ALTITUDE_M]) + (np.asarray(t)[:, None] - time_s) * np.array([SPEED_MPS, 0.0, 0.1]),
+        velocity_at=lambda t: np.broadcast_to(np.array([SPEED_MPS, 0.0, 0.1]), (np.size(t), 3)).copy(),
+        end_time_s=time_s + 3.0,
+    )
+    now_ms = median_ms(lambda: safety_margin(snapshot, climb, time_s, config, profile=False), args.repeats)
+    profile_ms = median_ms(lambda: safety_margin(snapshot, climb, time_s, config), args.repeats)
+    same = safety_margin(snapshot, climb, time_s, config, profile=False).margin_now_s == safety_margin(snapshot, climb, time_s, config).margin_now_s
+    print(f"  safety metric: S(0) alone {now_ms:6.2f} ms   baseline, whole S(tau) profile {profile_ms:6.2f} ms   "
+          f"ratio x{profile_ms / now_ms:.1f}   same S(0): {same}")
     # baseline: per-ray loop, measured in this run
     naive_cast_ms = median_ms(
         lambda: [naive_ray_gains(snapshot, p, fan.azimuths(yaw), fan.ranges_m, covered, fan.areas_m2)

@@ -104,7 +104,7 @@ class YawPlanner:
         n = cfg.n_steps
         times = time_s + np.arange(n + 1) * cfg.period_s
         positions = trajectory.positions(times)  # (n + 1, 3)
-        safety = safety_margin(snapshot, trajectory, time_s, cfg)
+        safety = safety_margin(snapshot, trajectory, time_s, cfg, profile=False)  # S(0) is all Alg. 1 reads
         s0 = safety.margin_now_s
         self._in_safe_regime = safe_regime(self._in_safe_regime, s0, cfg.tau_thr_s, cfg.hysteresis_s)
         active = list(predictions)

@@ -90,7 +90,8 @@ def _bilinear(field: np.ndarray, origin_xy: np.ndarray, voxel_m: float, points_x
 
 
 def safety_margin(
-    snapshot: OccupancySnapshot, trajectory: TrajectoryView, time_s: float, config: YawPlannerConfig
+    snapshot: OccupancySnapshot, trajectory: TrajectoryView, time_s: float, config: YawPlannerConfig,
+    profile: bool = True,
 ) -> SafetyMargin:
     """Safe point, safe time and safety margin S(tau) along ``trajectory`` from ``time_s`` (MP-CDE Eq. 1).
 
@@ -106,6 +107,11 @@ def safety_margin(
         trajectory: the drone's current trajectory.
         time_s: now, absolute [s] (tau = 0).
         config: planner settings (``v_max_mps``, ``safety_sample_s``, ``safety_horizon_s``).
+        profile: S(tau) at every sample in [0, tau_s] (True); False returns
+            S(0) alone (``taus_s`` and ``margins_s`` of length 1), the only
+            value Alg. 1 reads. tau_s is found the same way either way, so
+            S(0) is identical; the samples' d_free, each slab a distance
+            transform, are the cost saved (the planner passes False).
     """
     dt = config.safety_sample_s
     k = int(math.floor(config.safety_horizon_s / dt + 1e-9)) + 1
@@ -116,12 +122,13 @@ def safety_margin(
     if n_free == 0:  # the drone's own voxel is not verified free: no safe look-ahead at all
         return SafetyMargin(float(time_s), taus[:1], np.zeros(1), 0.0, points[0].copy(), False)
     tau_s = float(taus[n_free - 1])
+    n_eval = n_free if profile else 1
     if config.free_distance == "voxel":
-        d_free = snapshot.free_distance(points[:n_free])
+        d_free = snapshot.free_distance(points[:n_eval])
     else:
-        d_free = horizontal_free_distance(snapshot, points[:n_free], config.free_slab_half_height_m)
-    margins = np.minimum(d_free / config.v_max_mps, tau_s - taus[:n_free])  # Eq. 1
-    return SafetyMargin(float(time_s), taus[:n_free], margins, tau_s, points[n_free - 1].copy(), n_free == k)
+        d_free = horizontal_free_distance(snapshot, points[:n_eval], config.free_slab_half_height_m)
+    margins = np.minimum(d_free / config.v_max_mps, tau_s - taus[:n_eval])  # Eq. 1
+    return SafetyMargin(float(time_s), taus[:n_eval], margins, tau_s, points[n_free - 1].copy(), n_free == k)
 
 
 def safe_regime(previous: bool, margin_s: float, tau_thr_s: float, hysteresis_s: float) -> bool:

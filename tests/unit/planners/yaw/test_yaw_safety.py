@@ -172,3 +172,16 @@ def test_free_space_seen_too_long_ago_ends_the_safe_segment_but_not_d_free():
 def test_free_max_age_is_validated(age):
     with pytest.raises(ValueError, match="^free_max_age_s="):
         YawPlannerConfig(free_max_age_s=age)
+
+
+@pytest.mark.parametrize("free_distance", ["horizontal", "voxel"])
+@pytest.mark.parametrize("t0", [0.0, 3.0, 9.0])
+def test_s0_alone_equals_the_first_value_of_the_profile(free_distance, t0):
+    cfg = YawPlannerConfig(free_distance=free_distance)
+    traj = line(np.array([-1.9, 0.1, 1.1]), np.array([0.5, 0.02, 0.01]), t0=0.0, end=20.0)  # climbs: several slabs
+    full = safety_margin(corridor_snapshot(), traj, t0, cfg)
+    now = safety_margin(corridor_snapshot(), traj, t0, cfg, profile=False)
+    assert now.margins_s.shape == (1,) and now.taus_s.shape == (1,)
+    assert now.margin_now_s == full.margin_now_s  # bit for bit: the planner's mode does not move
+    assert (now.safe_time_s, now.horizon_reached) == (full.safe_time_s, full.horizon_reached)
+    np.testing.assert_array_equal(now.safe_point_world, full.safe_point_world)
