@@ -96,8 +96,14 @@ class YawPlannerConfig:
             Not the default: 1.0 s gave no fewer collisions on radio_outage
             (measured: docs/results/yaw_planner.md).
         free_distance: how Eq. 1's d_free is measured: ``"horizontal"`` (in the
-            plane of the drone's altitude slab; default) or ``"voxel"`` (the
-            map's 3-D verified-free distance); see :mod:`planners.yaw.safety`.
+            plane of the drone's altitude slab, to the nearest cell not verified
+            free; default), ``"voxel"`` (the map's 3-D verified-free distance)
+            or ``"occupied"`` (in the same slab, to the nearest occupied cell:
+            the paper's literal "ESDF value of the map", unknown space counting
+            as free while tau_s still ends where verified-free space does); see
+            :mod:`planners.yaw.safety`. ``"occupied"`` is not the default: on a
+            9-flight spot check of Table III it did not lift the observed area
+            to Zhou's (docs/results/mp-cde.md).
         free_slab_half_height_m: half height [m] of the altitude slab of
             ``"horizontal"`` (chosen: 0.3 m, two voxels either side: the
             drone's height plus its altitude tracking error).
@@ -214,7 +220,7 @@ class YawPlannerConfig:
             raise ConfigError("beta", self.beta, f"allowed alpha + beta > 0 (alpha={self.alpha!r})")
         require_positive("free_max_age_s", self.free_max_age_s, inf_means="free space never ages")
         require_one_of("method", self.method, ("mpcde", "zhou"))
-        require_one_of("free_distance", self.free_distance, ("horizontal", "voxel"))
+        require_one_of("free_distance", self.free_distance, ("horizontal", "voxel", "occupied"))
         require_integer_at_least("n_steps", self.n_steps, 1)
         require_integer_at_least("n_rays", self.n_rays, 2)
         m_min = math.ceil(2.0 * math.pi / (self.yaw_rate_max_radps * self.period_s) - 1e-9)

@@ -21,6 +21,9 @@ paper does not say):
   of view cap d_free near 1.5 m, so S(0) = d_free / v_max could never
   exceed tau_thr = 1.2 pi / 2 = 1.88 s at v_max = 1 m/s and the planner would
   never leave the tracking mode (measured: docs/results/yaw_planner.md).
+* ``"occupied"``: in the same slab, the distance to the nearest occupied
+  cell (unknown space counts as free): the paper's literal wording, "the
+  Euclidean signed-distance (ESDF) value of the map".
 * ``"voxel"``: the map's 3-D verified-free distance
   (:meth:`perception.types.OccupancySnapshot.free_distance`).
 
@@ -51,7 +54,9 @@ from planners.yaw.types import SafetyMargin, TrajectoryView
 __all__ = ["horizontal_free_distance", "needs_replan", "safe_regime", "safety_margin"]
 
 
-def horizontal_free_distance(snapshot: OccupancySnapshot, points_world: np.ndarray, half_height_m: float) -> np.ndarray:
+def horizontal_free_distance(
+    snapshot: OccupancySnapshot, points_world: np.ndarray, half_height_m: float, occupied_only: bool = False
+) -> np.ndarray:
     """Horizontal distance (n,) [m] from ``points_world`` (n, 3) to the nearest not-verified-free column cell.
 
     For each distinct slab of voxel layers within +-``half_height_m`` of a
@@ -59,6 +64,11 @@ def horizontal_free_distance(snapshot: OccupancySnapshot, points_world: np.ndarr
     is verified free; the 2-D Euclidean distance transform of the other cells
     (the outside of the window counts as not free) is read bilinearly at the
     point, centre-to-face like the map's own field (``- voxel / 2``, floored at 0).
+
+    ``occupied_only``: the distance to the nearest column cell with an
+    occupied voxel in the slab instead (unknown cells and the outside of the
+    window count as free; ``inf`` when the slab holds no occupied voxel): the
+    map's obstacle distance, MP-CDE's literal "ESDF value of the map".
     """
     p = np.asarray(points_world, float).reshape(-1, 3)
     v, o = snapshot.voxel_m, snapshot.origin_world
@@ -70,8 +80,14 @@ def horizontal_free_distance(snapshot: OccupancySnapshot, points_world: np.ndarr
         sel = (k_lo == lo) & (k_hi == hi)
         if hi <= lo:
             continue  # the slab lies above or below the window: nothing there is verified free
-        free2d = np.all(snapshot.state[:, :, lo:hi] == OccupancySnapshot.FREE, axis=2)
-        not_free = np.pad(~free2d, 1, constant_values=True)
+        if occupied_only:
+            free2d = ~np.any(snapshot.state[:, :, lo:hi] == OccupancySnapshot.OCCUPIED, axis=2)
+            if bool(np.all(free2d)):
+                out[sel] = np.inf
+                continue
+        else:
+            free2d = np.all(snapshot.state[:, :, lo:hi] == OccupancySnapshot.FREE, axis=2)
+        not_free = np.pad(~free2d, 1, constant_values=not occupied_only)
         d = distance_transform_edt(~not_free)[1:-1, 1:-1] * v - 0.5 * v
         d = np.where(free2d, np.maximum(d, 0.0), 0.0)
         out[sel] = _bilinear(d, o[:2], v, p[sel, :2])
@@ -126,7 +142,8 @@ def safety_margin(
     if config.free_distance == "voxel":
         d_free = snapshot.free_distance(points[:n_eval])
     else:
-        d_free = horizontal_free_distance(snapshot, points[:n_eval], config.free_slab_half_height_m)
+        d_free = horizontal_free_distance(snapshot, points[:n_eval], config.free_slab_half_height_m,
+                                          occupied_only=config.free_distance == "occupied")
     margins = np.minimum(d_free / config.v_max_mps, tau_s - taus[:n_eval])  # Eq. 1
     return SafetyMargin(float(time_s), taus[:n_eval], margins, tau_s, points[n_free - 1].copy(), n_free == k)
 

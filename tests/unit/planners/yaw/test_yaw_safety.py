@@ -185,3 +185,18 @@ def test_s0_alone_equals_the_first_value_of_the_profile(free_distance, t0):
     assert now.margin_now_s == full.margin_now_s  # bit for bit: the planner's mode does not move
     assert (now.safe_time_s, now.horizon_reached) == (full.safe_time_s, full.horizon_reached)
     np.testing.assert_array_equal(now.safe_point_world, full.safe_point_world)
+
+
+def test_occupied_only_distance_counts_trunks_not_unknown_space():
+    from planners.yaw.safety import horizontal_free_distance
+
+    snap = corridor_snapshot()  # free for index x < 20, unknown beyond: no obstacle at all
+    p = np.array([[-1.9, 0.1, 1.1]])  # a voxel centre
+    assert horizontal_free_distance(snap, p, 0.3, occupied_only=True)[0] == np.inf
+    state = snap.state.copy()
+    i, j, _ = snap.world_to_index(p)[0]
+    state[i + 8, j, :] = OccupancySnapshot.OCCUPIED  # a trunk 8 voxels away along +x, inside the free part
+    trunk = OccupancySnapshot(0.0, snap.origin_world, snap.voxel_m, state, snap.distance_m, snap.free_distance_m)
+    d = horizontal_free_distance(trunk, p, 0.3, occupied_only=True)[0]
+    assert d == pytest.approx(8 * VOXEL_M - 0.5 * VOXEL_M)  # centre-to-face, as the verified-free reading
+    assert horizontal_free_distance(trunk, p, 0.3)[0] < d  # the unknown boundary and the window edge are nearer
