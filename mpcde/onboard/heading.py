@@ -16,11 +16,11 @@ perception, and the behaviour before the yaw planner existed).
 
 Along travel, two drones converging side by side never enter each other's
 85 deg view; ``YawPlannerConfig.tracking_sweep_deg`` swings the tracking-mode
-camera about the direction of travel for them. The safety margin (Eq. 1) does
-not age verified-free space by default (``YawPlannerConfig.free_max_age_s``
-ages it), so it cannot see MP-CDE's Fig. 3 hazard: a drone observing a
-tracked neighbour sidesteps it into space verified free seconds earlier,
-where a drone neither had tracked now flies.
+camera about the direction of travel for them. The safety margin (Eq. 1)
+ages verified-free space (``YawPlannerConfig.free_max_age_s``, 1 s), for
+MP-CDE's Fig. 3 hazard among drones: a drone observing tracked neighbours
+would otherwise fly on into space verified free seconds earlier, where a
+drone it has not seen now flies.
 
 Measured (forest_swarm: blind, along travel, active yaw; radio_outage
 contacts): docs/results/yaw_planner.md.

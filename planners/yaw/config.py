@@ -85,16 +85,20 @@ class YawPlannerConfig:
             sample whose voxel is not verified free OR was last seen by the
             camera longer than this before the map's latest frame [s]: MP-CDE's
             "the segment ahead has been temporally validated by the perception
-            pipeline". ``inf`` (the default): verified free space never ages.
+            pipeline". Default 1.0 s (chosen: the other drones are the only
+            things that move in the simulated world, and in 1 s a neighbour at
+            the swarm's 0.5-2 m/s crosses 0.5-2 m of space the camera saw
+            free); ``inf``: verified free space never ages.
             It ages only tau_s, not d_free (the braking distance to unobserved
             space): d_free measured on fresh space alone would be about zero at
             the drone (only the camera's wedge is fresh) and forbid every mode
             but tracking. A drone that observes a neighbour while it flies
             sideways into space it saw seconds ago therefore loses the
             exploring/observing regime and looks where it goes (MP-CDE Fig. 3,
-            for neighbours that now fly where the camera saw free space).
-            Not the default: 1.0 s gave no fewer collisions on radio_outage
-            (measured: docs/results/yaw_planner.md).
+            for neighbours that now fly where the camera saw free space): the
+            observing mode cannot stare at known neighbours while an unseen
+            one closes in along the path. Measured (forest sweep screens,
+            Table III spot check, radio_outage): docs/results/yaw_planner.md.
         free_distance: how Eq. 1's d_free is measured: ``"horizontal"`` (in the
             plane of the drone's altitude slab, to the nearest cell not verified
             free; default), ``"voxel"`` (the map's 3-D verified-free distance)
@@ -185,7 +189,7 @@ class YawPlannerConfig:
     window_s: float = 1.0
     safety_sample_s: float = 0.05
     safety_horizon_s: float = 4.0
-    free_max_age_s: float = math.inf
+    free_max_age_s: float = 1.0
     free_distance: str = "horizontal"
     free_slab_half_height_m: float = 0.3
     distance_eps_m: float = 0.2

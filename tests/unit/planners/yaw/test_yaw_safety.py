@@ -156,7 +156,7 @@ def test_free_space_seen_too_long_ago_ends_the_safe_segment_but_not_d_free():
     seen[16:20] = 7.0  # 0.2 <= x < 1.0 m: verified free, but seen 3 s ago
     snap = OccupancySnapshot(10.0, base.origin_world, VOXEL_M, base.state, base.distance_m, base.free_distance_m, seen)
     traj = line(np.array([-1.9, 0.1, 1.1]), np.array([0.5, 0.0, 0.0]), t0=10.0, end=30.0)
-    plain = YawPlannerConfig(free_distance="voxel", safety_horizon_s=8.0)
+    plain = YawPlannerConfig(free_distance="voxel", safety_horizon_s=8.0, free_max_age_s=math.inf)
     aged = YawPlannerConfig(free_distance="voxel", safety_horizon_s=8.0, free_max_age_s=2.0)
     s0, s1 = safety_margin(snap, traj, 10.0, plain), safety_margin(snap, traj, 10.0, aged)
     assert 2.1 / 0.5 - plain.safety_sample_s - 1e-9 <= s1.safe_time_s <= 2.1 / 0.5  # reaches x = 0.2 after 4.2 s
