@@ -15,7 +15,9 @@ this order (each drone-drone check is made both ways, i about j and j about
 i, and the event takes the first cause either direction shows):
 
 * ``fallback``: a drone of the event was braking (its optimiser had failed;
-  ``DeniedAgent.braking``) at the event;
+  ``DeniedAgent.braking``) at the event and already :data:`BEFORE_S` before
+  it (a brake that began later is the drone's reaction to what it has just
+  seen, and the checks below name what it saw too late);
 * ``control overshoot``: the references were clear by
   :data:`CONTROL_MARGIN_M` (drone-drone: the two reference positions at least
   2 r + margin apart; obstacle: the reference's exact obstacle distance at
@@ -263,7 +265,8 @@ def _classify(ev: dict, ref: np.ndarray | None, rec: _Recorder, future: deque, f
     if tick is not None and any(tick.comm_mode[d] for d in drones):
         out.cause = "comm mode"
         return out
-    if tick is not None and any(tick.braking[d] for d in drones):
+    before = rec.at(t - BEFORE_S)
+    if tick is not None and before is not None and any(tick.braking[d] and before.braking[d] for d in drones):
         out.cause = "fallback"
         return out
     window = [(s, p) for s, p in future if t - BEFORE_S - 1e-9 <= s <= t + 1.0]  # truth from BEFORE_S before to 1 s after

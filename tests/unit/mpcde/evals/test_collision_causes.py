@@ -1,15 +1,17 @@
-"""Collision causes (mpcde/evals/collision_causes.py) on flights whose cause is known by construction (slow: real flights)."""
+"""Collision causes (mpcde/evals/collision_causes.py): flights whose cause is known by construction (slow: real flights), and the classifier on recorded deliveries."""
 
 from __future__ import annotations
 
+from collections import deque
+
+import numpy as np
 import pytest
 
 from mpcde.config.scenario import load_scenario
-from mpcde.evals.collision_causes import CAUSES, explain_flight
-
-pytestmark = pytest.mark.slow
+from mpcde.evals.collision_causes import BEFORE_S, CAUSES, _classify, _Recorder, _Tick, explain_flight
 
 
+@pytest.mark.slow
 def test_blind_lines_that_cross_collide_without_ever_detecting_each_other():
     """The placeholder flies straight lines through each other and runs no detector: the drones face each other
     (in view) and nothing is ever detected, so the cause is a late (never) detection, both ways."""
@@ -22,8 +24,30 @@ def test_blind_lines_that_cross_collide_without_ever_detecting_each_other():
     assert first.detail["ref_distance_m"] < 0.3  # the lines themselves meet: not the controller's doing
 
 
+@pytest.mark.slow
 def test_a_clean_flight_has_no_causes_and_every_cause_is_named():
     cfg = load_scenario("crossing", {"duration_s": 6.0}, planner_kind="mpcde")
     metrics, causes = explain_flight(cfg)
     assert metrics["collisions"] == 0 and causes == []
     assert len(set(CAUSES)) == len(CAUSES)
+
+
+def _ticks(braking_at: dict[float, list[int]]) -> _Recorder:
+    """A recorder with one delivery per listed time for two drones that never saw each other."""
+    rec = _Recorder.__new__(_Recorder)
+    rec.n, rec.ticks = 2, deque()
+    for t, braking in sorted(braking_at.items()):
+        b = np.zeros(2, bool)
+        b[braking] = True
+        rec.ticks.append(_Tick(t, np.zeros((2, 2), int), np.zeros((2, 2), bool), np.full((2, 2), np.inf), [[], []], [None, None], b, np.zeros(2, bool)))
+    return rec
+
+
+@pytest.mark.parametrize(("braking_before", "cause"), [([0], "fallback"), ([], "never in view")])
+def test_fallback_is_a_brake_already_on_before_the_event_not_one_that_reacts_to_it(braking_before, cause):
+    """A drone braking at the event but not BEFORE_S earlier reacted to a late sight: the perception checks name it."""
+    t = 5.0
+    rec = _ticks({t - BEFORE_S - 0.04: braking_before, t - 0.1: [0], t: [0]})
+    future = deque((s, np.array([[0.0, 0.0, 1.5], [0.15, 0.0, 1.5]])) for s in np.arange(4.5, 6.01, 0.04))
+    out = _classify({"time_s": t, "kind": "drone", "drones": [0, 1]}, None, rec, future, None, 0.1, None)
+    assert out.cause == cause
