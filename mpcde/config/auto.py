@@ -6,12 +6,9 @@ import math
 from dataclasses import dataclass, field
 
 from mpcde.errors import ConfigError
-from sim.checks import require_instance, require_one_of, require_positive
+from sim.checks import require_instance, require_positive
 
-__all__ = ["MEMORY_PREDICTIONS", "AutoAgentConfig", "FusionConfig"]
-
-MEMORY_PREDICTIONS = ("constant_velocity", "plan")
-"""Values of :attr:`AutoAgentConfig.memory_prediction`."""
+__all__ = ["AutoAgentConfig", "FusionConfig"]
 
 
 @dataclass(frozen=True)
@@ -58,25 +55,12 @@ class AutoAgentConfig:
             memory covers the first second of denied flight after the 1 s of
             silence, while the active yaw turns the camera to the remembered
             drones and the tracker takes them over.
-        memory_prediction: how a remembered plan predicts its drone once it is
-            stale (older than ``fusion.stale_after_s``, which every remembered
-            plan is by the time the silence has switched the drone to denied
-            mode): ``"constant_velocity"`` (default) from the state the plan
-            was sent in, its position and velocity at its send time;
-            ``"plan"``: the plan as it was sent. A DMPC plan ends in a halt
-            (DMPC-Swarm Eq. 13e), but the neighbour that sent it lost the
-            radio too, switched to its own denied stack and flies on toward
-            its goal: it does not halt where its last plan did. Planned
-            against the halt, two drones that start the outage side by side
-            each dodge toward the other's predicted stopping point (logged on
-            radio_outage seed 0; measured: docs/results/radio_outage.md).
         fusion: when a neighbour's plan is stale and how near its track must be
             (:class:`mpcde.onboard.fusion.FusionConfig`).
     """
 
     radio_silence_s: float = 1.0
     plan_memory_s: float = 2.0
-    memory_prediction: str = "constant_velocity"
     fusion: FusionConfig = field(default_factory=FusionConfig)
 
     def __post_init__(self) -> None:
@@ -85,4 +69,3 @@ class AutoAgentConfig:
         m = self.plan_memory_s
         if isinstance(m, bool) or not (isinstance(m, (int, float)) and math.isfinite(m) and m >= 0):
             raise ConfigError("plan_memory_s", m, "a finite number >= 0 [s] (0: no radio memory in denied mode)")
-        require_one_of("memory_prediction", self.memory_prediction, MEMORY_PREDICTIONS)

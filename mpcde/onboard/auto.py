@@ -152,10 +152,7 @@ class AutoAgent(OnboardAgent):
         The neighbours' last plans sent within ``plan_memory_s`` are fused with
         the tracks exactly as in comm mode (:func:`mpcde.onboard.fusion.fuse_neighbours`):
         a plan whose drone is tracked gives way to the track, an untracked one
-        is kept (extrapolated at constant velocity past its horizon). A kept
-        plan that is stale is predicted as ``memory_prediction`` says: by
-        default at constant velocity from its send-time state, not toward the
-        halt it ends in (:class:`mpcde.config.auto.AutoAgentConfig`). ``count``:
+        is kept (extrapolated at constant velocity past its horizon). ``count``:
         tally the remembered plans used (planning calls; the map's are not).
         """
         tracks = self.perception.predictions(t)
@@ -168,9 +165,7 @@ class AutoAgent(OnboardAgent):
         fused = fuse_neighbours(plans, tracks, t, f.stale_after_s, f.gate_m, self.comm.qp_config.v_max)
         if count:  # planning calls (denied mode) only; the map asks at every frame in both modes
             self.remembered_plans += fused.fresh_plans + fused.stale_plans
-        if self.config.memory_prediction == "plan":
-            return fused.predictions
-        return [_sent_state(q) if q.source == "radio" and q.age_s(t) > f.stale_after_s else q for q in fused.predictions]
+        return fused.predictions
 
     def _switch(self, t: float, mode: str) -> None:
         self.mode = mode
@@ -202,10 +197,3 @@ class AutoAgent(OnboardAgent):
             "dmpc": self.comm.extra_metrics(),
             "denied": self.denied.extra_metrics(),
         }
-
-
-def _sent_state(plan: NeighborPrediction) -> NeighborPrediction:
-    """A radio plan as a constant-velocity prediction from its first sample, the sender's state when it sent it."""
-    return NeighborPrediction.constant_velocity(
-        plan.neighbor_id, "radio", float(plan.times_s[0]), plan.pos_world[0], plan.vel_world[0], plan.cov_world
-    )

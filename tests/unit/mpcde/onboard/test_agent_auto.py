@@ -124,26 +124,6 @@ def test_in_denied_mode_an_untracked_neighbour_is_remembered_from_the_radio_for_
     assert [p.source for p in agent.denied.neighbours(t)] == ["perception"]
 
 
-def test_a_remembered_plan_predicts_its_drone_flying_on_from_its_send_state_not_halting():
-    """memory_prediction: a stale remembered plan that ends in a halt predicts its sender at constant velocity."""
-    agent = _agent()
-    _run(agent, 0.0, 2.0, lambda t: t < 0.6, behind=True)  # last messages sent at 0.4 s; denied from 1.6 s
-    assert agent.mode == "denied"
-    sent, v0 = 0.4, np.array([0.0, 0.5, 0.0])
-    times = sent + ROUND * np.arange(16)
-    speed = np.clip(1.0 - (times - sent) / 1.0, 0.0, None)[:, None]  # brakes linearly to a halt 1 s after sending
-    vel = speed * v0
-    pos = BEHIND + np.concatenate([[np.zeros(3)], np.cumsum(0.5 * (vel[1:] + vel[:-1]) * ROUND, axis=0)])
-    agent.comm.neighbour_plans[2] = PlanMessage(2, sent, times, pos, vel)
-    t = 2.0
-    by_id = {p.neighbor_id: p for p in agent.denied.neighbours(t)}
-    np.testing.assert_allclose(by_id[2].position(t), BEHIND + v0 * (t - sent), atol=1e-9)  # flies on
-    agent.config = replace(agent.config, memory_prediction="plan")
-    by_id = {p.neighbor_id: p for p in agent.denied.neighbours(t)}
-    np.testing.assert_allclose(by_id[2].position(t), pos[-1], atol=1e-9)  # where the plan halts (0.25 m on)
-    assert np.linalg.norm(pos[-1] - BEHIND) == pytest.approx(0.25, abs=1e-9)
-
-
 def test_invalid_auto_settings_name_the_field():
     with pytest.raises(ConfigError, match=r"^auto\.radio_silence_s="):
         load_scenario("crossing", {"auto": {"radio_silence_s": 0}})
@@ -151,5 +131,3 @@ def test_invalid_auto_settings_name_the_field():
         load_scenario("crossing", {"auto": {"fusion": {"gate_m": -1}}})
     with pytest.raises(ConfigError, match=r"^auto\.plan_memory_s=-1(\.0)?: a finite number >= 0"):
         load_scenario("crossing", {"auto": {"plan_memory_s": -1}})
-    with pytest.raises(ConfigError, match=r"^auto\.memory_prediction='halt': "):
-        load_scenario("crossing", {"auto": {"memory_prediction": "halt"}})
