@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from sim.checks import ConfigError, require_integer_at_least, require_non_negative, require_one_of, require_positive
+from sim.checks import ConfigError, require_boolean, require_integer_at_least, require_non_negative, require_one_of, require_positive
 
 __all__ = ["YawPlannerConfig"]
 
@@ -147,6 +147,16 @@ class YawPlannerConfig:
             shortest period at which a 60 deg swing turns within the 2 rad/s
             limit, 4 x 60 deg / 2.1 s = 1.99 rad/s, so the camera revisits
             each side every 2.1 s).
+        observing_sweep: the observing mode swings the camera too, the same
+            triangle wave (``tracking_sweep_deg``, ``tracking_sweep_period_s``)
+            about Eq. 6's bearing. Not in MP-CDE; off by default (not yet
+            measured on a fixed-seed sweep). Why: Eq. 6 points the camera at
+            the recently seen neighbours and at nothing else, for as long as
+            S(0) stays high; a drone the swarm has not yet seen, converging
+            slowly from the other side, is never looked at (logged on the
+            forest sweep: docs/results/yaw_planner.md). With the swing the
+            observed neighbours leave the frame for part of each period, well
+            within the tracker's t_hold.
         still_speed_mps: in tracking mode, below this horizontal speed the
             direction of travel is undefined and the yaw is held [m/s]
             (chosen: 0.1 m/s).
@@ -198,6 +208,7 @@ class YawPlannerConfig:
     still_speed_mps: float = 0.1
     tracking_sweep_deg: float = 60.0
     tracking_sweep_period_s: float = 2.1
+    observing_sweep: bool = False
     exploring_mode: bool = True
     tracking_mode: bool = True
     method: str = "mpcde"
@@ -240,6 +251,7 @@ class YawPlannerConfig:
             allowed = f"allowed < 360 - yaw_rate_max * t_y = {360.0 - math.degrees(self.max_step_rad):.1f} deg (a turn must not wrap the sector onto itself)"
             raise ConfigError("fov_h_deg", self.fov_h_deg, allowed)
         require_positive("tracking_sweep_period_s", self.tracking_sweep_period_s)
+        require_boolean("observing_sweep", self.observing_sweep)
         require_non_negative("tracking_sweep_deg", self.tracking_sweep_deg)
         if not self.tracking_sweep_deg < 90.0:
             raise ConfigError("tracking_sweep_deg", self.tracking_sweep_deg, "allowed 0 <= sweep < 90 (the camera never looks behind the drone)")

@@ -124,6 +124,8 @@ class YawPlanner:
         elif active and len(recent) == len(active):
             mode = "observing"
             targets = observe_targets(positions[1:], times[1:], recent, cfg.distance_eps_m, yaw)
+            if cfg.observing_sweep:  # extension: swing about Eq. 6's bearing, as the tracking mode does about travel
+                targets = targets + sweep_offsets(times[1:], math.radians(cfg.tracking_sweep_deg), cfg.tracking_sweep_period_s)
             yaws = rate_limited(yaw, targets, cfg.max_step_rad)
         else:
             mode = "exploring"

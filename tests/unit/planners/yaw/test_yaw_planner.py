@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -241,6 +242,22 @@ def test_observing_points_closer_to_the_near_neighbour():
     assert expected > 0.3
     assert plan.yaws[-1] == pytest.approx(expected, abs=1e-9)
     assert_rate_limited(plan, 0.0, cfg)
+
+
+def test_observing_sweep_swings_about_the_observing_bearing_and_is_off_by_default():
+    from planners.yaw import sweep_offsets
+
+    bearing = math.radians(50)
+    seen = neighbour(DRONE + 2.0 * np.array([math.cos(bearing), math.sin(bearing), 0.0]), stamp_s=0.0, nid=0)
+    plain = YawPlanner(paper_config()).plan(0.0, bearing, HOVER, uniform_snapshot(3.0), [seen])
+    assert plain.mode == "observing" and not paper_config().observing_sweep
+    np.testing.assert_allclose(plain.yaws, bearing, atol=1e-9)  # Eq. 6 alone: held on the neighbour
+    cfg = replace(paper_config(), observing_sweep=True, tracking_sweep_deg=35.0, tracking_sweep_period_s=1.4)
+    p = YawPlanner(cfg).plan(0.0, bearing, HOVER, uniform_snapshot(3.0), [seen])
+    assert p.mode == "observing"
+    # 4 * 35 deg / 1.4 s = 100 deg/s < 2 rad/s: the yaws follow the triangle about the bearing exactly
+    np.testing.assert_allclose(p.yaws[1:] - bearing, sweep_offsets(p.times_s[1:], math.radians(35.0), 1.4), atol=1e-9)
+    assert_rate_limited(p, bearing, cfg)
 
 
 def test_circular_mean_of_bearings_near_pi_does_not_flip_to_zero():
