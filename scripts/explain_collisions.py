@@ -19,6 +19,7 @@ from pathlib import Path
 
 from mpcde.evals.collision_causes import CAUSES, explain_flight
 from mpcde.sweep.spec import load_sweep
+from mpcde.sweep.store import ResultsStore
 
 
 def main() -> None:
@@ -29,7 +30,7 @@ def main() -> None:
     args = ap.parse_args()
     spec = load_sweep(args.sweep)
     cells = {c.index: c for c in spec.cells()}
-    rows = [json.loads(line) for line in (args.store / "results.jsonl").read_text().splitlines() if line.strip()]
+    rows = ResultsStore.read(args.store).rows()
     out_path = args.store / "collision_causes.jsonl"
     done = {}
     if out_path.exists():

@@ -4,7 +4,7 @@ Usage:
     .venv/bin/python scripts/screen_flights.py SWEEP.yaml (--store STORE_DIR | --flights CELL:SEED ...)
         [--set FIELD=YAML_VALUE ...] [--jobs 2]
 
-``--store`` picks every flight of STORE_DIR/results.jsonl that counted a
+``--store`` picks every flight of the store STORE_DIR that counted a
 collision; ``--flights`` names them (``1:36`` is cell 1, seed 36). ``--set``
 overrides a scenario field for every flight (``denied.yaw.free_max_age_s=1.5``),
 on top of the sweep's own overrides and the cell's axes. Prints one line per
@@ -19,7 +19,6 @@ a sweep whose seeds were fixed before the first flight.
 from __future__ import annotations
 
 import argparse
-import json
 from functools import partial
 from pathlib import Path
 
@@ -28,6 +27,7 @@ import yaml
 from mpcde.sweep.engine import FlightTask, run_flights, share_cores_count
 from mpcde.sweep.runner import prepare_flight
 from mpcde.sweep.spec import load_sweep
+from mpcde.sweep.store import ResultsStore
 
 
 def main() -> None:
@@ -48,10 +48,7 @@ def main() -> None:
         c.values.update(sets)  # applied after the cell's axes (an axis may set a whole mapping the override is inside)
     keys: list[tuple[int, int]] = [tuple(int(x) for x in f.split(":")) for f in args.flights]  # type: ignore[misc]
     if args.store is not None:
-        for line in (args.store / "results.jsonl").read_text().splitlines():
-            r = json.loads(line) if line.strip() else {}
-            if (r.get("metrics") or {}).get("collisions"):
-                keys.append((r["cell"], r["seed"]))
+        keys += [(r["cell"], r["seed"]) for r in ResultsStore.read(args.store).rows() if (r.get("metrics") or {}).get("collisions")]
     render_workers = share_cores_count(args.jobs) if args.jobs > 1 else None  # as `mpcde sweep` shares the cores
     tasks = [FlightTask((c, s), partial(prepare_flight, spec, cells[c], s, render_workers)) for c, s in keys]
     totals = {"flights": 0, "collisions": 0, "with_collision": 0, "all_arrived": 0}

@@ -12,7 +12,8 @@ predictions, and gets a :class:`YawPlan` of n + 1 yaws over the next n t_y:
    planner holds whether it is in the exploring/observing regime; it enters
    it at S(0) > tau_thr + 0.1 s and leaves it at S(0) < tau_thr.
 4. In that regime: *observing* when A is non-empty and |V| = |A| (every
-   neighbour recently seen): steer to the weighted mean bearing (Eq. 6);
+   neighbour recently seen): steer to the weighted mean bearing (Eq. 6;
+   with ``observing_sweep``, swinging about it as step 5 does; not in the paper);
    otherwise *exploring* (A empty, or some neighbour not recently seen):
    Dijkstra on the yaw lattice with E (Eq. 3) and V (Eq. 4) for the
    neighbours in A minus V (Alg. 1 line 8).
@@ -117,15 +118,13 @@ class YawPlanner:
             yaws = self._explore(yaw, times, positions, snapshot, (), zhou=True)
         elif not safe or not (cfg.exploring_mode or (active and len(recent) == len(active))):
             mode = "tracking"  # unsafe; or, without exploring mode, where exploring would run: heading along travel
-            targets = track_targets(trajectory.velocities(times[1:]), cfg.still_speed_mps, yaw)
-            swing = math.radians(cfg.tracking_sweep_deg)
-            targets = targets + sweep_offsets(times[1:], swing, cfg.tracking_sweep_period_s)
+            targets = track_targets(trajectory.velocities(times[1:]), cfg.still_speed_mps, yaw) + self._swing(times[1:])
             yaws = rate_limited(yaw, targets, cfg.max_step_rad)
         elif active and len(recent) == len(active):
             mode = "observing"
             targets = observe_targets(positions[1:], times[1:], recent, cfg.distance_eps_m, yaw)
             if cfg.observing_sweep:  # extension: swing about Eq. 6's bearing, as the tracking mode does about travel
-                targets = targets + sweep_offsets(times[1:], math.radians(cfg.tracking_sweep_deg), cfg.tracking_sweep_period_s)
+                targets = targets + self._swing(times[1:])
             yaws = rate_limited(yaw, targets, cfg.max_step_rad)
         else:
             mode = "exploring"
@@ -147,6 +146,11 @@ class YawPlanner:
             n_recent=len(recent),
             n_active=len(active),
         )
+
+    def _swing(self, times_s: np.ndarray) -> np.ndarray:
+        """The camera swing's yaw offsets (n,) [rad] at ``times_s`` (n,): ``tracking_sweep_deg`` every ``tracking_sweep_period_s``."""
+        cfg = self.config
+        return sweep_offsets(times_s, math.radians(cfg.tracking_sweep_deg), cfg.tracking_sweep_period_s)
 
     def _remember_sector(self, time_s: float, yaw: float, pos_world: np.ndarray, snapshot: OccupancySnapshot) -> None:
         """Add the current yaw's visible sector to the coverage window W and drop entries older than window_s.
