@@ -49,6 +49,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 
 import numpy as np
+from numba import njit
 
 from perception.esdf import signed_distance, verified_free_distance
 from perception.map_config import MapConfig
@@ -216,12 +217,11 @@ class OccupancyMap:
             self.snapshot().distance_m
         _, origin, dist = self._esdf_base
         v = self.config.voxel_m
-        d = trilinear(dist, origin, v, p)[0]
         if self._became_occupied:  # only those after the base (_esdf_done drops the older)
             centres = (np.concatenate([idx for _, idx in self._became_occupied]) + 0.5) * v
-            near = np.sqrt(np.min(np.sum((p[:, None, :] - centres[None, :, :]) ** 2, axis=-1), axis=1)) - 0.5 * v
-            d = np.minimum(d, near)
-        return d
+        else:
+            centres = np.empty((0, 3))
+        return _clearance(dist, np.asarray(origin, float), float(v), p, centres)
 
     def _esdf_done(self, seq: int | None, origin: np.ndarray, distance_m: np.ndarray | None, seconds: float) -> None:
         """Book a finished transform: its time, and (for the ESDF) the newest base of :meth:`clearance`."""
@@ -248,3 +248,59 @@ class OccupancyMap:
             min(cfg.clear_invalid_m, cfg.max_range_m), cfg.invalid_neighborhood_px, cfg.voxel_m, depth.dtype.type(cfg.voxel_m), depth.dtype.type(np.inf),
             np.linalg.inv(np.asarray(frame.K, float)), max(cfg.clear_stride // cfg.pixel_stride, 1), cfg.clear_tail_voxels,
         )
+
+
+@njit(cache=True)
+def _clearance(dist, origin, v, p, centres):  # pragma: no cover - compiled
+    """:meth:`OccupancyMap.clearance`'s arithmetic for points ``p`` (n, 3) [m]: the trilinear value of ``dist``
+    (:func:`perception.types.trilinear`, float64 as there), lowered to the distance to the nearest of ``centres``
+    (k, 3) [m] less half a voxel ``v``. :func:`clearance_numpy` is the reference the tests compare it with."""
+    nx, ny, nz = dist.shape
+    dims = (nx, ny, nz)
+    out = np.empty(p.shape[0])
+    fr = np.empty(3)
+    i0 = np.empty(3, np.int64)
+    for k in range(p.shape[0]):
+        for a in range(3):
+            c = (p[k, a] - origin[a]) / v - 0.5
+            cc = min(max(c, 0.0), dims[a] - 1.0)
+            i0[a] = min(np.int64(np.floor(cc)), dims[a] - 2)
+            fr[a] = cc - i0[a]
+        x0, y0, z0 = i0[0], i0[1], i0[2]
+        fx, fy, fz = fr[0], fr[1], fr[2]
+        c000 = np.float64(dist[x0, y0, z0])
+        c010 = np.float64(dist[x0, y0 + 1, z0])
+        c100 = np.float64(dist[x0 + 1, y0, z0])
+        c110 = np.float64(dist[x0 + 1, y0 + 1, z0])
+        c001 = np.float64(dist[x0, y0, z0 + 1])
+        c011 = np.float64(dist[x0, y0 + 1, z0 + 1])
+        c101 = np.float64(dist[x0 + 1, y0, z0 + 1])
+        c111 = np.float64(dist[x0 + 1, y0 + 1, z0 + 1])
+        c00 = c000 + fx * (c100 - c000)
+        c10 = c010 + fx * (c110 - c010)
+        c01 = c001 + fx * (c101 - c001)
+        c11 = c011 + fx * (c111 - c011)
+        c0 = c00 + fy * (c10 - c00)
+        c1 = c01 + fy * (c11 - c01)
+        d = c0 + fz * (c1 - c0)
+        if centres.shape[0] > 0:
+            best = np.inf
+            for m in range(centres.shape[0]):
+                dx = p[k, 0] - centres[m, 0]
+                dy = p[k, 1] - centres[m, 1]
+                dz = p[k, 2] - centres[m, 2]
+                q = dx * dx + dy * dy + dz * dz
+                if q < best:
+                    best = q
+            d = min(d, np.sqrt(best) - 0.5 * v)
+        out[k] = d
+    return out
+
+
+def clearance_numpy(dist: np.ndarray, origin: np.ndarray, v: float, p: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """Vectorised numpy reference of the compiled clearance arithmetic (same arguments, same result)."""
+    d = trilinear(dist, origin, v, p)[0]
+    if centres.shape[0]:
+        near = np.sqrt(np.min(np.sum((p[:, None, :] - centres[None, :, :]) ** 2, axis=-1), axis=1)) - 0.5 * v
+        d = np.minimum(d, near)
+    return d

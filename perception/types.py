@@ -112,6 +112,9 @@ class NeighborPrediction:
         scalar = np.ndim(t) == 0
         t = np.atleast_1d(np.asarray(t, float))
         ts, p, v = self.times_s, self.pos_world, self.vel_world
+        if ts.size == 1:  # a track's constant-velocity prediction (Eq. 12): both ends are the one sample
+            out = p[0] + v[0] * (t - ts[0])[:, None]
+            return out[0] if scalar else out
         out = np.empty((t.size, 3))
         lo = t <= ts[0]
         hi = t >= ts[-1]

@@ -20,10 +20,11 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
+from numba import njit
 
 from perception.types import NeighborPrediction, OccupancySnapshot
 
-__all__ = ["with_neighbour_capsules"]
+__all__ = ["capsule_block_numpy", "with_neighbour_capsules"]
 
 
 def with_neighbour_capsules(
@@ -77,14 +78,50 @@ def with_neighbour_capsules(
         hi = np.clip(np.ceil((np.maximum(a, b) + reach - origin) / v).astype(int) + 1, 0, shape)
         if np.any(hi <= lo):
             continue  # the capsule lies outside the window
-        axes = [origin[k] + v * (np.arange(lo[k], hi[k]) + 0.5) for k in range(3)]
-        X, Y, Z = np.meshgrid(*axes, indexing="ij")
-        P = np.stack([X, Y, Z], axis=-1)
-        ab = b - a
-        s = np.clip(((P - a) @ ab) / max(float(ab @ ab), 1e-12), 0.0, 1.0)
-        d = np.linalg.norm(P - (a + s[..., None] * ab), axis=-1) - r
-        d[d > reach_m] = np.inf
-        block = dist[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]
-        np.minimum(block, d.astype(np.float32), out=block)
+        _capsule_block(dist, origin, v, lo, hi, a, b - a, max(float((b - a) @ (b - a)), 1e-12), r, reach_m)
     return snapshot.with_distance(dist)
 
+
+
+@njit(cache=True)
+def _capsule_block(dist, origin, v, lo, hi, a, ab, ab2, r, reach_m):  # pragma: no cover - compiled
+    """``dist[box] = min(dist[box], d)`` over the voxel box ``lo:hi`` (3,) of one capsule; :func:`capsule_block_numpy` is the reference.
+
+    ``d`` is the distance [m] from each voxel centre to the segment ``a + s ab``,
+    ``s`` in [0, 1], less the radius ``r``, or inf beyond ``reach_m``; ``ab2`` is
+    ``max(ab . ab, 1e-12)``. Written in place, in float32 as the map's ESDF.
+    """
+    for i in range(lo[0], hi[0]):
+        x = origin[0] + v * (i + 0.5)
+        px = x - a[0]
+        for j in range(lo[1], hi[1]):
+            y = origin[1] + v * (j + 0.5)
+            py = y - a[1]
+            for k in range(lo[2], hi[2]):
+                z = origin[2] + v * (k + 0.5)
+                pz = z - a[2]
+                s = (px * ab[0] + py * ab[1] + pz * ab[2]) / ab2
+                s = min(max(s, 0.0), 1.0)
+                qx = x - (a[0] + s * ab[0])
+                qy = y - (a[1] + s * ab[1])
+                qz = z - (a[2] + s * ab[2])
+                d = np.sqrt(qx * qx + qy * qy + qz * qz) - r
+                if d <= reach_m:
+                    d32 = np.float32(d)
+                    if d32 < dist[i, j, k]:
+                        dist[i, j, k] = d32
+
+
+def capsule_block_numpy(dist: np.ndarray, origin: np.ndarray, v: float, lo: np.ndarray, hi: np.ndarray,
+                        a: np.ndarray, b: np.ndarray, r: float, reach_m: float) -> None:
+    """Vectorised numpy reference of the compiled capsule kernel (the tests compare them): the capsule a-b (3,) [m]
+    of radius ``r`` into ``dist`` (float32, in place) over the voxel box ``lo:hi``."""
+    axes = [origin[k] + v * (np.arange(lo[k], hi[k]) + 0.5) for k in range(3)]
+    X, Y, Z = np.meshgrid(*axes, indexing="ij")
+    P = np.stack([X, Y, Z], axis=-1)
+    ab = b - a
+    s = np.clip(((P - a) @ ab) / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+    d = np.linalg.norm(P - (a + s[..., None] * ab), axis=-1) - r
+    d[d > reach_m] = np.inf
+    block = dist[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]
+    np.minimum(block, d.astype(np.float32), out=block)

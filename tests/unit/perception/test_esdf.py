@@ -173,3 +173,16 @@ def test_world_index_round_trip(rng) -> None:
     assert np.all(snap.contains(pts))
     assert not snap.contains((snap.upper_world + 0.01)[None])[0]
     np.testing.assert_array_equal(snap.is_verified_free(pts), snap.state_at(pts) == 0)
+
+
+@pytest.mark.parametrize("fill", [0.05, 0.6, 0.97, 1.0])
+def test_signed_distance_equals_the_two_transform_field_to_the_bit(rng, fill) -> None:
+    """The inside distance comes from a local search (``_inside_squared``), not a second transform: same field."""
+    from perception.esdf import _signed_field, signed_distance
+
+    for shape, max_m in (((17, 13, 9), 3.0), ((30, 26, 22), 0.5), ((40, 3, 2), 1.0)):
+        occupied = rng.random(shape) < fill
+        c = np.array(shape) // 2
+        occupied |= np.sum((np.indices(shape).transpose(1, 2, 3, 0) - c) ** 2, axis=-1) <= 16  # a thick solid ball
+        two = _signed_field(occupied, squared_edt(occupied), squared_edt(~occupied), VOXEL_M, max_m)
+        np.testing.assert_array_equal(signed_distance(occupied, VOXEL_M, max_m), two)

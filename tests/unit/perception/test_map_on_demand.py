@@ -123,3 +123,15 @@ def test_compiled_rays_equal_the_numpy_reference(dets) -> None:
     np.testing.assert_allclose(got[0], ref[0], rtol=0, atol=1e-12)
     np.testing.assert_array_equal(got[1], ref[1])
     np.testing.assert_allclose(got[2], ref[2], rtol=0, atol=1e-12)
+
+
+def test_compiled_clearance_equals_its_numpy_reference_to_the_bit() -> None:
+    from perception.occupancy_map import _clearance, clearance_numpy
+
+    rng = np.random.default_rng(2)
+    for trial in range(60):
+        dist = rng.uniform(-3, 3, (30, 28, 12)).astype(np.float32)
+        origin, v = rng.uniform(-10, 10, 3), 0.15
+        p = origin + rng.uniform(-1, 6, (40, 3)) * [1, 1, 0.4]  # some outside the window: clamped
+        centres = (rng.integers(-5, 35, (int(rng.integers(0, 50)) if trial % 3 else 0, 3)) + 0.5) * v + origin
+        np.testing.assert_array_equal(_clearance(dist, origin, v, p, centres), clearance_numpy(dist, origin, v, p, centres))

@@ -59,3 +59,21 @@ def test_invalid_arguments_name_the_field(kw):
     field = next(iter(kw))
     with pytest.raises(ValueError, match=f"^{field}="):
         with_neighbour_capsules(_empty(), [_nb([0.0, 0.0, 1.5], [0.0, 0.0, 0.0])], 0.0, **args)
+
+
+def test_compiled_capsule_equals_its_numpy_reference_to_the_bit():
+    from planners.neighbour_field import _capsule_block, capsule_block_numpy
+
+    rng = np.random.default_rng(1)
+    shape = np.array([40, 40, 20])
+    for trial in range(40):
+        dist = rng.uniform(-1, 3, shape).astype(np.float32)
+        origin = rng.uniform(-5, 5, 3)
+        a = origin + rng.uniform(0, 6, 3) * [1, 1, 0.5]
+        b = a.copy() if trial % 5 == 0 else a + rng.normal(0, 1, 3)  # a hovering neighbour: a point capsule
+        lo = np.clip(np.floor((np.minimum(a, b) - 2.0 - origin) / 0.15).astype(int), 0, shape)
+        hi = np.clip(np.ceil((np.maximum(a, b) + 2.0 - origin) / 0.15).astype(int) + 1, 0, shape)
+        ref, new = dist.copy(), dist.copy()
+        capsule_block_numpy(ref, origin, 0.15, lo, hi, a, b, 0.7, 1.3)
+        _capsule_block(new, origin, 0.15, lo, hi, a, b - a, max(float((b - a) @ (b - a)), 1e-12), 0.7, 1.3)
+        np.testing.assert_array_equal(new, ref)
