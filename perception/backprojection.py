@@ -60,6 +60,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+from numba import njit
 
 from perception.backprojection_config import BackprojectionConfig
 from perception.tracker import Measurement
@@ -116,6 +117,23 @@ def box_depth_m(depth_m: np.ndarray, box_xyxy: np.ndarray, cfg: BackprojectionCo
     v_lo, v_hi = max(cv - half_v, 0), min(cv + half_v + 1, H)
     if u_lo >= u_hi or v_lo >= v_hi:
         return float("nan"), 0
+    d, n = _foreground_depth(
+        depth_m[v_lo:v_hi, u_lo:u_hi], float(cfg.foreground_percentile) / 100.0, cfg.band_m, cfg.depth_noise_base_m, cfg.depth_noise_quadratic_per_m
+    )
+    return float(d), int(n)
+
+
+def box_depth_numpy(depth_m: np.ndarray, box_xyxy: np.ndarray, cfg: BackprojectionConfig = BackprojectionConfig()) -> tuple[float, int]:
+    """Vectorised numpy reference of :func:`box_depth_m` (the tests compare them to the bit)."""
+    H, W = depth_m.shape
+    x0, y0, x1, y1 = (float(c) for c in box_xyxy)
+    cu, cv = int(round((x0 + x1) / 2)), int(round((y0 + y1) / 2))
+    half_u = max(int(round(cfg.window_fraction * (x1 - x0) / 2)), 1)
+    half_v = max(int(round(cfg.window_fraction * (y1 - y0) / 2)), 1)
+    u_lo, u_hi = max(cu - half_u, 0), min(cu + half_u + 1, W)
+    v_lo, v_hi = max(cv - half_v, 0), min(cv + half_v + 1, H)
+    if u_lo >= u_hi or v_lo >= v_hi:
+        return float("nan"), 0
     z = depth_m[v_lo:v_hi, u_lo:u_hi].ravel()
     z = z[np.isfinite(z)].astype(np.float64)
     if z.size == 0:
@@ -124,6 +142,37 @@ def box_depth_m(depth_m: np.ndarray, box_xyxy: np.ndarray, cfg: BackprojectionCo
     band = cfg.band_m + 3.0 * _depth_std_m(z_p, cfg)
     fg = z[np.abs(z - z_p) <= band]
     return float(np.median(fg)), int(fg.size)
+
+
+@njit(cache=True)
+def _foreground_depth(window, q, band_m, noise_base_m, noise_quad_per_m):  # pragma: no cover - compiled
+    """(median of the foreground band, its pixel count) of a depth window (h, w) [m] (module docstring; NaN, 0 when
+    no pixel is valid): ``z_p`` the ``q``-quantile of the valid depths (numpy's ``method="lower"``, a sample), the band
+    ``|z - z_p| <= band_m + 3 sigma(z_p)`` (``sigma = noise_base + noise_quad z^2``), its median as ``np.median``."""
+    h, w = window.shape
+    z = np.empty(h * w)
+    n = 0
+    for i in range(h):
+        for j in range(w):
+            x = window[i, j]
+            if np.isfinite(x):
+                z[n] = np.float64(x)
+                n += 1
+    if n == 0:
+        return np.nan, 0
+    z = np.sort(z[:n])
+    z_p = z[int(np.floor((n - 1) * q))]
+    band = band_m + 3.0 * (noise_base_m + noise_quad_per_m * z_p * z_p)
+    lo = 0
+    while abs(z[lo] - z_p) > band:  # z is sorted: the band is one run of it, z_p inside
+        lo += 1
+    hi = n
+    while abs(z[hi - 1] - z_p) > band:
+        hi -= 1
+    m = hi - lo
+    if m % 2 == 1:
+        return z[lo + m // 2], m
+    return (z[lo + m // 2 - 1] + z[lo + m // 2]) / 2.0, m
 
 
 def measurement_from_pixel(
