@@ -204,11 +204,11 @@ class FlightSession:
                 if self.in_flight is not None:
                     self.delivery.append(self._finish_frames())
                 cams = [(i, self.rig.transform_camera_to_world(truth.pos_world[i], truth.rotation_body_to_world[i])) for i in range(self.n)]
-                for i, T in cams:  # the observed-area metric (truth; mpcde/flight/observed_area.py)
-                    if not truth.failed[i]:
-                        self.observed.add_frame(i, T)
                 detect = [i for i in range(self.n) if _wants_detections(agents[i], truth.failed[i])] if pool.has_processor else ()
                 pool.submit(truth.pos_world, truth.quat_xyzw, cams, sensor=(cfg.seed, self.frame_index), process=detect)
+                for i, T in cams:  # the observed-area metric (truth; mpcde/flight/observed_area.py), while the workers render
+                    if not truth.failed[i]:
+                        self.observed.add_frame(i, T)
                 self.in_flight = (t, self.frame_index, estimates, [c[1] for c in cams])
                 self.frame_index += 1
             self.next_cam += self.cam_period
