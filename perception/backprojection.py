@@ -164,10 +164,10 @@ def _foreground_depth(window, q, band_m, noise_base_m, noise_quad_per_m):  # pra
     z_p = z[int(np.floor((n - 1) * q))]
     band = band_m + 3.0 * (noise_base_m + noise_quad_per_m * z_p * z_p)
     lo = 0
-    while abs(z[lo] - z_p) > band:  # z is sorted: the band is one run of it, z_p inside
+    while lo < n and abs(z[lo] - z_p) > band:  # z is sorted: the band is one run of it, z_p inside (band >= 0)
         lo += 1
     hi = n
-    while abs(z[hi - 1] - z_p) > band:
+    while hi > lo and abs(z[hi - 1] - z_p) > band:
         hi -= 1
     m = hi - lo
     if m % 2 == 1:

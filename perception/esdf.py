@@ -205,12 +205,16 @@ def signed_distance(occupied: np.ndarray, voxel_m: float, max_distance_m: float,
     elif use_scipy:
         sq_in = sq(~occupied)  # D_free^2
     else:  # D_free^2 on the occupied voxels only, exact up to where the clip takes over
-        sq_in = _inside_squared(occupied, int(np.ceil((max_distance_m + 0.5 * voxel_m) / voxel_m)) + 1)
+        reach = (max_distance_m + 0.5 * voxel_m) / voxel_m
+        r_max = max(occupied.shape) if not reach < max(occupied.shape) else int(np.ceil(reach)) + 1
+        sq_in, done = _inside_squared(occupied, r_max, 8 * occupied.size)
+        if not done:  # thick solid regions: the transform is cheaper than the search
+            sq_in = sq(~occupied)
     return _signed_field(occupied, sq_out, sq_in, float(voxel_m), float(max_distance_m))
 
 
 @njit(cache=True)
-def _inside_squared(occupied, r_max):  # pragma: no cover - compiled
+def _inside_squared(occupied, r_max, budget):  # pragma: no cover - compiled
     """Squared distance [voxels^2] from each occupied voxel to the nearest non-occupied one; 0 elsewhere.
 
     What ``squared_edt(~occupied)`` gives on the occupied voxels (the only
@@ -219,12 +223,19 @@ def _inside_squared(occupied, r_max):  # pragma: no cover - compiled
     window and nearly all lie on a surface, with a non-occupied voxel one
     step away. Cubic shells of Chebyshev radius 1, 2, ... are scanned until
     no farther shell can hold a nearer voxel (every voxel of shell r + 1 is
-    at least r + 1 away); beyond ``r_max`` (chosen so that such distances are
-    clipped by the ESDF's truncation anyway) a voxel is left at ``_BIG``.
-    Squared distances are integers, so the values are those of the transform.
+    at least r + 1 away). A voxel whose nearest non-occupied voxel lies beyond
+    ``r_max`` (chosen so that such distances are clipped by the ESDF's
+    truncation anyway) keeps the nearest found within ``r_max`` shells, or
+    ``_BIG``: not its distance, but one the clip maps to the same value.
+    Squared distances are integers, so every other value is the transform's.
+
+    Returns ``(out, done)``; ``done`` is False, and ``out`` unfinished, once
+    more than ``budget`` voxels were scanned (a thick solid region, where the
+    transform is the cheaper way).
     """
     nx, ny, nz = occupied.shape
     out = np.zeros((nx, ny, nz))
+    work = 0
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
@@ -239,6 +250,9 @@ def _inside_squared(occupied, r_max):  # pragma: no cover - compiled
                     continue
                 best = -1
                 for r in range(1, r_max + 1):
+                    work += (2 * r + 1) ** 3
+                    if work > budget:
+                        return out, False
                     for a in range(max(i - r, 0), min(i + r, nx - 1) + 1):
                         da = a - i
                         for b in range(max(j - r, 0), min(j + r, ny - 1) + 1):
@@ -255,7 +269,7 @@ def _inside_squared(occupied, r_max):  # pragma: no cover - compiled
                     if best >= 0 and best <= (r + 1) * (r + 1):
                         break
                 out[i, j, k] = _BIG if best < 0 else float(best)
-    return out
+    return out, True
 
 
 def verified_free_distance(free: np.ndarray, voxel_m: float, max_distance_m: float, use_scipy: bool = False) -> np.ndarray:

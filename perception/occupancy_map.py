@@ -261,6 +261,9 @@ def _clearance(dist, origin, v, p, centres):  # pragma: no cover - compiled
     fr = np.empty(3)
     i0 = np.empty(3, np.int64)
     for k in range(p.shape[0]):
+        if not (np.isfinite(p[k, 0]) and np.isfinite(p[k, 1]) and np.isfinite(p[k, 2])):
+            out[k] = np.nan  # no distance (a caller's min then reads unsafe); never an index from it
+            continue
         for a in range(3):
             c = (p[k, a] - origin[a]) / v - 0.5
             cc = min(max(c, 0.0), dims[a] - 1.0)

@@ -114,13 +114,20 @@ def _capsule_block(dist, origin, v, lo, hi, a, ab, ab2, r, reach_m):  # pragma: 
 
 def capsule_block_numpy(dist: np.ndarray, origin: np.ndarray, v: float, lo: np.ndarray, hi: np.ndarray,
                         a: np.ndarray, b: np.ndarray, r: float, reach_m: float) -> None:
-    """Vectorised numpy reference of the compiled capsule kernel (the tests compare them): the capsule a-b (3,) [m]
-    of radius ``r`` into ``dist`` (float32, in place) over the voxel box ``lo:hi``."""
+    """Vectorised numpy reference of the compiled capsule kernel (the tests compare them to the bit): the capsule
+    a-b (3,) [m] of radius ``r`` into ``dist`` (float32, in place) over the voxel box ``lo:hi``.
+
+    Until 0579244 the front end computed this with ``(P - a) @ ab``, a BLAS product whose rounding differs from
+    the explicit sum here in the last float64 bit of ``s`` on a third of the voxels; after the float32 cast about
+    one value in 10^9 differs (more often at the ``reach_m`` cut, where one side writes and the other does not)."""
     axes = [origin[k] + v * (np.arange(lo[k], hi[k]) + 0.5) for k in range(3)]
     X, Y, Z = np.meshgrid(*axes, indexing="ij")
     P = np.stack([X, Y, Z], axis=-1)
     ab = b - a
-    s = np.clip(((P - a) @ ab) / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+    Q = P - a
+    # (P - a) . ab as an explicit sum: a matmul goes through BLAS, whose summation order (and FMA use)
+    # depends on the machine; the kernel's is this one
+    s = np.clip((Q[..., 0] * ab[0] + Q[..., 1] * ab[1] + Q[..., 2] * ab[2]) / max(float(ab @ ab), 1e-12), 0.0, 1.0)
     d = np.linalg.norm(P - (a + s[..., None] * ab), axis=-1) - r
     d[d > reach_m] = np.inf
     block = dist[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]

@@ -186,3 +186,18 @@ def test_signed_distance_equals_the_two_transform_field_to_the_bit(rng, fill) ->
         occupied |= np.sum((np.indices(shape).transpose(1, 2, 3, 0) - c) ** 2, axis=-1) <= 16  # a thick solid ball
         two = _signed_field(occupied, squared_edt(occupied), squared_edt(~occupied), VOXEL_M, max_m)
         np.testing.assert_array_equal(signed_distance(occupied, VOXEL_M, max_m), two)
+
+
+@pytest.mark.parametrize("max_m", [0.3, 0.5, 3.0, np.inf])
+def test_signed_distance_inside_a_thick_wall_past_the_search_radius(max_m) -> None:
+    """A wall 24 voxels thick: its core lies beyond the search radius of small truncations (the clip takes
+    over), and a window almost all wall exhausts the search's budget (the transform takes over)."""
+    from perception.esdf import _inside_squared, _signed_field, signed_distance
+
+    for shape, wall in (((40, 30, 12), slice(8, 32)), ((30, 30, 30), slice(0, 30))):
+        occupied = np.zeros(shape, bool)
+        occupied[wall] = True
+        occupied[wall.start if wall.start else 3, 15, 6] = False  # a pocket
+        two = _signed_field(occupied, squared_edt(occupied), squared_edt(~occupied), VOXEL_M, max_m)
+        np.testing.assert_array_equal(signed_distance(occupied, VOXEL_M, max_m), two)
+    assert not _inside_squared(np.ones((30, 30, 30), bool), 30, 8 * 30**3)[1]  # solid: handed to the transform

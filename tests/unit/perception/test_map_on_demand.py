@@ -135,3 +135,6 @@ def test_compiled_clearance_equals_its_numpy_reference_to_the_bit() -> None:
         p = origin + rng.uniform(-1, 6, (40, 3)) * [1, 1, 0.4]  # some outside the window: clamped
         centres = (rng.integers(-5, 35, (int(rng.integers(0, 50)) if trial % 3 else 0, 3)) + 0.5) * v + origin
         np.testing.assert_array_equal(_clearance(dist, origin, v, p, centres), clearance_numpy(dist, origin, v, p, centres))
+    p = np.array([[np.nan, 0.0, 1.0], [0.0, np.inf, 1.0], [0.5, 0.5, 0.5]]) + origin
+    got = _clearance(dist, origin, v, p, np.empty((0, 3)))
+    assert np.isnan(got[0]) and np.isnan(got[1]) and got[2] == clearance_numpy(dist, origin, v, p[2:], np.empty((0, 3)))[0]

@@ -77,3 +77,8 @@ def test_compiled_capsule_equals_its_numpy_reference_to_the_bit():
         capsule_block_numpy(ref, origin, 0.15, lo, hi, a, b, 0.7, 1.3)
         _capsule_block(new, origin, 0.15, lo, hi, a, b - a, max(float((b - a) @ (b - a)), 1e-12), 0.7, 1.3)
         np.testing.assert_array_equal(new, ref)
+        # a shorter reach cut: more voxels sit near the write decision
+        probe_ref, probe_new = dist.copy(), dist.copy()
+        capsule_block_numpy(probe_ref, origin, 0.15, lo, hi, a, b, 0.7, 0.5)
+        _capsule_block(probe_new, origin, 0.15, lo, hi, a, b - a, max(float((b - a) @ (b - a)), 1e-12), 0.7, 0.5)
+        np.testing.assert_array_equal(probe_new, probe_ref)
