@@ -176,6 +176,39 @@ def main() -> None:
     for density in (0.08, 0.3):
         bench_astar(forest(np.random.default_rng(1), half_m=5.0, density_per_m2=density), density, rng)
 
+    print("\n-- the denied stack's per-frame kernels, compiled against their numpy references (median ms) --")
+    bench_kernels(m, frame, occ)
+
+
+def bench_kernels(m: OccupancyMap, frame: RgbdFrame, occ: np.ndarray) -> None:
+    """Each compiled kernel against the numpy code it replaced (the tests hold them equal to the bit)."""
+    from perception.backprojection import box_depth_m, box_depth_numpy
+    from perception.esdf import _signed_field, signed_distance, squared_edt
+    from perception.occupancy_map import _clearance, clearance_numpy
+    from planners.neighbour_field import _capsule_block, capsule_block_numpy
+
+    def row(name: str, fast, slow) -> None:  # noqa: ANN001
+        t_fast, t_slow = median_ms(fast), median_ms(slow)
+        print(f"{name:42s} {t_fast:8.3f} ms   numpy {t_slow:8.3f} ms   x{t_slow / t_fast:5.1f}")
+
+    snap = m.snapshot()
+    dist = np.ascontiguousarray(snap.distance_m)
+    origin = np.asarray(snap.origin_world, float)
+    pts = origin + np.random.default_rng(3).uniform(0.5, 9.5, (40, 3)) * [1, 1, 0.35]  # a plan's 40 samples
+    centres = origin + (np.random.default_rng(4).integers(0, 60, (50, 3)) + 0.5) * 0.15  # 50 newly occupied voxels
+    row("clearance (40 points, 50 new voxels)", lambda: _clearance(dist, origin, 0.15, pts, centres), lambda: clearance_numpy(dist, origin, 0.15, pts, centres))
+    row("ESDF, inside by search vs transform", lambda: signed_distance(occ, 0.15, 3.0),
+        lambda: _signed_field(occ, squared_edt(occ), squared_edt(~occ), 0.15, 3.0))
+    a = origin + np.array([5.0, 5.0, 1.5])
+    b = a + np.array([1.0, 0.3, 0.0])  # 1 m/s over the 1 s conflict horizon
+    lo = np.clip(np.floor((np.minimum(a, b) - 2.0 - origin) / 0.15).astype(int), 0, dist.shape)
+    hi = np.clip(np.ceil((np.maximum(a, b) + 2.0 - origin) / 0.15).astype(int) + 1, 0, dist.shape)
+    buf = dist.copy()
+    row("one neighbour capsule (front end)", lambda: _capsule_block(buf, origin, 0.15, lo, hi, a, b - a, float((b - a) @ (b - a)), 0.7, 1.3),
+        lambda: capsule_block_numpy(buf, origin, 0.15, lo, hi, a, b, 0.7, 1.3))
+    box = np.array([100.0, 130.0, 140.0, 160.0])  # a box on the forest, 37 % of it valid depth
+    row("a detection's foreground depth", lambda: box_depth_m(frame.depth_m, box), lambda: box_depth_numpy(frame.depth_m, box))
+
 
 def bench_backprojection(frame: RgbdFrame) -> None:
     """The map's numpy back-projection against open3d's ``PointCloud.create_from_depth_image``."""
