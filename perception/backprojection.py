@@ -108,6 +108,32 @@ def box_depth_m(depth_m: np.ndarray, box_xyxy: np.ndarray, cfg: BackprojectionCo
         (d, n): the foreground median depth [m] (NaN when the window holds no
         valid pixel) and the number of foreground pixels.
     """
+    window = _box_window(depth_m, box_xyxy, cfg)
+    if window is None:
+        return float("nan"), 0
+    d, n = _foreground_depth(
+        window, float(cfg.foreground_percentile) / 100.0, cfg.band_m, cfg.depth_noise_base_m, cfg.depth_noise_quadratic_per_m
+    )
+    return float(d), int(n)
+
+
+def box_depth_numpy(depth_m: np.ndarray, box_xyxy: np.ndarray, cfg: BackprojectionConfig = BackprojectionConfig()) -> tuple[float, int]:
+    """Vectorised numpy reference of :func:`box_depth_m` (the tests compare them to the bit)."""
+    window = _box_window(depth_m, box_xyxy, cfg)
+    if window is None:
+        return float("nan"), 0
+    z = window.ravel()
+    z = z[np.isfinite(z)].astype(np.float64)
+    if z.size == 0:
+        return float("nan"), 0
+    z_p = float(np.percentile(z, cfg.foreground_percentile, method="lower"))  # a sample: the band is never empty
+    band = cfg.band_m + 3.0 * _depth_std_m(z_p, cfg)
+    fg = z[np.abs(z - z_p) <= band]
+    return float(np.median(fg)), int(fg.size)
+
+
+def _box_window(depth_m: np.ndarray, box_xyxy: np.ndarray, cfg: BackprojectionConfig) -> np.ndarray | None:
+    """The central ``window_fraction`` sub-window (h, w) of the box in ``depth_m``, clipped to the image (None: empty)."""
     H, W = depth_m.shape
     x0, y0, x1, y1 = (float(c) for c in box_xyxy)
     cu, cv = int(round((x0 + x1) / 2)), int(round((y0 + y1) / 2))
@@ -116,32 +142,8 @@ def box_depth_m(depth_m: np.ndarray, box_xyxy: np.ndarray, cfg: BackprojectionCo
     u_lo, u_hi = max(cu - half_u, 0), min(cu + half_u + 1, W)
     v_lo, v_hi = max(cv - half_v, 0), min(cv + half_v + 1, H)
     if u_lo >= u_hi or v_lo >= v_hi:
-        return float("nan"), 0
-    d, n = _foreground_depth(
-        depth_m[v_lo:v_hi, u_lo:u_hi], float(cfg.foreground_percentile) / 100.0, cfg.band_m, cfg.depth_noise_base_m, cfg.depth_noise_quadratic_per_m
-    )
-    return float(d), int(n)
-
-
-def box_depth_numpy(depth_m: np.ndarray, box_xyxy: np.ndarray, cfg: BackprojectionConfig = BackprojectionConfig()) -> tuple[float, int]:
-    """Vectorised numpy reference of :func:`box_depth_m` (the tests compare them to the bit)."""
-    H, W = depth_m.shape
-    x0, y0, x1, y1 = (float(c) for c in box_xyxy)
-    cu, cv = int(round((x0 + x1) / 2)), int(round((y0 + y1) / 2))
-    half_u = max(int(round(cfg.window_fraction * (x1 - x0) / 2)), 1)
-    half_v = max(int(round(cfg.window_fraction * (y1 - y0) / 2)), 1)
-    u_lo, u_hi = max(cu - half_u, 0), min(cu + half_u + 1, W)
-    v_lo, v_hi = max(cv - half_v, 0), min(cv + half_v + 1, H)
-    if u_lo >= u_hi or v_lo >= v_hi:
-        return float("nan"), 0
-    z = depth_m[v_lo:v_hi, u_lo:u_hi].ravel()
-    z = z[np.isfinite(z)].astype(np.float64)
-    if z.size == 0:
-        return float("nan"), 0
-    z_p = float(np.percentile(z, cfg.foreground_percentile, method="lower"))  # a sample: the band is never empty
-    band = cfg.band_m + 3.0 * _depth_std_m(z_p, cfg)
-    fg = z[np.abs(z - z_p) <= band]
-    return float(np.median(fg)), int(fg.size)
+        return None
+    return depth_m[v_lo:v_hi, u_lo:u_hi]
 
 
 @njit(cache=True)

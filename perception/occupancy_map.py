@@ -54,7 +54,7 @@ from numba import njit
 from perception.esdf import signed_distance, verified_free_distance
 from perception.map_config import MapConfig
 from perception.ray_integration import camera_rays, integrate_rays, shifted_window
-from perception.types import Detection, OccupancySnapshot, trilinear
+from perception.types import Detection, OccupancySnapshot, trilinear, trilinear_compiled
 from sim.types import RgbdFrame
 
 __all__ = ["OccupancyMap"]
@@ -253,50 +253,24 @@ class OccupancyMap:
 @njit(cache=True)
 def _clearance(dist, origin, v, p, centres):  # pragma: no cover - compiled
     """:meth:`OccupancyMap.clearance`'s arithmetic for points ``p`` (n, 3) [m]: the trilinear value of ``dist``
-    (:func:`perception.types.trilinear`, float64 as there), lowered to the distance to the nearest of ``centres``
-    (k, 3) [m] less half a voxel ``v``. :func:`clearance_numpy` is the reference the tests compare it with."""
-    nx, ny, nz = dist.shape
-    dims = (nx, ny, nz)
-    out = np.empty(p.shape[0])
-    fr = np.empty(3)
-    i0 = np.empty(3, np.int64)
+    (:func:`perception.types.trilinear_compiled`), lowered to the distance to the nearest of ``centres`` (k, 3) [m]
+    less half a voxel ``v``; NaN for a non-finite point. :func:`clearance_numpy` is the reference the tests
+    compare it with."""
+    out = trilinear_compiled(dist, origin, v, p)[0]
+    if centres.shape[0] == 0:
+        return out
     for k in range(p.shape[0]):
-        if not (np.isfinite(p[k, 0]) and np.isfinite(p[k, 1]) and np.isfinite(p[k, 2])):
-            out[k] = np.nan  # no distance (a caller's min then reads unsafe); never an index from it
+        if np.isnan(out[k]):
             continue
-        for a in range(3):
-            c = (p[k, a] - origin[a]) / v - 0.5
-            cc = min(max(c, 0.0), dims[a] - 1.0)
-            i0[a] = min(np.int64(np.floor(cc)), dims[a] - 2)
-            fr[a] = cc - i0[a]
-        x0, y0, z0 = i0[0], i0[1], i0[2]
-        fx, fy, fz = fr[0], fr[1], fr[2]
-        c000 = np.float64(dist[x0, y0, z0])
-        c010 = np.float64(dist[x0, y0 + 1, z0])
-        c100 = np.float64(dist[x0 + 1, y0, z0])
-        c110 = np.float64(dist[x0 + 1, y0 + 1, z0])
-        c001 = np.float64(dist[x0, y0, z0 + 1])
-        c011 = np.float64(dist[x0, y0 + 1, z0 + 1])
-        c101 = np.float64(dist[x0 + 1, y0, z0 + 1])
-        c111 = np.float64(dist[x0 + 1, y0 + 1, z0 + 1])
-        c00 = c000 + fx * (c100 - c000)
-        c10 = c010 + fx * (c110 - c010)
-        c01 = c001 + fx * (c101 - c001)
-        c11 = c011 + fx * (c111 - c011)
-        c0 = c00 + fy * (c10 - c00)
-        c1 = c01 + fy * (c11 - c01)
-        d = c0 + fz * (c1 - c0)
-        if centres.shape[0] > 0:
-            best = np.inf
-            for m in range(centres.shape[0]):
-                dx = p[k, 0] - centres[m, 0]
-                dy = p[k, 1] - centres[m, 1]
-                dz = p[k, 2] - centres[m, 2]
-                q = dx * dx + dy * dy + dz * dz
-                if q < best:
-                    best = q
-            d = min(d, np.sqrt(best) - 0.5 * v)
-        out[k] = d
+        best = np.inf
+        for m in range(centres.shape[0]):
+            dx = p[k, 0] - centres[m, 0]
+            dy = p[k, 1] - centres[m, 1]
+            dz = p[k, 2] - centres[m, 2]
+            q = dx * dx + dy * dy + dz * dz
+            if q < best:
+                best = q
+        out[k] = min(out[k], np.sqrt(best) - 0.5 * v)
     return out
 
 

@@ -48,8 +48,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from perception.types import DistanceField, NeighborPrediction, OccupancySnapshot
-from planners.trajectory_penalty import _grid_trilinear, _inflation, _neighbor_state, _penalty_kernel, _sample_positions
+from perception.types import DistanceField, NeighborPrediction, OccupancySnapshot, trilinear_compiled
+from planners.trajectory_penalty import _inflation, _neighbor_state, _penalty_kernel, _sample_positions
 from sim.checks import ConfigError
 
 __all__ = ["NeighborTable", "PenaltyParameters", "PenaltyTerms", "TrajectoryCost"]
@@ -267,7 +267,7 @@ class TrajectoryCost:
     def distance_and_gradient(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Field distance (n,) [m] and gradient (n, 3) at ``points_world`` (n, 3); requires a field."""
         if self.grid is not None:
-            return _grid_trilinear(self.grid[0], self.grid[1], self.grid[2], points_world)
+            return trilinear_compiled(self.grid[0], self.grid[1], self.grid[2], points_world)
         d, gd = self.distance_field.distance_and_gradient(points_world)
         return np.ascontiguousarray(d, dtype=float), np.ascontiguousarray(gd, dtype=float)
 

@@ -30,11 +30,10 @@ import numpy as np
 from numba import njit
 from scipy.optimize import minimize
 
-from perception.types import DistanceField, NeighborPrediction
+from perception.types import DistanceField, NeighborPrediction, trilinear_compiled
 from planners.lbfgs import lbfgs_loop, lbfgs_result, lbfgs_start, lbfgs_tell
 from planners.minco import MincoTrajectory
 from planners.trajectory_cost import PenaltyParameters, TrajectoryCost
-from planners.trajectory_penalty import _grid_trilinear
 from planners.trajectory_variables import _backward, _forward, _tau_to_time, _time_to_tau
 from sim.checks import ConfigError
 
@@ -269,7 +268,7 @@ def _compiled_cost(x, args):
     head, tail, n_q, K, t0, prm, grid, grid_origin, voxel_m, use_field, nb, w_e, w_t, out = args
     T, coeffs, ab, pts = _forward(head, tail, x, n_q, K)
     if use_field:
-        d, gd = _grid_trilinear(grid, grid_origin, voxel_m, pts)
+        d, gd = trilinear_compiled(grid, grid_origin, voxel_m, pts)
     else:
         d, gd = np.zeros(0), np.zeros((0, 3))
     nb_t, nb_p, nb_v, nb_off, nb_tl, nb_cov = nb

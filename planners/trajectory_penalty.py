@@ -28,51 +28,6 @@ def _sample_positions(coeffs, T, K):
 
 
 @njit(cache=True)
-def _grid_trilinear(field, origin, voxel_m, pts):
-    """Trilinear ESDF value (n,) and gradient (n, 3) on a voxel-centre grid, as OccupancySnapshot computes it."""
-    n = pts.shape[0]
-    nx, ny, nz = field.shape
-    dims = (nx, ny, nz)
-    d = np.empty(n)
-    g = np.zeros((n, 3))
-    i0 = np.empty(3, np.int64)
-    fr = np.empty(3)
-    inside = np.empty(3, np.bool_)
-    for k in range(n):
-        for a in range(3):
-            c = (pts[k, a] - origin[a]) / voxel_m - 0.5  # continuous index of the voxel-centre lattice
-            cc = min(max(c, 0.0), dims[a] - 1.0)
-            inside[a] = c == cc
-            i0[a] = min(int(np.floor(cc)), dims[a] - 2)
-            fr[a] = cc - i0[a]
-        x0, y0, z0 = i0[0], i0[1], i0[2]
-        fx, fy, fz = fr[0], fr[1], fr[2]
-        c000, c100 = field[x0, y0, z0], field[x0 + 1, y0, z0]
-        c010, c110 = field[x0, y0 + 1, z0], field[x0 + 1, y0 + 1, z0]
-        c001, c101 = field[x0, y0, z0 + 1], field[x0 + 1, y0, z0 + 1]
-        c011, c111 = field[x0, y0 + 1, z0 + 1], field[x0 + 1, y0 + 1, z0 + 1]
-        c00 = c000 + fx * (c100 - c000)
-        c10 = c010 + fx * (c110 - c010)
-        c01 = c001 + fx * (c101 - c001)
-        c11 = c011 + fx * (c111 - c011)
-        c0 = c00 + fy * (c10 - c00)
-        c1 = c01 + fy * (c11 - c01)
-        d[k] = c0 + fz * (c1 - c0)
-        if inside[0]:
-            g[k, 0] = (
-                (1 - fy) * (1 - fz) * (c100 - c000)
-                + fy * (1 - fz) * (c110 - c010)
-                + (1 - fy) * fz * (c101 - c001)
-                + fy * fz * (c111 - c011)
-            ) / voxel_m
-        if inside[1]:
-            g[k, 1] = ((1 - fz) * (c10 - c00) + fz * (c11 - c01)) / voxel_m
-        if inside[2]:
-            g[k, 2] = (c1 - c0) / voxel_m
-    return d, g
-
-
-@njit(cache=True)
 def _neighbor_state(ts, ps, vs, lo, hi, t):
     """Cubic Hermite position (px, py, pz) and its time derivative (vx, vy, vz) of one neighbour,
     as NeighborPrediction.position (constant velocity outside the samples)."""
