@@ -126,8 +126,15 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--backend", choices=["local", "ray"], default="local", help="local processes (default) or Ray tasks")
     sw.add_argument("--ray-address", default=None, help="with --backend ray: 'auto' joins a cluster started by 'ray start'")
     sw.add_argument("--quiet", action="store_true", help="no progress bar")
-    rp = sub.add_parser("report", help="tables and plots of a sweep folder (also on a partial one)")
-    rp.add_argument("folder", type=Path, help="a folder written by mpcde sweep")
+    rp = sub.add_parser(
+        "report", help="tables and plots of a sweep folder (also on a partial one); with several, paired across them"
+    )
+    rp.add_argument("folder", type=Path, nargs="+", help="a folder written by mpcde sweep; several: one base scenario")
+    rp.add_argument("--out", type=Path, default=None, help="with several folders: where the cross-store report goes")
+    rp.add_argument(
+        "--pair-on", nargs="+", default=None, metavar="FIELD",
+        help="with several folders: fields two paired cells share (default: the axes all sweep, with common values)",
+    )  # fmt: skip
     em = sub.add_parser(
         "eval-mlr", help="MLR-DMPC: message-loss recovery, event-triggered compute units (DMPC-Swarm Fig. 3-4)"
     )
@@ -297,8 +304,17 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 def _cmd_report(args: argparse.Namespace) -> int:
     from mpcde.sweep.report import format_report, write_report
 
-    print(format_report(write_report(args.folder)))
-    print(f"-> {args.folder / 'report.txt'}, {args.folder / 'report.md'}, {args.folder / 'report.json'}")
+    if len(args.folder) > 1 or args.out is not None or args.pair_on is not None:
+        from mpcde.sweep.cross_report import format_cross_report, write_cross_report
+
+        if args.out is None:
+            raise ConfigError("--out", "missing", "a report of several sweep folders needs --out DIR")
+        print(format_cross_report(write_cross_report(args.folder, args.out, args.pair_on)))
+        print(f"-> {args.out / 'report.txt'}, {args.out / 'report.md'}, {args.out / 'report.json'}")
+        return 0
+    folder = args.folder[0]
+    print(format_report(write_report(folder)))
+    print(f"-> {folder / 'report.txt'}, {folder / 'report.md'}, {folder / 'report.json'}")
     return 0
 
 

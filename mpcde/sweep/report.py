@@ -34,7 +34,7 @@ from mpcde.sweep.spec import cell_label
 from mpcde.sweep.stats import mcnemar_exact, wilson_interval
 from mpcde.sweep.store import ResultsStore, json_safe
 
-__all__ = ["CELL_KEYS", "build_report", "format_report", "write_report"]
+__all__ = ["CELL_KEYS", "build_report", "cell_stats", "format_report", "format_table", "table_text", "write_report"]
 
 CELL_KEYS = (
     "cell", "label", "flights", "failed", "success_rate", "success_low", "success_high", "collisions_per_flight",
@@ -43,7 +43,8 @@ CELL_KEYS = (
 )  # fmt: skip
 
 
-def _cell_stats(index: int, values: dict[str, Any], rows: list[dict[str, Any]]) -> dict[str, Any]:
+def cell_stats(index: int, values: dict[str, Any], rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The statistics of one cell (``CELL_KEYS`` and ``values``) over its store ``rows`` (failed rows counted apart)."""
     ok = [r["metrics"] for r in rows if r["status"] == "ok"]
     n = len(ok)
     wins = sum(bool(m["success"]) for m in ok)
@@ -78,7 +79,7 @@ def build_report(folder: str | Path) -> dict[str, Any]:
     by_cell: dict[int, list[dict[str, Any]]] = {}
     for r in rows:
         by_cell.setdefault(int(r["cell"]), []).append(r)
-    cells = [_cell_stats(i, v, by_cell.get(i, [])) for i, v in enumerate(cells_values)]
+    cells = [cell_stats(i, v, by_cell.get(i, [])) for i, v in enumerate(cells_values)]
     success = {(int(r["cell"]), int(r["seed"])): bool(r["metrics"]["success"]) for r in rows if r["status"] == "ok"}
     pairs = []
     for i, j in itertools.combinations(range(len(cells_values)), 2):
@@ -101,9 +102,21 @@ def build_report(folder: str | Path) -> dict[str, Any]:
 def format_report(report: dict[str, Any], markdown: bool = False) -> str:
     """The per-cell table and the paired comparisons, as text or Markdown."""
     sweep = report["sweep"]
+    phead = ["axis", "a", "b", "with", "pairs", "a only", "b only", "success a-b", "McNemar p"]
+    prow = [[p["axis"], json.dumps(p["a_value"]), json.dumps(p["b_value"]), p["others"] or "-", str(p["paired_seeds"]),
+             str(p["a_only"]), str(p["b_only"]), fmt(None if p["success_difference"] is None else 100 * p["success_difference"], "+.0f").strip() + " pp",
+             f"{p['mcnemar_p']:.3g}"] for p in report["pairs"]]  # fmt: skip
+    seeds = sweep["seeds"]
+    span = f"{seeds[0]}..{seeds[-1]}" if seeds == list(range(seeds[0], seeds[0] + len(seeds))) else ", ".join(map(str, seeds))
+    title = f"sweep of {sweep['base_name']}: {report['recorded']} of {report['expected']} flights recorded, seeds {span}"
+    return "\n".join([title, "", format_table(report["cells"], markdown), "", "paired cells (same seeds, one axis apart):", "", table_text(phead, prow, markdown)]) + "\n"
+
+
+def format_table(cells: list[dict[str, Any]], markdown: bool = False) -> str:
+    """The per-cell table (one row per :func:`cell_stats` entry, labelled by its ``label``), as text or Markdown."""
     head = ["cell", "flights", "failed", "success", "95% CI", "coll/flight", "drone-drone", "obstacle", "min d m", "mission s", "sd s", "(of)", "trk pos m"]
     rows = []
-    for c in report["cells"]:
+    for c in cells:
         rate = None if c["success_rate"] is None else 100 * c["success_rate"]
         ci = "-" if c["success_low"] is None else f"{100 * c['success_low']:.0f}-{100 * c['success_high']:.0f}%"
         rows.append([
@@ -112,17 +125,11 @@ def format_report(report: dict[str, Any], markdown: bool = False) -> str:
             fmt(c["min_distance_m"], ".3f"), fmt(c["mission_time_s"], ".2f"), fmt(c["mission_time_std_s"], ".2f"),
             str(c["arrived_flights"]), fmt(c["tracking_pos_rmse_m"], ".3f"),
         ])  # fmt: skip
-    phead = ["axis", "a", "b", "with", "pairs", "a only", "b only", "success a-b", "McNemar p"]
-    prow = [[p["axis"], json.dumps(p["a_value"]), json.dumps(p["b_value"]), p["others"] or "-", str(p["paired_seeds"]),
-             str(p["a_only"]), str(p["b_only"]), fmt(None if p["success_difference"] is None else 100 * p["success_difference"], "+.0f").strip() + " pp",
-             f"{p['mcnemar_p']:.3g}"] for p in report["pairs"]]  # fmt: skip
-    seeds = sweep["seeds"]
-    span = f"{seeds[0]}..{seeds[-1]}" if seeds == list(range(seeds[0], seeds[0] + len(seeds))) else ", ".join(map(str, seeds))
-    title = f"sweep of {sweep['base_name']}: {report['recorded']} of {report['expected']} flights recorded, seeds {span}"
-    return "\n".join([title, "", _table(head, rows, markdown), "", "paired cells (same seeds, one axis apart):", "", _table(phead, prow, markdown)]) + "\n"
+    return table_text(head, rows, markdown)
 
 
-def _table(head: list[str], rows: list[list[str]], markdown: bool) -> str:
+def table_text(head: list[str], rows: list[list[str]], markdown: bool) -> str:
+    """Rows under a header: right-aligned columns (the first left-aligned), or a Markdown table."""
     if markdown:
         lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         return "\n".join(lines + ["| " + " | ".join(str(v).strip() for v in r) + " |" for r in rows])
