@@ -12,7 +12,8 @@ predictions, and gets a :class:`YawPlan` of n + 1 yaws over the next n t_y:
    planner holds whether it is in the exploring/observing regime; it enters
    it at S(0) > tau_thr + 0.1 s and leaves it at S(0) < tau_thr.
 4. In that regime: *observing* when A is non-empty and |V| = |A| (every
-   neighbour recently seen): steer to the weighted mean bearing (Eq. 6;
+   neighbour recently seen; with ``roster_aware``, also every neighbour of the
+   roster tracked, not in the paper): steer to the weighted mean bearing (Eq. 6;
    with ``observing_sweep``, swinging about it as step 5 does; not in the paper);
    otherwise *exploring* (A empty, or some neighbour not recently seen):
    Dijkstra on the yaw lattice with E (Eq. 3) and V (Eq. 4) for the
@@ -113,14 +114,16 @@ class YawPlanner:
         self._remember_sector(time_s, yaw, positions[0], snapshot)
         self.last_path = None
         safe = self._in_safe_regime or not cfg.tracking_mode  # without tracking mode, never the safety turn
+        # |V| = |A|: every neighbour recently seen; with roster_aware, A also holds the roster's untracked neighbours
+        all_seen = bool(active) and len(recent) == len(active) and not (cfg.roster_aware and len(active) < cfg.swarm_neighbours)
         if cfg.method == "zhou":  # Zhou et al.'s yaw: the most unknown space in view along the trajectory, always
             mode = "exploring"
             yaws = self._explore(yaw, times, positions, snapshot, (), zhou=True)
-        elif not safe or not (cfg.exploring_mode or (active and len(recent) == len(active))):
+        elif not safe or not (cfg.exploring_mode or all_seen):
             mode = "tracking"  # unsafe; or, without exploring mode, where exploring would run: heading along travel
             targets = track_targets(trajectory.velocities(times[1:]), cfg.still_speed_mps, yaw) + self._swing(times[1:])
             yaws = rate_limited(yaw, targets, cfg.max_step_rad)
-        elif active and len(recent) == len(active):
+        elif all_seen:
             mode = "observing"
             targets = observe_targets(positions[1:], times[1:], recent, cfg.distance_eps_m, yaw)
             if cfg.observing_sweep:  # extension: swing about Eq. 6's bearing, as the tracking mode does about travel

@@ -396,3 +396,38 @@ def test_a_sweep_faster_than_the_yaw_rate_limit_is_refused():
     YawPlannerConfig(tracking_sweep_deg=60.0, tracking_sweep_period_s=2.1)  # 1.99 rad/s: accepted
     with pytest.raises(ValueError, match=r"^tracking_sweep_deg=60\.0: allowed 4 \* sweep / tracking_sweep_period_s <= yaw_rate_max_radps=2\.0 .*a period >= 2\.09 s"):
         YawPlannerConfig(tracking_sweep_deg=60.0, tracking_sweep_period_s=1.4)
+
+
+def test_roster_aware_explores_while_a_neighbour_of_the_roster_is_untracked_and_observes_once_all_are():
+    bearing = math.radians(50)
+    seen = [
+        neighbour(DRONE + 2.0 * np.array([math.cos(b), math.sin(b), 0.0]), stamp_s=0.0, nid=k)
+        for k, b in enumerate((bearing, -bearing))
+    ]
+    paper = replace(paper_config(), swarm_neighbours=3)  # three others fly; two are tracked, both seen now
+    assert YawPlanner(paper).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen).mode == "observing"  # |V| = |A| = 2
+    roster = replace(paper, roster_aware=True)
+    short = YawPlanner(roster).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen)
+    assert short.mode == "exploring" and short.n_active == 2 and short.n_recent == 2  # the third is unaccounted for
+    third = neighbour(DRONE + np.array([0.0, 3.0, 0.0]), stamp_s=0.0, nid=2)
+    assert YawPlanner(roster).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen + [third]).mode == "observing"
+    unsafe = YawPlanner(roster).plan(0.0, 0.0, HOVER, uniform_snapshot(0.3), seen)
+    assert unsafe.mode == "tracking"  # the safety turn comes first, as in Alg. 1
+    lone = replace(paper_config(), roster_aware=True)  # swarm_neighbours 0: the tracks are the roster
+    assert YawPlanner(lone).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen).mode == "observing"
+
+
+def test_the_roster_is_derived_from_the_scenario_and_refused_when_set_otherwise(tmp_path):
+    import mpcde
+    from mpcde.errors import ConfigError
+
+    assert mpcde.load_scenario("forest_swarm").denied.yaw.swarm_neighbours == 5
+    assert mpcde.load_scenario("crossing").denied.yaw.swarm_neighbours == 1
+    path = tmp_path / "three.yaml"
+    path.write_text(
+        "drones: {layout: explicit, starts: [[0, 0, 1], [2, 0, 1], [4, 0, 1]], goals: [[0, 4, 1], [2, 4, 1], [4, 4, 1]]}\n"
+    )
+    assert mpcde.load_scenario(path).denied.yaw.swarm_neighbours == 2
+    path.write_text("drones: {layout: antipodal, count: 3}\ndenied: {yaw: {swarm_neighbours: 4}}\n")
+    with pytest.raises(ConfigError, match="denied.yaw.swarm_neighbours"):
+        mpcde.load_scenario(path)
