@@ -133,7 +133,7 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--out", type=Path, default=None, help="with several folders: where the cross-store report goes")
     rp.add_argument(
         "--pair-on", nargs="+", default=None, metavar="FIELD",
-        help="with several folders: fields two paired cells share (default: the axes all sweep, with common values)",
+        help="with several folders: fields two paired cells share (default: each two stores' common fields whose values meet)",
     )  # fmt: skip
     em = sub.add_parser(
         "eval-mlr", help="MLR-DMPC: message-loss recovery, event-triggered compute units (DMPC-Swarm Fig. 3-4)"
@@ -308,7 +308,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
         from mpcde.sweep.cross_report import format_cross_report, write_cross_report
 
         if args.out is None:
-            raise ConfigError("--out", "missing", "a report of several sweep folders needs --out DIR")
+            raise ConfigError("--out", None, "a report of several sweep folders needs --out DIR")
         print(format_cross_report(write_cross_report(args.folder, args.out, args.pair_on)))
         print(f"-> {args.out / 'report.txt'}, {args.out / 'report.md'}, {args.out / 'report.json'}")
         return 0

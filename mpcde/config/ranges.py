@@ -106,7 +106,7 @@ RANGES: dict[type, dict[str, B]] = {
         "safety_horizon_s": B(0, 60, "s"), "free_max_age_s": B(0, 3600, "s", inf="free space never ages"),
         "free_slab_half_height_m": B(0, 10, "m"), "distance_eps_m": B(0, 10, "m"), "visibility_sigma_ref_m": B(0, 100, "m"),
         "visibility_weight_max": B(0, 100), "still_speed_mps": B(0, 10, "m/s"), "tracking_sweep_deg": B(0, 180, "deg"),
-        "tracking_sweep_period_s": B(0.1, 60, "s"), "swarm_neighbours": B(0, 1000, "drones"),
+        "tracking_sweep_period_s": B(0.1, 60, "s"),
     },
     DmpcConfig: {
         "horizon_steps": B(1, 100), "step_s": B(0.01, 5, "s"), "goal_steps": B(1, 100), "weight_goal": B(0, 1e8),

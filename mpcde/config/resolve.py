@@ -18,8 +18,6 @@ flight. Derived fields (target <- source):
   ``camera.hfov_deg`` / ``vfov_deg``: the yaw planner predicts with the
   optimiser's speed limit, turns at the heading limit, calls a track recent
   as the tracker does, and covers the camera's field of view (Alg. 1);
-* ``denied.yaw.swarm_neighbours`` <- the number of drones less one: the
-  roster a drone knows it was launched with (read with ``denied.yaw.roster_aware``);
 * ``radio.rate_hz`` <- ``2 admm.l_max / admm.step_s`` with ``planner.kind: admm``
   and ``admm.radio_rate_from_step``: one radio sub-round per ADMM exchange.
 
@@ -59,17 +57,11 @@ DERIVED: tuple[tuple[str, str, Callable[[ScenarioConfig], Any], Callable[[Scenar
     ("denied.yaw.t_hold_s", "perception.tracker.t_hold_s", lambda c: c.perception.tracker.t_hold_s, lambda c: True),
     ("denied.yaw.fov_h_deg", "camera.hfov_deg", lambda c: c.camera.hfov_deg, lambda c: True),
     ("denied.yaw.fov_v_deg", "camera.vfov_deg", lambda c: c.camera.vfov_deg, lambda c: True),
-    ("denied.yaw.swarm_neighbours", "drones (their count less one)", lambda c: _swarm_size(c) - 1, lambda c: True),
     (
         "radio.rate_hz", "2 admm.l_max / admm.step_s (admm.radio_rate_from_step: true)", lambda c: c.admm.radio_rate_hz,
         lambda c: c.planner.kind == "admm" and c.admm.radio_rate_from_step,
     ),
 )  # fmt: skip
-
-
-def _swarm_size(cfg: ScenarioConfig) -> int:
-    """How many drones fly: the explicit starts, or ``drones.count`` for a generated layout."""
-    return len(cfg.drones.starts) if cfg.drones.layout == "explicit" else int(cfg.drones.count)
 
 
 def _get(obj: Any, path: str) -> Any:

@@ -93,14 +93,18 @@ class DeniedAgent(OnboardAgent):
         perception: a perception to share (the ``auto`` agent's DMPC half reads the same tracks);
             None: the agent makes its own when ``config.perceive_neighbours``.
         budget: where the compute time of tracking, mapping, ESDF and planning is booked (the run's).
+        swarm_neighbours: how many other drones were launched with this one (the mission's roster, as the
+            goal is the mission's; not their state): the yaw planner's ``roster_aware`` reads it.
     """
 
     def __init__(
         self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig, perception_config: PerceptionConfig | None = None,
         perception: NeighbourPerception | None = None,
         budget: ComputeBudget | None = None,
+        swarm_neighbours: int = 0,
     ) -> None:
         self.drone_id = drone_id
+        self.swarm_neighbours = swarm_neighbours
         self.budget = budget if budget is not None else ComputeBudget()
         self.goal_world = np.asarray(goal_world, float)
         self.config = config
@@ -137,7 +141,9 @@ class DeniedAgent(OnboardAgent):
             self.hover_world = estimate.pos_world.copy()
             yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
             c = self.config
-            self.heading = ActiveYaw(self.yaw_config, c.active_yaw, yaw, c.swarm_clearance_m, c.swarm_z_scale)
+            self.heading = ActiveYaw(
+                self.yaw_config, c.active_yaw, yaw, c.swarm_clearance_m, c.swarm_z_scale, self.swarm_neighbours
+            )
             if c.look_around:  # one revolution from the first estimate on (config.look_around)
                 self._scan = (float(estimate.time_s), yaw, float(estimate.time_s) + 2.0 * np.pi / c.yaw_rate_max_radps)
 

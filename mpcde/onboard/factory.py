@@ -55,14 +55,15 @@ def make_agent(
         return AdmmAgent(drone_id, goals_world, cfg.admm, cfg.world.arena_size_m, p.start_delay_s, p.line_speed_mps)
     # cfg is resolved (prepare_run): the back-projection's pose noise and the yaw planner's limits are derived
     perception = cfg.perception
+    roster = len(goals_world) - 1  # the other drones launched with this one (the yaw planner's roster_aware)
     if kind == "mpcde":
-        return DeniedAgent(drone_id, goal_world, cfg.denied, perception, budget=budget)
+        return DeniedAgent(drone_id, goal_world, cfg.denied, perception, budget=budget, swarm_neighbours=roster)
     if kind == "dmpc":
         return _dmpc_agent(cfg, drone_id, goals_world, obstacles, perception, cfg.dmpc, budget=budget)
     if kind == "minco_comm":  # the denied stack's planner and map, neighbours from the radio
         return MincoCommAgent(drone_id, goal_world, cfg.denied, budget=budget)
     if kind == "auto":
-        denied = DeniedAgent(drone_id, goal_world, cfg.denied, perception, budget=budget)
+        denied = DeniedAgent(drone_id, goal_world, cfg.denied, perception, budget=budget, swarm_neighbours=roster)
         # one perception for both halves; denied.perceive_neighbours: false turns it off for both
         dmpc = replace(cfg.dmpc, perceive_neighbours=denied.perception is not None)
         comm = _dmpc_agent(cfg, drone_id, goals_world, obstacles, perception, dmpc, denied.perception, cfg.auto.fusion, budget)

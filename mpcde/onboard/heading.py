@@ -61,12 +61,16 @@ class ActiveYaw:
         active: plan with the active yaw planner (else heading along travel).
         initial_yaw: heading at the start [rad].
         swarm_clearance_m, swarm_z_scale: C_s [m] and c of E for Alg. 1 line 13.
+        swarm_neighbours: how many other drones were launched with this one (read with ``roster_aware``).
     """
 
-    def __init__(self, config: YawPlannerConfig, active: bool, initial_yaw: float, swarm_clearance_m: float, swarm_z_scale: float):
+    def __init__(
+        self, config: YawPlannerConfig, active: bool, initial_yaw: float, swarm_clearance_m: float, swarm_z_scale: float,
+        swarm_neighbours: int = 0,
+    ) -> None:
         self.config = config
         self.active = active
-        self.planner = YawPlanner(config) if active else None
+        self.planner = YawPlanner(config, swarm_neighbours) if active else None
         self.plan: YawPlan | None = None
         self.next_plan_s = -np.inf
         self.yaw = float(initial_yaw)

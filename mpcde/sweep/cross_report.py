@@ -12,9 +12,14 @@ module pairs cells *across* stores:
   overrides and axis values;
 * a cell's *settings* are its store's overrides updated by its axis values;
 * two cells of different stores are paired when their settings agree on
-  every ``pair_on`` field (default: every axis that all stores sweep and
-  whose value sets overlap, e.g. ``planner.cruise_speed_mps``); the paired
-  seeds are those both flew without a failure;
+  every pairing field of their two stores: the ``pair_on`` fields when
+  given, else every field both stores set (as an axis or an override) whose
+  values in the two stores overlap (numbers compared as floats). A field
+  set in both with no common value (``planner.kind: mpcde`` against
+  ``minco_comm``) is what the two stores compare; a field only one store
+  sets (``radio.delay_s``) is a variant of that store's method. So a
+  1 m/s cell is never paired with a 0.5 m/s one, whether speed is an axis
+  or an override. The paired seeds are those both flew without a failure;
 * per pair: the success-rate difference over the paired seeds and McNemar's
   exact two-sided p-value (:func:`mpcde.sweep.stats.mcnemar_exact`) of the
   discordant seeds.
@@ -54,27 +59,47 @@ def _store_cells(store: ResultsStore) -> list[dict[str, Any]]:
     ]
 
 
-def default_pair_on(sweeps: list[dict[str, Any]]) -> list[str]:
-    """Axes every sweep has whose value sets overlap in every pair of sweeps, in the first sweep's axis order."""
-    axis_values = [{name: values for name, values in s["axes"]} for s in sweeps]
-    out = []
-    for name, _ in sweeps[0]["axes"]:
-        if not all(name in a for a in axis_values):
-            continue
-        sets = [{json.dumps(v) for v in a[name]} for a in axis_values]
-        if all(x & y for i, x in enumerate(sets) for y in sets[i + 1 :]):
-            out.append(name)
+def _norm(value: Any) -> str:
+    """A value as compared for pairing: numbers as floats (1 and 1.0 meet), anything else as sorted JSON."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return repr(float(value))
+    return json.dumps(value, sort_keys=True)
+
+
+def _store_values(sweep: dict[str, Any]) -> dict[str, set[str]]:
+    """{field: the normalised values its cells fly} over a sweep's overrides and axes."""
+    out = {name: {_norm(v)} for name, v in sweep["overrides"].items()}
+    for name, values in sweep["axes"]:
+        out[name] = {_norm(v) for v in values}
     return out
+
+
+def default_pair_on(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
+    """Fields sweeps ``a`` and ``b`` both set (axis or override) whose values overlap, in ``a``'s order."""
+    va, vb = _store_values(a), _store_values(b)
+    return [name for name in va if name in vb and va[name] & vb[name]]
+
+
+def _names(folders: list[str | Path]) -> list[str]:
+    """Each folder's name in the report: its last part, or the path as given where two last parts are equal."""
+    last = [Path(f).name or str(f) for f in folders]
+    return [n if last.count(n) == 1 else str(f) for n, f in zip(last, folders)]
 
 
 def build_cross_report(folders: list[str | Path], pair_on: list[str] | None = None) -> dict[str, Any]:
     """The cross-store report of ``folders`` (each a sweep store, complete or not) as plain data.
 
-    ConfigError when fewer than two folders are given, when their base scenarios differ, or when a
-    ``pair_on`` field is set in none of a store's cells.
+    ConfigError when fewer than two folders are given, one is given twice, their base scenarios
+    differ, or a ``pair_on`` field is set in none of a store's cells.
     """
     if len(folders) < 2:
         raise ConfigError("report", " ".join(map(str, folders)), "a cross-store report needs at least two sweep folders")
+    seen: dict[Path, str] = {}
+    for f in folders:
+        real = Path(f).resolve()
+        if real in seen:
+            raise ConfigError("report", str(f), f"is given twice (as {seen[real]}): each store once")
+        seen[real] = str(f)
     stores = [ResultsStore.read(f) for f in folders]
     sweeps = [s.manifest["sweep"] for s in stores]
     for folder, sweep in zip(folders[1:], sweeps[1:]):
@@ -82,50 +107,64 @@ def build_cross_report(folders: list[str | Path], pair_on: list[str] | None = No
             raise ConfigError(
                 "report", str(folder), f"flies another base scenario than {folders[0]}: seeds pair only on one base"
             )
-    keys = default_pair_on(sweeps) if pair_on is None else list(pair_on)
-    names = [Path(f).name or str(f) for f in folders]
+    if pair_on is not None:
+        for folder, sweep in zip(folders, sweeps):
+            missing = [key for key in pair_on if key not in _store_values(sweep)]
+            if missing:
+                raise ConfigError("--pair-on", missing[0], f"is neither an axis nor an override of {folder}")
+    names = _names(folders)
     shared = {k: v for k, v in sweeps[0]["overrides"].items() if all(s["overrides"].get(k, object()) == v for s in sweeps)}
     cells: list[dict[str, Any]] = []
     success: dict[tuple[int, int], bool] = {}
+    recorded = []
     for k, (name, store) in enumerate(zip(names, stores)):
         rows = store.rows()
+        recorded.append(len(rows))
         by_cell: dict[int, list[dict[str, Any]]] = {}
         for r in rows:
             by_cell.setdefault(int(r["cell"]), []).append(r)
         for c in _store_cells(store):
-            missing = [key for key in keys if key not in c["settings"]]
-            if missing:
-                raise ConfigError("--pair-on", missing[0], f"is neither an axis nor an override of {folders[k]}")
             shown = {key: v for key, v in c["settings"].items() if key not in shared}
             stats = cell_stats(len(cells), c["values"], by_cell.get(c["index"], []))
-            rest = {key: v for key, v in shown.items() if key not in keys}
-            stats.update(store=name, label=f"{name}: {cell_label(shown)}", short=f"{name}: {cell_label(rest)}", settings=c["settings"])
+            stats.update(store=name, store_index=k, label=f"{name}: {cell_label(shown)}", settings=c["settings"])
             for r in by_cell.get(c["index"], []):
                 if r["status"] == "ok":
                     success[(len(cells), int(r["seed"]))] = bool(r["metrics"]["success"])
             cells.append(stats)
+    pair_keys = {
+        (k, m): list(pair_on) if pair_on is not None else default_pair_on(sweeps[k], sweeps[m])
+        for k in range(len(stores)) for m in range(k + 1, len(stores))
+    }  # fmt: skip
     pairs = []
     for i, a in enumerate(cells):
         for j in range(i + 1, len(cells)):
             b = cells[j]
-            if a["store"] == b["store"] or any(a["settings"][key] != b["settings"][key] for key in keys):
+            if a["store_index"] == b["store_index"]:
+                continue
+            keys = pair_keys[(a["store_index"], b["store_index"])]
+            if any(_norm(a["settings"][key]) != _norm(b["settings"][key]) for key in keys):
                 continue
             seeds = sorted({s for (c, s) in success if c == i} & {s for (c, s) in success if c == j})
             a_only = sum(success[(i, s)] and not success[(j, s)] for s in seeds)
             b_only = sum(success[(j, s)] and not success[(i, s)] for s in seeds)
             diff = (a_only - b_only) / len(seeds) if seeds else None
+            on = {key: a["settings"][key] for key in keys if key not in shared}
+            drop = set(keys)
             pairs.append({
-                "on": {key: a["settings"][key] for key in keys}, "a": i, "b": j, "a_label": a["short"], "b_label": b["short"],
+                "on": on, "a": i, "b": j,
+                "a_label": f"{a['store']}: {cell_label({k: v for k, v in a['settings'].items() if k not in drop and k not in shared})}",
+                "b_label": f"{b['store']}: {cell_label({k: v for k, v in b['settings'].items() if k not in drop and k not in shared})}",
                 "paired_seeds": len(seeds), "a_only": a_only, "b_only": b_only, "success_difference": diff,
                 "a_success_paired": sum(success[(i, s)] for s in seeds), "b_success_paired": sum(success[(j, s)] for s in seeds),
                 "mcnemar_p": mcnemar_exact(a_only, b_only),
             })  # fmt: skip
     pairs.sort(key=lambda p: (json.dumps(list(p["on"].values())), p["a"], p["b"]))
     stores_out = [
-        {"folder": str(f), "name": n, "recorded": len(s.rows()), "overrides": sw["overrides"], "axes": sw["axes"], "seeds": sw["seeds"]}
-        for f, n, s, sw in zip(folders, names, stores, sweeps)
+        {"folder": str(f), "name": n, "recorded": r, "overrides": sw["overrides"], "axes": sw["axes"], "seeds": sw["seeds"]}
+        for f, n, r, sw in zip(folders, names, recorded, sweeps)
     ]  # fmt: skip
-    return {"base_name": sweeps[0]["base_name"], "pair_on": keys, "shared_overrides": shared, "stores": stores_out,
+    keys_out = [{"stores": [names[k], names[m]], "keys": keys} for (k, m), keys in pair_keys.items()]
+    return {"base_name": sweeps[0]["base_name"], "pair_keys": keys_out, "shared_overrides": shared, "stores": stores_out,
             "cells": cells, "pairs": pairs}  # fmt: skip
 
 
@@ -135,8 +174,8 @@ def format_cross_report(report: dict[str, Any], markdown: bool = False) -> str:
     for s in report["stores"]:
         seeds = s["seeds"]
         lines.append(f"  {s['name']}: {s['folder']}, {s['recorded']} flights recorded, seeds {seeds[0]}..{seeds[-1]}")
-    lines += ["", format_table(report["cells"], markdown), ""]
-    lines.append(f"paired across stores (same seeds, same {', '.join(report['pair_on']) or 'nothing'}):")
+    lines += ["", format_table(report["cells"], markdown), "", "paired across stores (same seeds; two stores' cells pair on):"]
+    lines += [f"  {p['stores'][0]} x {p['stores'][1]}: {', '.join(p['keys']) or 'nothing (every cell with every cell)'}" for p in report["pair_keys"]]
     lines.append("")
     head = ["on", "a", "b", "pairs", "a ok", "b ok", "a only", "b only", "success a-b", "McNemar p"]
     rows = [[
@@ -150,22 +189,29 @@ def format_cross_report(report: dict[str, Any], markdown: bool = False) -> str:
 
 
 def write_cross_report(folders: list[str | Path], out: str | Path, pair_on: list[str] | None = None) -> dict[str, Any]:
-    """Build the cross-store report and write report.txt, report.md and report.json in ``out`` (created)."""
-    report = build_cross_report(folders, pair_on)
+    """Build the cross-store report and write report.txt, report.md and report.json in ``out`` (created).
+
+    ``out`` may not be a sweep folder or lie inside one (ConfigError); the three files are written
+    beside their final names first, then each moved into place.
+    """
     out = Path(out)
     for folder in folders:
-        if out.resolve() == Path(folder).resolve():
-            raise ConfigError("--out", str(out), "is one of the sweep folders: the cross-store report goes elsewhere")
+        root = Path(folder).resolve()
+        if out.resolve() == root or root in out.resolve().parents:
+            raise ConfigError("--out", str(out), f"is (inside) the sweep folder {folder}: the cross-store report goes elsewhere")
+    report = build_cross_report(folders, pair_on)
+    texts = {
+        "report.txt": format_cross_report(report), "report.md": format_cross_report(report, markdown=True),
+        "report.json": json.dumps(json_safe(report), indent=1) + "\n",
+    }  # fmt: skip
     try:
         out.mkdir(parents=True, exist_ok=True)
-        for name, text in (
-            ("report.txt", format_cross_report(report)),
-            ("report.md", format_cross_report(report, markdown=True)),
-            ("report.json", json.dumps(json_safe(report), indent=1) + "\n"),
-        ):
-            tmp = out / f".{name}.tmp"
-            tmp.write_text(text)
-            tmp.replace(out / name)
+        for name, text in texts.items():
+            (out / f".{name}.tmp").write_text(text)
+        for name in texts:
+            (out / f".{name}.tmp").replace(out / name)
     except OSError as e:
+        for name in texts:
+            (out / f".{name}.tmp").unlink(missing_ok=True)
         raise ConfigError("--out", str(out), f"cannot be written ({e.strerror})") from None
     return report

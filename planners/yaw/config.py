@@ -157,25 +157,27 @@ class YawPlannerConfig:
             forest sweep: docs/results/yaw_planner.md). With the swing the
             observed neighbours leave the frame for part of each period, well
             within the tracker's t_hold.
-        swarm_neighbours: how many other drones fly in this drone's swarm [-]:
-            the mission's roster, fixed before take-off (a drone knows how many
-            drones were launched with it, not where they are). Derived at load
-            from ``drones`` (``mpcde/config/resolve.py``); 0 for a lone drone.
-            Read only with ``roster_aware``.
         roster_aware: the set A of Alg. 1 counts the roster, not only the
-            tracks. Alg. 1 observes (Eq. 6) when every neighbour in A was seen
+            tracks (the roster: how many other drones were launched with this
+            one, a fact of the mission like its goal, not their state; given
+            to :class:`planners.yaw.planner.YawPlanner` as ``swarm_neighbours``
+            by the agent factory). Alg. 1 observes (Eq. 6) when every neighbour in A was seen
             within t_hold, |V| = |A|, and takes A to be the tracks. A
             neighbour the drone has never detected is in no track, so a drone
             tracking two of its five neighbours "sees every neighbour" and
-            stares at those two. With ``roster_aware``, while fewer than
-            ``swarm_neighbours`` neighbours are tracked, some neighbour is
+            stares at those two. With ``roster_aware``, while fewer neighbours
+            than the roster's are tracked, some neighbour is
             unaccounted for and the planner explores instead (Eq. 3-5: the
             coverage reward turns the camera to sectors not seen within the
             window W, where such a neighbour can be). Not in MP-CDE; off by
             default (not yet measured on a fixed-seed sweep). Why: in the
             forest sweep every collision at 0.5 and 1 m/s was between drones
             that never had each other in view, several of them while both
-            observed other neighbours (docs/results/yaw_planner.md).
+            observed other neighbours (docs/results/yaw_planner.md). Limits: it
+            counts tracks, so a false or split track can stand for a neighbour
+            never seen; and a neighbour that has failed and fallen is never
+            tracked again, so after its track is pruned the survivors no longer
+            observe.
         still_speed_mps: in tracking mode, below this horizontal speed the
             direction of travel is undefined and the yaw is held [m/s]
             (chosen: 0.1 m/s).
@@ -228,7 +230,6 @@ class YawPlannerConfig:
     tracking_sweep_deg: float = 60.0
     tracking_sweep_period_s: float = 2.1
     observing_sweep: bool = False
-    swarm_neighbours: int = 0
     roster_aware: bool = False
     exploring_mode: bool = True
     tracking_mode: bool = True
@@ -274,7 +275,6 @@ class YawPlannerConfig:
         require_positive("tracking_sweep_period_s", self.tracking_sweep_period_s)
         require_boolean("observing_sweep", self.observing_sweep)
         require_boolean("roster_aware", self.roster_aware)
-        require_integer_at_least("swarm_neighbours", self.swarm_neighbours, 0)
         require_non_negative("tracking_sweep_deg", self.tracking_sweep_deg)
         if not self.tracking_sweep_deg < 90.0:
             raise ConfigError("tracking_sweep_deg", self.tracking_sweep_deg, "allowed 0 <= sweep < 90 (the camera never looks behind the drone)")

@@ -60,10 +60,15 @@ class YawPlanner:
 
     Args:
         config: settings; defaults from MP-CDE Table I.
+        swarm_neighbours: how many other drones were launched with this one (the mission's roster, not
+            their state; 0 for a lone drone); read only with ``config.roster_aware``.
     """
 
-    def __init__(self, config: YawPlannerConfig | None = None) -> None:
+    def __init__(self, config: YawPlannerConfig | None = None, swarm_neighbours: int = 0) -> None:
+        if isinstance(swarm_neighbours, bool) or not isinstance(swarm_neighbours, int) or swarm_neighbours < 0:
+            raise ValueError(f"swarm_neighbours={swarm_neighbours!r}: allowed an integer >= 0")
         self.config = config if config is not None else YawPlannerConfig()
+        self.swarm_neighbours = swarm_neighbours
         self._fan = FanGeometry.from_config(self.config)
         self._in_safe_regime = False
         self._window: deque[tuple[float, np.ndarray]] = deque()
@@ -115,7 +120,7 @@ class YawPlanner:
         self.last_path = None
         safe = self._in_safe_regime or not cfg.tracking_mode  # without tracking mode, never the safety turn
         # |V| = |A|: every neighbour recently seen; with roster_aware, A also holds the roster's untracked neighbours
-        all_seen = bool(active) and len(recent) == len(active) and not (cfg.roster_aware and len(active) < cfg.swarm_neighbours)
+        all_seen = bool(active) and len(recent) == len(active) and not (cfg.roster_aware and len(active) < self.swarm_neighbours)
         if cfg.method == "zhou":  # Zhou et al.'s yaw: the most unknown space in view along the trajectory, always
             mode = "exploring"
             yaws = self._explore(yaw, times, positions, snapshot, (), zhou=True)

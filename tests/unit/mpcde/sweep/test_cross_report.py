@@ -8,6 +8,7 @@ import pytest
 from scipy.stats import binomtest
 
 from mpcde.cli import main
+from mpcde.errors import ConfigError
 from mpcde.sweep.cross_report import build_cross_report, default_pair_on
 from mpcde.sweep.report import build_report
 from mpcde.sweep.spec import sweep_from_dict
@@ -59,7 +60,8 @@ def two_stores(tmp_path):
 def test_cells_are_paired_across_stores_on_the_shared_axis_over_the_seeds_both_flew(two_stores):
     method, baseline = two_stores
     report = build_cross_report([method, baseline])
-    assert report["pair_on"] == ["planner.cruise_speed_mps"]  # planner.kind is shared but its values never meet
+    # planner.kind is set in both but its values never meet: it is what the stores compare
+    assert report["pair_keys"] == [{"stores": ["method", "baseline"], "keys": ["duration_s", "planner.cruise_speed_mps"]}]
     assert report["shared_overrides"] == {"duration_s": 5}
     assert len(report["cells"]) == 2 + 4 and len(report["pairs"]) == 4  # each baseline cell meets the method once
     by = {(p["on"]["planner.cruise_speed_mps"], report["cells"][p["b"]]["settings"]["radio.delay_s"]): p for p in report["pairs"]}
@@ -82,29 +84,72 @@ def test_per_cell_figures_are_those_of_each_stores_own_report(two_stores):
     assert [[c[k] for k in keys] for c in cross] == [[c[k] for k in keys] for c in own]
 
 
-def test_the_default_pairs_only_on_axes_whose_values_meet():
-    a = {"axes": [["planner.kind", ["mpcde"]], ["planner.cruise_speed_mps", [0.5, 1.0]]]}
-    b = {"axes": [["planner.kind", ["dmpc"]], ["planner.cruise_speed_mps", [1.0, 2.0]]]}
-    c = {"axes": [["planner.cruise_speed_mps", [2.0]]]}
-    assert default_pair_on([a, b]) == ["planner.cruise_speed_mps"]
-    assert default_pair_on([a, b, c]) == []  # 0.5/1.0 and 2.0 never meet
+def test_the_default_pairs_on_every_field_two_stores_both_set_whose_values_meet():
+    def sweep(overrides, axes):
+        return {"overrides": overrides, "axes": [[k, v] for k, v in axes.items()]}
+
+    method = sweep({"duration_s": 100}, {"planner.kind": ["mpcde"], "planner.cruise_speed_mps": [0.5, 1.0]})
+    fixed = sweep({"duration_s": 100, "planner.cruise_speed_mps": 1}, {"planner.kind": ["dmpc"]})  # speed an override, an int
+    delayed = sweep({"radio.delay_s": 0.5}, {"planner.kind": ["minco_comm"], "planner.cruise_speed_mps": [2.0]})
+    assert default_pair_on(method, fixed) == ["duration_s", "planner.cruise_speed_mps"]  # 1 meets 1.0
+    assert default_pair_on(method, delayed) == []  # 0.5/1.0 never meet 2.0; the delay is the baseline's own
+    assert default_pair_on(fixed, delayed) == []
+
+
+def test_a_speed_fixed_as_an_override_pairs_only_with_that_speed_and_three_stores_pair_two_by_two(tmp_path):
+    _store(tmp_path / "method", METHOD, {(c, s): True for c in range(2) for s in range(4)})
+    fixed = {"base": "crossing", "seeds": 4, "overrides": {"duration_s": 5, "planner.cruise_speed_mps": 1}, "axes": {"planner.kind": ["dmpc"]}}
+    _store(tmp_path / "fixed", fixed, {(0, s): s != 2 for s in range(4)})
+    fast = {"base": "crossing", "seeds": 4, "overrides": {"duration_s": 5}, "axes": {"planner.kind": ["auto"], "planner.cruise_speed_mps": [2.0]}}
+    _store(tmp_path / "fast", fast, {(0, s): True for s in range(4)})
+    report = build_cross_report([tmp_path / "method", tmp_path / "fixed", tmp_path / "fast"])
+    labels = [(report["cells"][p["a"]]["label"], report["cells"][p["b"]]["label"]) for p in report["pairs"]]
+    # method x fixed: on speed, so only method's 1 m/s cell. x fast: speeds never meet, so speed is what those
+    # stores compare (as planner.kind is), and every cell pairs with fast's: method's two, fixed's one
+    assert len(report["pairs"]) == 1 + 2 + 1, labels
+    assert report["pair_keys"][1:] == [
+        {"stores": ["method", "fast"], "keys": ["duration_s"]}, {"stores": ["fixed", "fast"], "keys": ["duration_s"]},
+    ]
+    speed_pair = next(p for p in report["pairs"] if p["on"])
+    assert speed_pair["on"] == {"planner.cruise_speed_mps": 1.0} and (speed_pair["a_only"], speed_pair["b_only"]) == (1, 0)
+    assert report["cells"][speed_pair["a"]]["settings"]["planner.cruise_speed_mps"] == 1.0
+
+
+def test_failed_rows_and_empty_stores_pair_no_seed_and_equal_folder_names_stay_apart(tmp_path):
+    method = {(c, s): True for c in range(2) for s in range(4)}
+    _store(tmp_path / "a" / "sw", METHOD, method)
+    _store(tmp_path / "b" / "sw", BASELINE, {})
+    report = build_cross_report([tmp_path / "a" / "sw", tmp_path / "b" / "sw"])
+    assert {c["store"] for c in report["cells"]} == {str(tmp_path / "a" / "sw"), str(tmp_path / "b" / "sw")}
+    assert len(report["pairs"]) == 4 and all(p["paired_seeds"] == 0 and p["mcnemar_p"] == 1.0 for p in report["pairs"])
+    assert all(p["success_difference"] is None for p in report["pairs"])
+    store = ResultsStore.read(tmp_path / "b" / "sw")
+    store.append({
+        "cell": 0, "values": {}, "seed": 0, "status": "failed", "error": "RuntimeError: x", "metrics": None,
+        "wall_s": 1.0, "version": "test", "git_rev": None,
+    })  # fmt: skip
+    report = build_cross_report([tmp_path / "a" / "sw", tmp_path / "b" / "sw"])
+    assert all(p["paired_seeds"] == 0 for p in report["pairs"]) and report["cells"][2]["failed"] == 1
+    with pytest.raises(ConfigError, match="given twice"):
+        build_cross_report([tmp_path / "a" / "sw", tmp_path / "a" / ".." / "a" / "sw"])
 
 
 def test_the_cli_writes_the_cross_report_and_refuses_bad_requests_in_one_line(two_stores, tmp_path, capsys):
     method, baseline = two_stores
     out = tmp_path / "cross"
     assert main(["report", str(method), str(baseline), "--out", str(out)]) == 0
-    assert "paired across stores (same seeds, same planner.cruise_speed_mps)" in capsys.readouterr().out
+    assert "method x baseline: duration_s, planner.cruise_speed_mps" in capsys.readouterr().out
     assert len(json.loads((out / "report.json").read_text())["pairs"]) == 4
     assert {p.name for p in out.iterdir()} == {"report.txt", "report.md", "report.json"}
 
     other = dict(METHOD, base="antipodal")
     _store(tmp_path / "other", other, {(0, 0): True})
     cases = [
-        (["report", str(method), str(baseline)], "--out="),
+        (["report", str(method), str(baseline)], "--out=None"),
         (["report", str(method), str(tmp_path / "other"), "--out", str(tmp_path / "x1")], "another base scenario"),
         (["report", str(method), str(baseline), "--out", str(tmp_path / "x2"), "--pair-on", "radio.delay_s"], "--pair-on='radio.delay_s'"),
-        (["report", str(method), str(baseline), "--out", str(method)], "is one of the sweep folders"),
+        (["report", str(method), str(baseline), "--out", str(method)], "sweep folder"),
+        (["report", str(method), str(baseline), "--out", str(method / "inside")], "sweep folder"),
     ]  # fmt: skip
     for argv, words in cases:
         assert main(argv) == 2

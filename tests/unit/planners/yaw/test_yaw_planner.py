@@ -404,30 +404,38 @@ def test_roster_aware_explores_while_a_neighbour_of_the_roster_is_untracked_and_
         neighbour(DRONE + 2.0 * np.array([math.cos(b), math.sin(b), 0.0]), stamp_s=0.0, nid=k)
         for k, b in enumerate((bearing, -bearing))
     ]
-    paper = replace(paper_config(), swarm_neighbours=3)  # three others fly; two are tracked, both seen now
-    assert YawPlanner(paper).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen).mode == "observing"  # |V| = |A| = 2
+    paper = paper_config()  # three others fly; two are tracked, both seen now
+    assert YawPlanner(paper, swarm_neighbours=3).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen).mode == "observing"
     roster = replace(paper, roster_aware=True)
-    short = YawPlanner(roster).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen)
+    short = YawPlanner(roster, swarm_neighbours=3).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen)
     assert short.mode == "exploring" and short.n_active == 2 and short.n_recent == 2  # the third is unaccounted for
     third = neighbour(DRONE + np.array([0.0, 3.0, 0.0]), stamp_s=0.0, nid=2)
-    assert YawPlanner(roster).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen + [third]).mode == "observing"
-    unsafe = YawPlanner(roster).plan(0.0, 0.0, HOVER, uniform_snapshot(0.3), seen)
+    assert YawPlanner(roster, swarm_neighbours=3).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen + [third]).mode == "observing"
+    unsafe = YawPlanner(roster, swarm_neighbours=3).plan(0.0, 0.0, HOVER, uniform_snapshot(0.3), seen)
     assert unsafe.mode == "tracking"  # the safety turn comes first, as in Alg. 1
-    lone = replace(paper_config(), roster_aware=True)  # swarm_neighbours 0: the tracks are the roster
-    assert YawPlanner(lone).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen).mode == "observing"
+    assert YawPlanner(roster).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen).mode == "observing"  # no roster: the tracks
+    with pytest.raises(ValueError, match="swarm_neighbours"):
+        YawPlanner(roster, swarm_neighbours=-1)
 
 
-def test_the_roster_is_derived_from_the_scenario_and_refused_when_set_otherwise(tmp_path):
+def test_without_roster_aware_the_roster_changes_no_yaw():
+    """Off (the default), the planner is MP-CDE's Alg. 1 whatever the roster: the same yaws in every mode."""
+    seen = neighbour(DRONE + np.array([1.5, 1.5, 0.0]), stamp_s=0.0, nid=0)
+    lost = neighbour(DRONE + np.array([-2.0, 1.0, 0.0]), stamp_s=-5.0, nid=1)
+    for snap, preds in ((uniform_snapshot(3.0), [seen]), (uniform_snapshot(3.0), [seen, lost]), (uniform_snapshot(0.3), [seen])):
+        a = YawPlanner(paper_config()).plan(0.0, 0.2, HOVER, snap, preds)
+        b = YawPlanner(paper_config(), swarm_neighbours=5).plan(0.0, 0.2, HOVER, snap, preds)
+        assert a.mode == b.mode
+        np.testing.assert_array_equal(a.yaws, b.yaws)
+
+
+def test_the_agent_factory_gives_each_denied_drone_its_roster():
     import mpcde
-    from mpcde.errors import ConfigError
+    from mpcde.flight.loop import prepare_run
+    from mpcde.onboard.factory import make_agent
 
-    assert mpcde.load_scenario("forest_swarm").denied.yaw.swarm_neighbours == 5
-    assert mpcde.load_scenario("crossing").denied.yaw.swarm_neighbours == 1
-    path = tmp_path / "three.yaml"
-    path.write_text(
-        "drones: {layout: explicit, starts: [[0, 0, 1], [2, 0, 1], [4, 0, 1]], goals: [[0, 4, 1], [2, 4, 1], [4, 4, 1]]}\n"
-    )
-    assert mpcde.load_scenario(path).denied.yaw.swarm_neighbours == 2
-    path.write_text("drones: {layout: antipodal, count: 3}\ndenied: {yaw: {swarm_neighbours: 4}}\n")
-    with pytest.raises(ConfigError, match="denied.yaw.swarm_neighbours"):
-        mpcde.load_scenario(path)
+    for name, mode, roster in (("forest_swarm", "denied", 5), ("crossing", "auto", 1)):
+        prepared = prepare_run(mpcde.load_scenario(name, mode=mode))
+        agent = make_agent(prepared.config, 0, prepared.goals, prepared.obstacles)
+        denied = agent if mode == "denied" else agent.denied
+        assert denied.swarm_neighbours == roster
