@@ -102,6 +102,7 @@ class _Tick:
     plans: list  # per drone: its MINCO trajectory (or None)
     braking: np.ndarray  # (n,) bool
     comm_mode: np.ndarray  # (n,) bool
+    yaw_modes: list  # per drone: the mode of its last yaw plan ("exploring", "observing", "tracking"), or None
 
 
 def _denied_part(agent: Any) -> Any:
@@ -150,6 +151,7 @@ class _Recorder:
         track_err = np.full((n, n), np.inf)
         predictions, plans = [], []
         braking, comm_mode = np.zeros(n, bool), np.zeros(n, bool)
+        yaw_modes: list = []
         for i, a in enumerate(s.agents):
             denied = _denied_part(a)
             preds = denied.neighbours(t, count=False) if denied is not None else (a.perception.predictions(t) if a.perception is not None else [])
@@ -157,12 +159,14 @@ class _Recorder:
             plans.append(getattr(denied, "trajectory", None))
             braking[i] = bool(getattr(denied, "braking", False))
             comm_mode[i] = getattr(a, "mode", None) == "comm"
+            heading = getattr(denied, "heading", None)
+            yaw_modes.append(None if heading is None or heading.plan is None else heading.plan.mode)
             if preds:
                 p = np.array([pr.position(np.array([t]))[0] for pr in preds])
                 for j in range(n):
                     if j != i:
                         track_err[i, j] = float(np.min(np.linalg.norm(p - truth.pos_world[j], axis=1)))
-        self.ticks.append(_Tick(t, in_view, detected, track_err, predictions, plans, braking, comm_mode))
+        self.ticks.append(_Tick(t, in_view, detected, track_err, predictions, plans, braking, comm_mode, yaw_modes))
         while self.ticks and self.ticks[0].time_s < t - LOOKBACK_S - 1e-9:
             self.ticks.popleft()
 
@@ -181,6 +185,11 @@ def _direction(rec: _Recorder, i: int, j: int, t_event: float, true_future: np.n
     seen = [k.time_s for k in ticks if k.in_view[i, j] > 0]
     found = [k.time_s for k in ticks if k.detected[i, j]]
     detail = {"in_view_frames": len(seen), "detected_frames": len(found)}
+    modes = [k.yaw_modes[i] for k in ticks if k.yaw_modes[i] is not None]
+    if modes:  # what drone i's yaw planner was doing in the look-back: the fraction of deliveries in each mode
+        detail["yaw_modes"] = {m: round(modes.count(m) / len(modes), 2) for m in sorted(set(modes))}
+    if ticks:
+        detail["tracks_before"] = len(ticks[-1].predictions[i])
     if not seen:
         return "never in view", detail
     if not found or t_event - found[0] < LATE_S:

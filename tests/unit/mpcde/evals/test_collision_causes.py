@@ -39,7 +39,8 @@ def _ticks(braking_at: dict[float, list[int]]) -> _Recorder:
     for t, braking in sorted(braking_at.items()):
         b = np.zeros(2, bool)
         b[braking] = True
-        rec.ticks.append(_Tick(t, np.zeros((2, 2), int), np.zeros((2, 2), bool), np.full((2, 2), np.inf), [[], []], [None, None], b, np.zeros(2, bool)))
+        modes = ["observing" if t < 4.97 else "exploring", None]  # drone 0's yaw planner switches just before the event
+        rec.ticks.append(_Tick(t, np.zeros((2, 2), int), np.zeros((2, 2), bool), np.full((2, 2), np.inf), [[], []], [None, None], b, np.zeros(2, bool), modes))
     return rec
 
 
@@ -51,3 +52,6 @@ def test_fallback_is_a_brake_already_on_before_the_event_not_one_that_reacts_to_
     future = deque((s, np.array([[0.0, 0.0, 1.5], [0.15, 0.0, 1.5]])) for s in np.arange(4.5, 6.01, 0.04))
     out = _classify({"time_s": t, "kind": "drone", "drones": [0, 1]}, None, rec, future, None, 0.1, None)
     assert out.cause == cause
+    if cause == "never in view":  # what each drone's yaw planner did in the look-back, per delivery
+        assert out.detail["0->1"]["yaw_modes"] == {"exploring": 0.33, "observing": 0.67}
+        assert "yaw_modes" not in out.detail["1->0"] and out.detail["1->0"]["tracks_before"] == 0
