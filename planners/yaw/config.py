@@ -170,10 +170,11 @@ class YawPlannerConfig:
             unaccounted for and the planner explores instead (Eq. 3-5: the
             coverage reward turns the camera to sectors not seen within the
             window W, where such a neighbour can be). Not in MP-CDE; off by
-            default (not yet measured on a fixed-seed sweep). Why: in the
-            forest sweep every collision at 0.5 and 1 m/s was between drones
-            that never had each other in view, several of them while both
-            observed other neighbours (docs/results/yaw_planner.md). Limits: it
+            default: on 139 flights of the fixed-seed forest sweep it changed
+            no success rate and cost tracking accuracy (docs/results/safety.md).
+            Why it was tried: in that sweep every collision at 0.5 and 1 m/s
+            was between drones that never had each other in view, several of
+            them while both observed other neighbours (docs/results/yaw_planner.md). Limits: it
             counts tracks, so a false or split track can stand for a neighbour
             never seen; and a neighbour that has failed and fallen is never
             tracked again, so after its track is pruned the survivors no longer
