@@ -52,6 +52,7 @@ import numpy as np
 
 from mpcde.config.scenario import ScenarioConfig
 from sim.obstacles import ObstacleField
+from sim.rotations import rotation_from_quat_xyzw, yaw_from_rotation
 
 __all__ = ["BEFORE_S", "CAUSES", "CONTROL_MARGIN_M", "LATE_S", "LOOKBACK_S", "TRACK_GATE_M", "CollisionCause", "explain_flight"]
 
@@ -103,6 +104,7 @@ class _Tick:
     braking: np.ndarray  # (n,) bool
     comm_mode: np.ndarray  # (n,) bool
     yaw_modes: list  # per drone: the mode of its last yaw plan ("exploring", "observing", "tracking"), or None
+    off_axis_deg: np.ndarray  # (n, n) true horizontal bearing of j from i's camera axis [deg], in (-180, 180]
 
 
 def _denied_part(agent: Any) -> Any:
@@ -166,7 +168,11 @@ class _Recorder:
                 for j in range(n):
                     if j != i:
                         track_err[i, j] = float(np.min(np.linalg.norm(p - truth.pos_world[j], axis=1)))
-        self.ticks.append(_Tick(t, in_view, detected, track_err, predictions, plans, braking, comm_mode, yaw_modes))
+        yaws = np.array([yaw_from_rotation(rotation_from_quat_xyzw(q)) for q in truth.quat_xyzw])
+        d = truth.pos_world[None, :, :2] - truth.pos_world[:, None, :2]  # (i, j, 2): j from i
+        off = np.degrees(np.arctan2(d[..., 1], d[..., 0]) - yaws[:, None])
+        off = (off + 180.0) % 360.0 - 180.0
+        self.ticks.append(_Tick(t, in_view, detected, track_err, predictions, plans, braking, comm_mode, yaw_modes, off))
         while self.ticks and self.ticks[0].time_s < t - LOOKBACK_S - 1e-9:
             self.ticks.popleft()
 
@@ -190,6 +196,9 @@ def _direction(rec: _Recorder, i: int, j: int, t_event: float, true_future: np.n
         detail["yaw_modes"] = {m: round(modes.count(m) / len(modes), 2) for m in sorted(set(modes))}
     if ticks:
         detail["tracks_before"] = len(ticks[-1].predictions[i])
+        offs = np.array([abs(float(k.off_axis_deg[i, j])) for k in ticks])
+        # how far off i's camera axis j truly was: nearest in the look-back, and at the last delivery
+        detail["off_axis_deg"] = {"nearest": round(float(offs.min()), 1), "last": round(float(offs[-1]), 1)}
     if not seen:
         return "never in view", detail
     if not found or t_event - found[0] < LATE_S:

@@ -40,7 +40,7 @@ def _ticks(braking_at: dict[float, list[int]]) -> _Recorder:
         b = np.zeros(2, bool)
         b[braking] = True
         modes = ["observing" if t < 4.97 else "exploring", None]  # drone 0's yaw planner switches just before the event
-        rec.ticks.append(_Tick(t, np.zeros((2, 2), int), np.zeros((2, 2), bool), np.full((2, 2), np.inf), [[], []], [None, None], b, np.zeros(2, bool), modes))
+        rec.ticks.append(_Tick(t, np.zeros((2, 2), int), np.zeros((2, 2), bool), np.full((2, 2), np.inf), [[], []], [None, None], b, np.zeros(2, bool), modes, np.array([[0.0, 90.0 + t], [-100.0, 0.0]])))
     return rec
 
 
@@ -55,3 +55,5 @@ def test_fallback_is_a_brake_already_on_before_the_event_not_one_that_reacts_to_
     if cause == "never in view":  # what each drone's yaw planner did in the look-back, per delivery
         assert out.detail["0->1"]["yaw_modes"] == {"exploring": 0.33, "observing": 0.67}
         assert "yaw_modes" not in out.detail["1->0"] and out.detail["1->0"]["tracks_before"] == 0
+        assert out.detail["0->1"]["off_axis_deg"] == {"nearest": round(90.0 + t - BEFORE_S - 0.04, 1), "last": 95.0}
+        assert out.detail["1->0"]["off_axis_deg"] == {"nearest": 100.0, "last": 100.0}
