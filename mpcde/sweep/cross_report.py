@@ -38,25 +38,11 @@ from typing import Any
 
 from mpcde.errors import ConfigError
 from mpcde.evals.text_table import cell as fmt
-from mpcde.sweep.report import cell_stats, format_table, table_text
+from mpcde.sweep.report import axis_cells, cell_stats, format_table, paired_success, rows_by_cell, seed_success, table_text
 from mpcde.sweep.spec import cell_label
-from mpcde.sweep.stats import mcnemar_exact
 from mpcde.sweep.store import ResultsStore, json_safe
 
 __all__ = ["build_cross_report", "default_pair_on", "format_cross_report", "write_cross_report"]
-
-
-def _store_cells(store: ResultsStore) -> list[dict[str, Any]]:
-    """(index, values, settings) of every cell of ``store``'s sweep, in product order."""
-    sweep = store.manifest["sweep"]
-    names = [name for name, _ in sweep["axes"]]
-    combos: list[tuple[Any, ...]] = [()]
-    for _, values in sweep["axes"]:
-        combos = [c + (v,) for c in combos for v in values]
-    return [
-        {"index": i, "values": dict(zip(names, combo)), "settings": {**sweep["overrides"], **dict(zip(names, combo))}}
-        for i, combo in enumerate(combos)
-    ]
 
 
 def _norm(value: Any) -> str:
@@ -115,21 +101,18 @@ def build_cross_report(folders: list[str | Path], pair_on: list[str] | None = No
     names = _names(folders)
     shared = {k: v for k, v in sweeps[0]["overrides"].items() if all(s["overrides"].get(k, object()) == v for s in sweeps)}
     cells: list[dict[str, Any]] = []
-    success: dict[tuple[int, int], bool] = {}
+    success: list[dict[int, bool]] = []  # per cell of the report: {seed: success}
     recorded = []
-    for k, (name, store) in enumerate(zip(names, stores)):
+    for k, (name, store, sweep) in enumerate(zip(names, stores, sweeps)):
         rows = store.rows()
         recorded.append(len(rows))
-        by_cell: dict[int, list[dict[str, Any]]] = {}
-        for r in rows:
-            by_cell.setdefault(int(r["cell"]), []).append(r)
-        for c in _store_cells(store):
-            shown = {key: v for key, v in c["settings"].items() if key not in shared}
-            stats = cell_stats(len(cells), c["values"], by_cell.get(c["index"], []))
-            stats.update(store=name, store_index=k, label=f"{name}: {cell_label(shown)}", settings=c["settings"])
-            for r in by_cell.get(c["index"], []):
-                if r["status"] == "ok":
-                    success[(len(cells), int(r["seed"]))] = bool(r["metrics"]["success"])
+        by_cell = rows_by_cell(rows)
+        for index, values in enumerate(axis_cells(sweep)):
+            settings = {**sweep["overrides"], **values}  # the cell's settings: its store's overrides, then its axes
+            shown = {key: v for key, v in settings.items() if key not in shared}
+            stats = cell_stats(len(cells), values, by_cell.get(index, []))
+            stats.update(store=name, store_index=k, label=f"{name}: {cell_label(shown)}", settings=settings)
+            success.append(seed_success(by_cell.get(index, [])))
             cells.append(stats)
     pair_keys = {
         (k, m): list(pair_on) if pair_on is not None else default_pair_on(sweeps[k], sweeps[m])
@@ -144,19 +127,14 @@ def build_cross_report(folders: list[str | Path], pair_on: list[str] | None = No
             keys = pair_keys[(a["store_index"], b["store_index"])]
             if any(_norm(a["settings"][key]) != _norm(b["settings"][key]) for key in keys):
                 continue
-            seeds = sorted({s for (c, s) in success if c == i} & {s for (c, s) in success if c == j})
-            a_only = sum(success[(i, s)] and not success[(j, s)] for s in seeds)
-            b_only = sum(success[(j, s)] and not success[(i, s)] for s in seeds)
-            diff = (a_only - b_only) / len(seeds) if seeds else None
+            seeds, paired = paired_success(success[i], success[j])
             on = {key: a["settings"][key] for key in keys if key not in shared}
             drop = set(keys)
             pairs.append({
                 "on": on, "a": i, "b": j,
                 "a_label": f"{a['store']}: {cell_label({k: v for k, v in a['settings'].items() if k not in drop and k not in shared})}",
                 "b_label": f"{b['store']}: {cell_label({k: v for k, v in b['settings'].items() if k not in drop and k not in shared})}",
-                "paired_seeds": len(seeds), "a_only": a_only, "b_only": b_only, "success_difference": diff,
-                "a_success_paired": sum(success[(i, s)] for s in seeds), "b_success_paired": sum(success[(j, s)] for s in seeds),
-                "mcnemar_p": mcnemar_exact(a_only, b_only),
+                **paired, "a_success_paired": sum(success[i][s] for s in seeds), "b_success_paired": sum(success[j][s] for s in seeds),
             })  # fmt: skip
     pairs.sort(key=lambda p: (json.dumps(list(p["on"].values())), p["a"], p["b"]))
     stores_out = [

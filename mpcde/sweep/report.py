@@ -34,7 +34,10 @@ from mpcde.sweep.spec import cell_label
 from mpcde.sweep.stats import mcnemar_exact, wilson_interval
 from mpcde.sweep.store import ResultsStore, json_safe
 
-__all__ = ["CELL_KEYS", "build_report", "cell_stats", "format_report", "format_table", "table_text", "write_report"]
+__all__ = [
+    "CELL_KEYS", "axis_cells", "build_report", "cell_stats", "format_report", "format_table", "paired_success", "rows_by_cell",
+    "seed_success", "table_text", "write_report",
+]  # fmt: skip
 
 CELL_KEYS = (
     "cell", "label", "flights", "failed", "success_rate", "success_low", "success_high", "collisions_per_flight",
@@ -68,32 +71,57 @@ def cell_stats(index: int, values: dict[str, Any], rows: list[dict[str, Any]]) -
     }  # fmt: skip
 
 
+def axis_cells(sweep: dict[str, Any]) -> list[dict[str, Any]]:
+    """The axis values {field: value} of every cell of a stored sweep (``sweep.json``'s ``sweep``), in product order."""
+    names = [name for name, _ in sweep["axes"]]
+    return [dict(zip(names, combo)) for combo in itertools.product(*(values for _, values in sweep["axes"]))]
+
+
+def rows_by_cell(rows: list[dict[str, Any]]) -> dict[int, list[dict[str, Any]]]:
+    """A store's rows grouped by cell index, each group in the order written."""
+    out: dict[int, list[dict[str, Any]]] = {}
+    for r in rows:
+        out.setdefault(int(r["cell"]), []).append(r)
+    return out
+
+
+def seed_success(rows: list[dict[str, Any]]) -> dict[int, bool]:
+    """{seed: success} over one cell's flown rows (failed rows left out)."""
+    return {int(r["seed"]): bool(r["metrics"]["success"]) for r in rows if r["status"] == "ok"}
+
+
+def paired_success(a: dict[int, bool], b: dict[int, bool]) -> tuple[list[int], dict[str, Any]]:
+    """The seeds two cells both flew (sorted), and over them: ``paired_seeds``, ``a_only`` and ``b_only`` (seeds
+    only that cell succeeded on), ``success_difference`` (a - b, None without seeds) and ``mcnemar_p``."""
+    seeds = sorted(a.keys() & b.keys())
+    a_only = sum(a[s] and not b[s] for s in seeds)
+    b_only = sum(b[s] and not a[s] for s in seeds)
+    diff = (a_only - b_only) / len(seeds) if seeds else None
+    return seeds, {
+        "paired_seeds": len(seeds), "a_only": a_only, "b_only": b_only, "success_difference": diff,
+        "mcnemar_p": mcnemar_exact(a_only, b_only),
+    }  # fmt: skip
+
+
 def build_report(folder: str | Path) -> dict[str, Any]:
     """The report of the store in ``folder`` (complete or not) as plain data."""
     store = ResultsStore.read(folder)
     sweep = store.manifest["sweep"]
     rows = store.rows()
-    axes = [(name, values) for name, values in sweep["axes"]]
-    combos = list(itertools.product(*(values for _, values in axes)))
-    cells_values = [dict(zip([a for a, _ in axes], combo)) for combo in combos]
-    by_cell: dict[int, list[dict[str, Any]]] = {}
-    for r in rows:
-        by_cell.setdefault(int(r["cell"]), []).append(r)
+    cells_values = axis_cells(sweep)
+    by_cell = rows_by_cell(rows)
     cells = [cell_stats(i, v, by_cell.get(i, [])) for i, v in enumerate(cells_values)]
-    success = {(int(r["cell"]), int(r["seed"])): bool(r["metrics"]["success"]) for r in rows if r["status"] == "ok"}
+    success = [seed_success(by_cell.get(i, [])) for i in range(len(cells_values))]
     pairs = []
     for i, j in itertools.combinations(range(len(cells_values)), 2):
         differ = [k for k in cells_values[i] if cells_values[i][k] != cells_values[j][k]]
         if len(differ) != 1:
             continue
-        seeds = sorted({s for (c, s) in success if c == i} & {s for (c, s) in success if c == j})
-        b = sum(success[(i, s)] and not success[(j, s)] for s in seeds)
-        c = sum(success[(j, s)] and not success[(i, s)] for s in seeds)
-        diff = (sum(success[(i, s)] for s in seeds) - sum(success[(j, s)] for s in seeds)) / len(seeds) if seeds else None
+        _, paired = paired_success(success[i], success[j])
         pairs.append({
             "axis": differ[0], "a": i, "b": j, "a_value": cells_values[i][differ[0]], "b_value": cells_values[j][differ[0]],
-            "others": cell_label(rest) if (rest := {k: v for k, v in cells_values[i].items() if k != differ[0]}) else "", "paired_seeds": len(seeds),
-            "a_only": b, "b_only": c, "success_difference": diff, "mcnemar_p": mcnemar_exact(b, c),
+            "others": cell_label(rest) if (rest := {k: v for k, v in cells_values[i].items() if k != differ[0]}) else "",
+            **paired,
         })  # fmt: skip
     expected = len(cells_values) * len(sweep["seeds"])
     return {"sweep": sweep, "recorded": len(rows), "expected": expected, "cells": cells, "pairs": pairs}
