@@ -161,12 +161,12 @@ class YawPlannerConfig:
             tracks (the roster: how many other drones were launched with this
             one, a fact of the mission like its goal, not their state; given
             to :class:`planners.yaw.planner.YawPlanner` as ``swarm_neighbours``
-            by the agent factory). Alg. 1 observes (Eq. 6) when every neighbour in A was seen
-            within t_hold, |V| = |A|, and takes A to be the tracks. A
-            neighbour the drone has never detected is in no track, so a drone
-            tracking two of its five neighbours "sees every neighbour" and
-            stares at those two. With ``roster_aware``, while fewer neighbours
-            than the roster's are tracked, some neighbour is
+            by the agent factory). Alg. 1 observes (Eq. 6) when every
+            neighbour in A was seen within t_hold, |V| = |A|, and takes A to be
+            the tracks. A neighbour the drone has never detected is in no
+            track, so a drone tracking two of its five neighbours "sees every
+            neighbour" and stares at those two. With ``roster_aware``, while
+            fewer neighbours than the roster's are tracked, some neighbour is
             unaccounted for and the planner explores instead (Eq. 3-5: the
             coverage reward turns the camera to sectors not seen within the
             window W, where such a neighbour can be). Not in MP-CDE; off by
@@ -174,11 +174,11 @@ class YawPlannerConfig:
             no success rate and cost tracking accuracy (docs/results/safety.md).
             Why it was tried: in that sweep every collision at 0.5 and 1 m/s
             was between drones that never had each other in view, several of
-            them while both observed other neighbours (docs/results/yaw_planner.md). Limits: it
-            counts tracks, so a false or split track can stand for a neighbour
-            never seen; and a neighbour that has failed and fallen is never
-            tracked again, so after its track is pruned the survivors no longer
-            observe.
+            them while both observed other neighbours
+            (docs/results/yaw_planner.md). Limits: it counts tracks, so a
+            false or split track can stand for a neighbour never seen; and a
+            neighbour that has failed and fallen is never tracked again, so
+            after its track is pruned the survivors no longer observe.
         still_speed_mps: in tracking mode, below this horizontal speed the
             direction of travel is undefined and the yaw is held [m/s]
             (chosen: 0.1 m/s).
