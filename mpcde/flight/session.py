@@ -58,7 +58,7 @@ if TYPE_CHECKING:
     from mpcde.config.scenario import ScenarioConfig
     from mpcde.flight.run_types import PreparedRun
 
-__all__ = ["FlightSession", "FrameSink"]
+__all__ = ["FlightSession", "FrameSink", "line_of_sight"]
 
 FrameSink = Callable[[float, TrueState, list[RgbdFrame | None]], None]
 EPS_S = 1e-9  # tolerance when simulated time meets a rate's next tick [s]
@@ -112,7 +112,7 @@ class FlightSession:
         self.estimator = PoseEstimator(cfg.pose_estimate, n, cfg.seed)
         self.rig = CameraRig(cfg.camera, cfg.seed)
         world = self.world
-        self.radio = Radio(cfg.radio, n, cfg.seed, line_of_sight=lambda a, b: _line_of_sight(world, a, b), in_view=self._in_view)
+        self.radio = Radio(cfg.radio, n, cfg.seed, line_of_sight=lambda a, b: line_of_sight(world, a, b), in_view=self._in_view)
         self.faults = FaultInjector(cfg.faults, n, cfg.seed, (cfg.camera.width_px, cfg.camera.height_px))
         self.track_score = TrackingScore()
         self.observed = ObservedArea(prepared.obstacles, cfg.world.arena_size_m, n, cfg.camera.hfov_deg, cfg.camera.depth_max_m) if cfg.run.cameras else None
@@ -259,7 +259,7 @@ class FlightSession:
             return False
         if abs(p[0]) > p[2] * np.tan(np.radians(cam.hfov_deg) / 2) or abs(p[1]) > p[2] * np.tan(np.radians(cam.vfov_deg) / 2):
             return False
-        return _line_of_sight(self.world, T[:3, 3], truth.pos_world[sender])
+        return line_of_sight(self.world, T[:3, 3], truth.pos_world[sender])
 
     def _finish_frames(self) -> tuple[float, list[RgbdFrame], list | None]:
         """Collect the render batch in flight: onboard frames (+ truth labels), and the workers' detections if they ran it."""
@@ -371,7 +371,7 @@ def _score_tracks(score: TrackingScore, agents: list, t: float, truth: TrueState
             score.update(a.drone_id, a.perception.predictions(t), t, truth.pos_world, truth.vel_world, alive)
 
 
-def _line_of_sight(world: World, a: np.ndarray, b: np.ndarray) -> bool:
+def line_of_sight(world: World, a: np.ndarray, b: np.ndarray) -> bool:
     """Whether the segment a-b (3,) misses every static obstacle (PyBullet ray test)."""
     from sim.bullet import pb
 

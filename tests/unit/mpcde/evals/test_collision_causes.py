@@ -40,7 +40,8 @@ def _ticks(braking_at: dict[float, list[int]]) -> _Recorder:
         b = np.zeros(2, bool)
         b[braking] = True
         modes = ["observing" if t < 4.97 else "exploring", None]  # drone 0's yaw planner switches just before the event
-        rec.ticks.append(_Tick(t, np.zeros((2, 2), int), np.zeros((2, 2), bool), np.full((2, 2), np.inf), [[], []], [None, None], b, np.zeros(2, bool), modes, np.array([[0.0, 90.0 + t], [-100.0, 0.0]])))
+        rec.ticks.append(_Tick(t, np.zeros((2, 2), int), np.zeros((2, 2), bool), np.full((2, 2), np.inf), [[], []], [None, None], b, np.zeros(2, bool), modes, np.array([[0.0, 90.0 + t], [-100.0, 0.0]]),
+                              np.array([[0, 2], [1, 0]]), np.array([1.5, 1.5 + (5.0 - t)]), np.array([[np.nan, 30.0 + t], [np.nan, np.nan]])))  # fmt: skip
     return rec
 
 
@@ -57,3 +58,10 @@ def test_fallback_is_a_brake_already_on_before_the_event_not_one_that_reacts_to_
         assert "yaw_modes" not in out.detail["1->0"] and out.detail["1->0"]["tracks_before"] == 0
         assert out.detail["0->1"]["off_axis_deg"] == {"nearest": round(90.0 + t - BEFORE_S - 0.04, 1), "last": 95.0}
         assert out.detail["1->0"]["off_axis_deg"] == {"nearest": 100.0, "last": 100.0}
+        # where each truly was for the other's camera, their height difference, the bearing from travel
+        assert out.detail["0->1"]["where"] == {"outside vertical view": 1.0}
+        assert out.detail["1->0"]["where"] == {"outside horizontal view": 1.0}
+        assert out.detail["0->1"]["dz_m"] == {"max_abs": round(BEFORE_S + 0.04, 2), "last": 0.0}
+        assert out.detail["1->0"]["dz_m"] == {"max_abs": round(BEFORE_S + 0.04, 2), "last": -0.0}
+        assert out.detail["0->1"]["travel_off_deg"] == {"min": round(30.0 + t - BEFORE_S - 0.04, 1), "max": 35.0, "last": 35.0}
+        assert "travel_off_deg" not in out.detail["1->0"]  # drone 1 never moved
