@@ -12,6 +12,8 @@ enters as the C^2 cubic ``max(v, 0)^3`` (GCOPTER's choice):
 * speed:      ``v = ||p'||^2 - v_max^2``
 * acceleration: ``v = ||p''||^2 - a_max^2``
 * obstacle:   ``v = (C_o + margin) - d(p)`` with ``d`` from a ``DistanceField``
+* altitude band (our addition, off by default): ``v = max(z - z_hi, z_lo - z)``,
+  summed into the obstacle term (both keep the samples in the free workspace)
 * swarm (MP-CDE Eq. 16): ``v = (C_s + margin + r_n(t))^2 - ||E^{1/2} (p(t) - p_n(t))||^2``
   against each neighbour prediction ``p_n`` evaluated at the same absolute time,
   ``E = diag(1, 1, 1/c)``. Eq. 16 is garbled in our copy of the paper; we read it
@@ -79,6 +81,11 @@ class PenaltyParameters:
         weight_vel, weight_acc, weight_obstacle, weight_swarm: penalty weights [-]
             (w_s is MP-CDE's swarm weight); default 1e5 each.
         samples_per_piece: K, sample intervals per piece [-]; default 16 (GCOPTER).
+        altitude_band_m: (z_lo, z_hi) world altitudes [m] the samples are held between by the penalty
+            ``w_z max(z - z_hi, z_lo - z, 0)^3``, added to the obstacle term (not in MP-CDE: it keeps a
+            swarm in the layer its cameras' +-29 deg vertical view covers; docs/results/safety.md);
+            default (-inf, inf): off.
+        weight_altitude: w_z [-]; default 1e5.
     """
 
     v_max_mps: float = 2.0
@@ -95,8 +102,13 @@ class PenaltyParameters:
     weight_obstacle: float = 1.0e5
     weight_swarm: float = 1.0e5
     samples_per_piece: int = 16
+    altitude_band_m: tuple[float, float] = (-float("inf"), float("inf"))
+    weight_altitude: float = 1.0e5
 
     def __post_init__(self) -> None:
+        lo, hi = self.altitude_band_m
+        if not lo < hi or np.isnan(lo) or np.isnan(hi):
+            raise ConfigError("altitude_band_m", self.altitude_band_m, "must be (z_lo, z_hi) with z_lo < z_hi")
         for name in ("v_max_mps", "a_max_mps2", "swarm_clearance_m"):
             if not getattr(self, name) > 0.0:
                 raise ConfigError(name, getattr(self, name), "must be > 0")
@@ -109,6 +121,7 @@ class PenaltyParameters:
             "weight_acc",
             "weight_obstacle",
             "weight_swarm",
+            "weight_altitude",
         ):
             if not getattr(self, name) >= 0.0:
                 raise ConfigError(name, getattr(self, name), "must be >= 0")
@@ -178,7 +191,7 @@ class PenaltyTerms:
     """Weighted penalty values, their partial gradients and sample statistics.
 
     Attributes:
-        vel, acc, obstacle, swarm: weighted penalty integrals [-].
+        vel, acc, obstacle, swarm: weighted penalty integrals [-] (obstacle includes the altitude band's).
         grad_by_coeffs: (6M, 3) partial gradient of their sum by the coefficients.
         grad_by_times: (M,) partial gradient of their sum by the durations.
         max_speed_mps, max_acc_mps2: largest sampled speed and acceleration.
@@ -239,7 +252,8 @@ class TrajectoryCost:
                 float(distance_field.voxel_m),
             )
         p = params
-        #: (12,) kernel parameters (v_max, a_max, C_o + margin, C_s + margin, 1/c, n_sigma, r_max, w_v, w_a, w_o, w_s, rho)
+        #: (15,) kernel parameters (v_max, a_max, C_o + margin, C_s + margin, 1/c, n_sigma, r_max, w_v, w_a, w_o, w_s,
+        #: rho, z_lo, z_hi, w_z)
         self.parameter_vector = np.array(
             [
                 p.v_max_mps,
@@ -254,6 +268,9 @@ class TrajectoryCost:
                 p.weight_obstacle,
                 p.weight_swarm,
                 p.swarm_recovery_mps,
+                p.altitude_band_m[0],
+                p.altitude_band_m[1],
+                p.weight_altitude,
             ]
         )
         self._out = np.zeros(8)

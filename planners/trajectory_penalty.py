@@ -106,11 +106,13 @@ def _penalty_kernel(
 
     With ``stats`` False the minimum swarm margin (out[7]) is not recorded, which lets far samples skip early.
 
-    prm = (v_max, a_max, C_o + margin, C_s + margin, 1/c, n_sigma, r_max, w_v, w_a, w_o, w_s, rho);
-    nb_cov = NeighborTable.radius_terms.
+    prm = (v_max, a_max, C_o + margin, C_s + margin, 1/c, n_sigma, r_max, w_v, w_a, w_o, w_s, rho, z_lo, z_hi, w_z);
+    nb_cov = NeighborTable.radius_terms. The altitude band's penalty w_z viol^3, viol = z - z_hi or z_lo - z > 0,
+    is added to the obstacle term (out[2]): both keep the samples in the free workspace.
     """
     v_max, a_max, c_obs, c_sw, inv_c, n_sig, r_max = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6]
     w_v, w_a, w_o, w_s, rho = prm[7], prm[8], prm[9], prm[10], prm[11]
+    z_lo, z_hi, w_z = prm[12], prm[13], prm[14]
     m = T.shape[0]
     n_nb = nb_tlast.shape[0]
     vmax2 = v_max * v_max
@@ -206,6 +208,12 @@ def _penalty_kernel(
                     f_obs += omg * step * pen
                     for d in range(3):
                         g_p[d] -= gv * dist_grad[idx, d]
+            viol = max(pos[2] - z_hi, z_lo - pos[2])  # outside the altitude band [z_lo, z_hi]
+            if viol > 0.0 and w_z > 0.0:
+                pen, gv = _cubic(w_z, viol, 3.0)
+                node += pen
+                f_obs += omg * step * pen
+                g_p[2] += gv if pos[2] > z_hi else -gv
             t_abs = t_start + s1
             for n in range(n_nb):
                 if skip[n]:

@@ -34,6 +34,13 @@ class DeniedAgentConfig:
             in range is detected and becomes a track the yaw planner keeps looking for (Alg. 1
             line 8 looks only for neighbours it has tracked). Not in MP-CDE. Why, and what it has
             done so far: docs/results/safety.md. Off by default until that sweep measures it.
+        altitude_band_m: half-height [m] of the layer the trajectory is held in: the optimiser
+            penalises leaving [min(z_start, z_goal) - b, max(z_start, z_goal) + b] (z_start: the
+            drone's first pose estimate; cubic penalty, weight 1e5, added to its obstacle term) and
+            the front-end search keeps to the same layer. Not in MP-CDE. Why: a neighbour passing
+            more than about 0.55 d above or below is outside the camera's +-29 deg vertical view at
+            distance d, and two of the forest sweep's "never in view" collisions were such vertical
+            passes (docs/results/safety.md). inf (default): no band, the paper's free altitude.
         map: occupancy map settings.
         yaw: active yaw planner settings; its speed limit, yaw-rate limit, t_hold
             and field of view are taken from ``v_max_mps``, ``yaw_rate_max_radps``,
@@ -53,6 +60,7 @@ class DeniedAgentConfig:
     perceive_neighbours: bool = True
     active_yaw: bool = True
     look_around: bool = False
+    altitude_band_m: float = float("inf")
     map: MapConfig = field(default_factory=MapConfig)
     yaw: YawPlannerConfig = field(default_factory=YawPlannerConfig)
 
@@ -65,6 +73,7 @@ class DeniedAgentConfig:
             require_positive(name, getattr(self, name), unit)
         require_non_negative("start_delay_s", self.start_delay_s, "s")
         require_boolean("look_around", self.look_around)
+        require_positive("altitude_band_m", self.altitude_band_m, "m", inf_means="no altitude band")
         require_at_least("swarm_z_scale", self.swarm_z_scale, 1.0)
         require_boolean("perceive_neighbours", self.perceive_neighbours)
         require_boolean("active_yaw", self.active_yaw)

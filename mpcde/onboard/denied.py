@@ -44,6 +44,8 @@ false`` the heading follows the direction of travel (the ablation).
 
 from __future__ import annotations
 
+import dataclasses
+
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -139,6 +141,13 @@ class DeniedAgent(OnboardAgent):
         self.latest_estimate = estimate
         if self.hover_world is None:
             self.hover_world = estimate.pos_world.copy()
+            band = self.config.altitude_band_m
+            if np.isfinite(band):  # the layer between the start and goal altitudes, widened by the band
+                lo = min(float(self.hover_world[2]), float(self.goal_world[2])) - band
+                hi = max(float(self.hover_world[2]), float(self.goal_world[2])) + band
+                self.optimizer = dataclasses.replace(self.optimizer, altitude_band_m=(lo, hi))
+                pad = self.config.map.voxel_m  # the search's voxels: the start's own voxel stays in the layer
+                self.search = dataclasses.replace(self.search, min_altitude_m=max(0.0, lo - pad), max_altitude_m=hi + pad)
             yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
             c = self.config
             self.heading = ActiveYaw(

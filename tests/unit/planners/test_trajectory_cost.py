@@ -272,3 +272,37 @@ def test_infinite_recovery_rate_is_the_full_clearance():
     full, _, _ = _total_cost(_relaxed_cost(0.4, start=False), head, tail, q, T)
     assert not _relaxed_cost(np.inf).neighbors.radius_terms[:, 3].any()
     assert off.swarm == full.swarm > 0
+
+
+def test_altitude_band_gradient_matches_finite_differences_and_its_value_a_brute_force_trapezoid():
+    """The band penalty alone (every other weight 0): both sides violated, against central differences and
+    against the trapezoid of w_z max(z - z_hi, z_lo - z, 0)^3 over the samples."""
+    weights = {k: 0.0 for k in ("weight_vel", "weight_acc", "weight_obstacle", "weight_swarm")}
+    params = PenaltyParameters(samples_per_piece=8, altitude_band_m=(0.9, 1.1), weight_altitude=10.0, **weights)
+    cost = TrajectoryCost(params, 10.0, None, [])
+    head, tail, q, T = _problem()
+    terms, gq, gt = _total_cost(cost, head, tail, q, T)
+    _assert_gradients_match_finite_differences(cost, head, tail, q, T, gq, gt)
+    minco = MincoS3()
+    minco.set_conditions(head, tail, T.size)
+    minco.set_parameters(q, T)
+    traj = minco.trajectory(cost.t0_s)
+    start = np.concatenate([[0.0], np.cumsum(T)[:-1]])
+    expected, above, below = 0.0, False, False
+    for i in range(T.size):
+        t_loc = start[i] + np.linspace(0.0, T[i], 9)
+        z = traj.pos(t_loc)[:, 2]
+        above, below = above or bool(np.any(z > 1.1)), below or bool(np.any(z < 0.9))
+        pen = 10.0 * np.maximum(np.maximum(z - 1.1, 0.9 - z), 0.0) ** 3
+        w = np.full(9, T[i] / 8)
+        w[[0, -1]] *= 0.5
+        expected += float(np.sum(w * pen))
+    assert above and below  # both sides of the band are exercised
+    assert terms.obstacle == pytest.approx(expected, rel=1e-10)
+    assert terms.vel == terms.acc == terms.swarm == 0.0
+
+
+@pytest.mark.parametrize("band", [(1.0, 1.0), (2.0, 1.0), (float("nan"), 1.0)])
+def test_altitude_band_must_be_ordered(band):
+    with pytest.raises(Exception, match="altitude_band_m"):
+        PenaltyParameters(altitude_band_m=band)

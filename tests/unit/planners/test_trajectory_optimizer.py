@@ -249,3 +249,21 @@ def test_a_short_hop_gets_min_pieces_and_can_dodge_a_neighbor():
     t, pos, _, _ = _dense(result.trajectory)
     scale = np.array([1.0, 1.0, 1.0 / np.sqrt(cfg.swarm_z_scale)])
     assert np.linalg.norm((pos - plan.position(t)) * scale, axis=1).min() >= cfg.swarm_clearance_m
+
+
+def test_altitude_band_turns_a_pass_over_a_neighbour_into_a_pass_beside_it():
+    """A neighbour hovers on the line, the front end's waypoint a little above it: free, the optimiser
+    climbs 0.9 m over it (out of a level camera's vertical view); with the band [0.8, 1.2] m it stays in the
+    layer (the cubic penalty's settling depth, 2 mm here) and clears the neighbour sideways instead."""
+    wp = np.array([START[0], [5.0, 0.01, 1.1], GOAL[0]])
+    nb = NeighborPrediction.constant_velocity(4, "radio", 0.0, [5.0, 0.0, 1.0], [0.0, 0.0, 0.0], np.zeros((6, 6)))
+    out = {}
+    for band in [(-np.inf, np.inf), (0.8, 1.2)]:
+        cfg = TrajectoryOptimizerConfig(altitude_band_m=band)
+        result = solve(build_trajectory_problem(START, GOAL, wp, None, [nb], 0.0, cfg))
+        _, pos, _, _ = _dense(result.trajectory)
+        assert result.feasible and result.min_swarm_margin_m >= cfg.swarm_clearance_m
+        out[band] = (pos[:, 2].max(), np.abs(pos[:, 1]).max())
+    (z_free, y_free), (z_band, y_band) = out.values()
+    assert z_free > 1.5  # over it
+    assert z_band <= 1.2 + 0.01 and y_band > y_free + 0.2  # beside it

@@ -1,6 +1,7 @@
 """The denied agent's fallback stop: committed until a replan succeeds, not restarted at every frame (no flight)."""
 
 import numpy as np
+import pytest
 
 from mpcde.config.denied import DeniedAgentConfig
 from mpcde.onboard.denied import DeniedAgent
@@ -44,3 +45,17 @@ def test_a_successful_replan_ends_the_stop_and_the_next_brake_starts_a_new_one()
     agent.trajectory, agent.braking = _line(np.array([1.0, 0.0, 1.5]), np.array([1.0, 0.0, 0.0]), 3.0, 1.0), False
     agent._brake(1.2)
     assert agent.stats.brakes == 2 and agent.trajectory.t0_s == 1.2
+
+
+def test_the_altitude_band_is_set_from_the_first_pose_estimate_and_the_goal():
+    from sim.types import PoseEstimate
+
+    free = DeniedAgent(0, np.array([6.0, 0.0, 2.0]), DeniedAgentConfig())
+    banded = DeniedAgent(0, np.array([6.0, 0.0, 2.0]), DeniedAgentConfig(altitude_band_m=0.2))
+    for agent in (free, banded):
+        for z in (1.5, 1.8):  # only the first estimate fixes the layer
+            agent.on_pose_estimate(PoseEstimate(0.0, np.array([0.0, 0.0, z]), np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3)))
+    assert free.optimizer.altitude_band_m == (-np.inf, np.inf) and free.search.max_altitude_m == np.inf
+    assert banded.optimizer.altitude_band_m == pytest.approx((1.3, 2.2))
+    voxel = banded.config.map.voxel_m
+    assert (banded.search.min_altitude_m, banded.search.max_altitude_m) == pytest.approx((1.3 - voxel, 2.2 + voxel))
