@@ -16,6 +16,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from sim.kernel_cache import use_versioned_cache
+
+use_versioned_cache()  # before any kernel of this package is compiled (sim/kernel_cache.py)
+
 if TYPE_CHECKING:
     from mpcde.api import fly, load_scenario
     from mpcde.config.modes import MODES

@@ -45,7 +45,6 @@ false`` the heading follows the direction of travel (the ablation).
 from __future__ import annotations
 
 import dataclasses
-
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field

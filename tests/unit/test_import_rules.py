@@ -21,8 +21,8 @@ OURS = ("sim", "perception", "planners", "mpcde")
 # layer -> (allowed module prefixes of ours, forbidden third-party or own prefixes)
 RULES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "sim": (("sim",), ()),
-    "perception": (("perception", "sim.types", "sim.checks"), ("pybullet",)),
-    "planners": (("planners", "sim.types", "sim.checks", "perception.types"), ("pybullet", "torch")),
+    "perception": (("perception", "sim.types", "sim.checks", "sim.kernel_cache"), ("pybullet",)),
+    "planners": (("planners", "sim.types", "sim.checks", "sim.kernel_cache", "perception.types"), ("pybullet", "torch")),
     "mpcde/onboard": (
         ("mpcde.onboard", "mpcde.config", "mpcde.errors", "perception", "planners", "sim.types", "sim.checks", "sim.rotations"),
         ("pybullet",),
