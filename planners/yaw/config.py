@@ -147,6 +147,20 @@ class YawPlannerConfig:
             shortest period at which a 60 deg swing turns within the 2 rad/s
             limit, 4 x 60 deg / 2.1 s = 1.99 rad/s, so the camera revisits
             each side every 2.1 s).
+        tracking_sweep_pattern: how the tracking-mode swing moves. ``"clock"``
+            (default): the triangle wave in absolute time above. ``"stalest"``:
+            a sweep at the full yaw rate between travel - sweep and travel +
+            sweep, reversing at each end, that on entering the tracking mode
+            turns first to the end whose direction the camera saw longest ago
+            (the yaws of the last ``window_s``; never seen counts oldest);
+            ``tracking_sweep_period_s`` is then unused. Not in MP-CDE; off
+            until a fixed-seed sweep measures it. Why: the clock's wave is
+            open-loop, so after observing or exploring the camera meets it
+            wherever it happens to be and may spend its first second on the
+            side it has just looked at; traced on the forest sweep (seed 54
+            at 1 m/s), a drone observed a neighbour abeam on its left, explored
+            to its right, and then swung right of travel for the 1.3 s before
+            the neighbour hit it (docs/results/safety.md).
         observing_sweep: the observing mode swings the camera too, the same
             triangle wave (``tracking_sweep_deg``, ``tracking_sweep_period_s``)
             about Eq. 6's bearing. Not in MP-CDE; off by default (not yet
@@ -230,6 +244,7 @@ class YawPlannerConfig:
     still_speed_mps: float = 0.1
     tracking_sweep_deg: float = 60.0
     tracking_sweep_period_s: float = 2.1
+    tracking_sweep_pattern: str = "clock"
     observing_sweep: bool = False
     roster_aware: bool = False
     exploring_mode: bool = True
@@ -259,6 +274,7 @@ class YawPlannerConfig:
         require_positive("free_max_age_s", self.free_max_age_s, inf_means="free space never ages")
         require_one_of("method", self.method, ("mpcde", "zhou"))
         require_one_of("free_distance", self.free_distance, ("horizontal", "voxel", "occupied"))
+        require_one_of("tracking_sweep_pattern", self.tracking_sweep_pattern, ("clock", "stalest"))
         require_integer_at_least("n_steps", self.n_steps, 1)
         require_integer_at_least("n_rays", self.n_rays, 2)
         m_min = math.ceil(2.0 * math.pi / (self.yaw_rate_max_radps * self.period_s) - 1e-9)

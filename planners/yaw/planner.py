@@ -19,7 +19,8 @@ predictions, and gets a :class:`YawPlan` of n + 1 yaws over the next n t_y:
    Dijkstra on the yaw lattice with E (Eq. 3) and V (Eq. 4) for the
    neighbours in A minus V (Alg. 1 line 8).
 5. Otherwise *tracking*: yaw along the direction of travel (swinging about it by
-   ``tracking_sweep_deg`` when that is set; not in the paper).
+   ``tracking_sweep_deg`` when that is set, on the clock or towards the side
+   seen longest ago, ``tracking_sweep_pattern``; not in the paper).
 
 The paper's ablations (Table III) switch modes off: ``exploring_mode: false``
 flies heading-along-travel where exploring would run; ``tracking_mode:
@@ -50,7 +51,7 @@ from planners.yaw.lattice import LatticePath, edge_costs, shortest_path
 from planners.yaw.safety import safe_regime, safety_margin
 from planners.yaw.steering import observe_targets, rate_limited, sweep_offsets, track_targets
 from planners.yaw.types import TrajectoryView, YawPlan
-from planners.yaw.visibility import visibility_rewards
+from planners.yaw.visibility import visibility_rewards, wrap_angle
 
 __all__ = ["YawPlanner"]
 
@@ -72,6 +73,8 @@ class YawPlanner:
         self._fan = FanGeometry.from_config(self.config)
         self._in_safe_regime = False
         self._window: deque[tuple[float, np.ndarray]] = deque()
+        self._yaws: deque[tuple[float, float]] = deque()  # (time [s], yaw [rad]) of the calls in the last window_s
+        self._sweep_plan: tuple[np.ndarray, np.ndarray] | None = None  # the "stalest" swing's last layers and ends
         self.last_path: LatticePath | None = None
         """The lattice path of the last exploring plan (for inspection), else None."""
 
@@ -84,6 +87,8 @@ class YawPlanner:
         """Forget the regime (back to tracking) and the coverage window."""
         self._in_safe_regime = False
         self._window.clear()
+        self._yaws.clear()
+        self._sweep_plan = None
         self.last_path = None
 
     def plan(
@@ -117,6 +122,8 @@ class YawPlanner:
         active = list(predictions)
         recent = [q for q in active if time_s - q.stamp_s <= cfg.t_hold_s]
         self._remember_sector(time_s, yaw, positions[0], snapshot)
+        self._yaws = deque(entry for entry in self._yaws if 0.0 < time_s - entry[0] <= cfg.window_s)
+        self._yaws.append((time_s, yaw))
         self.last_path = None
         safe = self._in_safe_regime or not cfg.tracking_mode  # without tracking mode, never the safety turn
         # |V| = |A|: every neighbour recently seen; with roster_aware, A also holds the roster's untracked neighbours
@@ -126,8 +133,11 @@ class YawPlanner:
             yaws = self._explore(yaw, times, positions, snapshot, (), zhou=True)
         elif not safe or not (cfg.exploring_mode or all_seen):
             mode = "tracking"  # unsafe; or, without exploring mode, where exploring would run: heading along travel
-            targets = track_targets(trajectory.velocities(times[1:]), cfg.still_speed_mps, yaw) + self._swing(times[1:])
-            yaws = rate_limited(yaw, targets, cfg.max_step_rad)
+            travel = track_targets(trajectory.velocities(times[1:]), cfg.still_speed_mps, yaw)
+            if cfg.tracking_sweep_pattern == "stalest" and cfg.tracking_sweep_deg > 0.0:
+                yaws = self._stalest_sweep(time_s, yaw, times, travel)
+            else:
+                yaws = rate_limited(yaw, travel + self._swing(times[1:]), cfg.max_step_rad)
         elif all_seen:
             mode = "observing"
             targets = observe_targets(positions[1:], times[1:], recent, cfg.distance_eps_m, yaw)
@@ -138,6 +148,8 @@ class YawPlanner:
             mode = "exploring"
             unseen = [q for q in active if time_s - q.stamp_s > cfg.t_hold_s]  # A \ V, Alg. 1 line 8
             yaws = self._explore(yaw, times, positions, snapshot, unseen)
+        if mode != "tracking":
+            self._sweep_plan = None  # the next tracking spell chooses its first side afresh
         if active:
             now = np.stack([q.position(time_s) for q in active])
             d_min = float(np.min(np.linalg.norm(now - positions[0], axis=1)))
@@ -159,6 +171,39 @@ class YawPlanner:
         """The camera swing's yaw offsets (n,) [rad] at ``times_s`` (n,): ``tracking_sweep_deg`` every ``tracking_sweep_period_s``."""
         cfg = self.config
         return sweep_offsets(times_s, math.radians(cfg.tracking_sweep_deg), cfg.tracking_sweep_period_s)
+
+    def _stalest_sweep(self, time_s: float, yaw: float, times: np.ndarray, travel: np.ndarray) -> np.ndarray:
+        """Tracking-mode yaws (n + 1,) [rad] of the ``"stalest"`` swing at layer ``times`` (n + 1,) [s] about the
+        travel headings ``travel`` (n,) of layers 1 .. n.
+
+        Full-rate turns between travel - A and travel + A (A = ``tracking_sweep_deg``), reversing where an
+        end is reached. The end being turned to carries over from the last plan at ``time_s`` (its layers
+        record which end each step turned to). A new tracking spell first turns to the end whose direction
+        was last inside the horizontal field of view longest ago (never: oldest; a tie goes left).
+        """
+        cfg = self.config
+        amp, step, half = math.radians(cfg.tracking_sweep_deg), cfg.max_step_rad, 0.5 * cfg.fov_h_rad
+        if self._sweep_plan is None:
+            seen = {}
+            for s in (1, -1):
+                end = float(travel[0]) + s * amp
+                seen[s] = max((t for t, y in self._yaws if abs(float(wrap_angle(y - end))) <= half), default=-math.inf)
+            side = 1 if seen[1] <= seen[-1] else -1
+        else:
+            last_times, last_sides = self._sweep_plan
+            side = int(last_sides[max(int(np.searchsorted(last_times, time_s + 1e-9, side="right")) - 1, 0)])
+        sides = np.empty(len(travel) + 1, int)  # sides[i]: the end the step from layer i turns to
+        out = np.empty(len(travel) + 1)
+        out[0] = yaw
+        for i, heading in enumerate(travel):
+            sides[i] = side
+            err = float(wrap_angle(heading + side * amp - out[i]))
+            out[i + 1] = out[i] + min(max(err, -step), step)
+            if abs(err) <= step:  # the end is reached within this step: turn back
+                side = -side
+        sides[-1] = side
+        self._sweep_plan = (np.asarray(times, float), sides)
+        return out
 
     def _remember_sector(self, time_s: float, yaw: float, pos_world: np.ndarray, snapshot: OccupancySnapshot) -> None:
         """Add the current yaw's visible sector to the coverage window W and drop entries older than window_s.

@@ -439,3 +439,59 @@ def test_the_agent_factory_gives_each_denied_drone_its_roster():
         agent = make_agent(prepared.config, 0, prepared.goals, prepared.obstacles)
         denied = agent if mode == "denied" else agent.denied
         assert denied.swarm_neighbours == roster
+
+
+def _stalest(**kw) -> YawPlannerConfig:
+    return YawPlannerConfig(free_distance="voxel", tracking_sweep_pattern="stalest", **kw)
+
+
+@pytest.mark.parametrize("looked", [1, -1])
+def test_the_stalest_sweep_turns_first_to_the_side_seen_longest_ago(looked):
+    """After the camera looked at one end of the swing (observing it, say), tracking turns to the other end first."""
+    cfg = _stalest()
+    heading, amp = 0.3, math.radians(cfg.tracking_sweep_deg)
+    vel = np.array([math.cos(heading), math.sin(heading), 0.0])
+    planner = YawPlanner(cfg)
+    for k in range(5):  # half a second looking at one end: the calls are what the planner remembers
+        planner._yaws.append((0.1 * k, heading + looked * amp))
+    p = planner.plan(0.5, heading, line(vel), uniform_snapshot(1.0))
+    assert p.mode == "tracking"
+    assert np.sign(p.yaws[1] - heading) == -looked  # towards the end not seen
+    assert_rate_limited(p, heading, cfg)
+    np.testing.assert_allclose(np.diff(p.yaws)[:5], -looked * cfg.max_step_rad)  # at the full rate
+
+
+def test_the_stalest_sweep_reverses_at_each_end_and_stays_within_the_swing():
+    """Consecutive tracking plans, each flown for one t_y: the camera reaches both ends and never passes them."""
+    cfg = _stalest()
+    heading, amp = -0.4, math.radians(cfg.tracking_sweep_deg)
+    vel = np.array([math.cos(heading), math.sin(heading), 0.0])
+    planner, yaw, offsets = YawPlanner(cfg), heading, []
+    t = 0.0
+    for k in range(33):  # about 4 s, plans at the frames' 0.12 s: each flown until the next, between its layers
+        p = planner.plan(t, yaw, line(vel), uniform_snapshot(1.0))
+        assert p.mode == "tracking"
+        assert_rate_limited(p, yaw, cfg)
+        t += 0.12
+        yaw = float(np.interp(t, p.times_s, p.yaws))
+        offsets.append(yaw - heading)
+    offsets = np.array(offsets)
+    assert np.all(np.abs(offsets) <= amp + 1e-9)
+    # sampled every 0.12 s, each end is met within one step: turns of 2A take 2A / yaw_rate_max = 1.05 s
+    near = np.abs(offsets) > amp - cfg.max_step_rad * 1.2
+    visits = np.sign(offsets[near])[np.diff(np.flatnonzero(near), prepend=-2) > 1]  # one sign per visit to an end
+    assert len(visits) >= 3 and np.all(visits[1:] != visits[:-1])  # it alternates between the two ends
+
+
+def test_the_stalest_sweep_starts_afresh_after_another_mode_and_the_clock_is_the_default():
+    assert YawPlannerConfig().tracking_sweep_pattern == "clock"
+    cfg = _stalest()
+    heading = 0.0
+    vel = np.array([1.0, 0.0, 0.0])
+    planner = YawPlanner(cfg)
+    planner.plan(0.0, heading, line(vel), uniform_snapshot(1.0))
+    assert planner._sweep_plan is not None
+    planner.plan(0.1, heading, line(vel), uniform_snapshot(10.0))  # safe and alone: exploring
+    assert planner._sweep_plan is None
+    with pytest.raises(Exception, match="tracking_sweep_pattern"):
+        YawPlannerConfig(tracking_sweep_pattern="random")
