@@ -32,23 +32,21 @@ def method_of(yaw: dict) -> str:
     return "ours"
 
 
-def main() -> None:
-    store = Path(sys.argv[1])
+def cells(store: Path) -> list[dict]:
+    """One dict per (density, method) cell of the store: density, method, flights, S_obs mean and sd [m^2], successes,
+    the Wilson 95 % interval and the paper's S_obs (None where the paper gives none)."""
     spec = json.loads((store / "sweep.json").read_text())["sweep"]
     densities = dict(spec["axes"])["world.obstacle_density_per_100m2"]
-    cells = defaultdict(list)
+    by_cell = defaultdict(list)
     for line in (store / "results.jsonl").read_text().splitlines():
         r = json.loads(line)
-        if not r.get("metrics"):
-            continue
-        cells[r["cell"]].append(r)
+        if r.get("metrics"):
+            by_cell[r["cell"]].append(r)
     yaw_values = dict(spec["axes"])["denied.yaw"]
-    print(f"{'density /100m^2':>15}  {'method':<20} {'flights':>7}  {'S_obs m^2 mean +- sd':>21}  {'success':>7}  {'95% CI':>9}  {'paper S_obs':>11}")
-    summary = {}
+    out = []
     for di, density in enumerate(densities):
         for mi, yaw in enumerate(yaw_values):
-            index = di * len(yaw_values) + mi
-            rows = cells.get(index, [])
+            rows = by_cell.get(di * len(yaw_values) + mi, [])
             areas = [r["metrics"]["observed_area_swarm_m2"] for r in rows]
             ok = sum(bool(r["metrics"]["success"]) for r in rows)
             n = len(rows)
@@ -57,14 +55,30 @@ def main() -> None:
             lo, hi = wilson_interval(ok, n) if n else (float("nan"), float("nan"))
             m = method_of(yaw)
             paper = {"zhou": PAPER[di][0], "no_exploring": PAPER[di][1], "ours": PAPER[di][2]}.get(m)
-            summary[(di, m)] = mean
-            print(f"{density:>15g}  {METHODS[m]:<20} {n:>7d}  {mean:>12.1f} +- {sd:>5.1f}  {100 * ok / max(n, 1):>6.0f}%  {100 * lo:>3.0f}-{100 * hi:<3.0f}%  {'' if paper is None else f'{paper:.1f}':>11}")
+            out.append({"density_index": di, "density": density, "method": m, "flights": n, "s_obs_mean_m2": mean, "s_obs_sd_m2": sd,
+                        "successes": ok, "success_low": lo, "success_high": hi, "paper_s_obs_m2": paper})  # fmt: skip
+    return out
+
+
+def main() -> None:
+    table = cells(Path(sys.argv[1]))
+    print(f"{'density /100m^2':>15}  {'method':<20} {'flights':>7}  {'S_obs m^2 mean +- sd':>21}  {'success':>7}  {'95% CI':>9}  {'paper S_obs':>11}")
+    for c in table:
+        n, paper = c["flights"], c["paper_s_obs_m2"]
+        print(f"{c['density']:>15g}  {METHODS[c['method']]:<20} {n:>7d}  {c['s_obs_mean_m2']:>12.1f} +- {c['s_obs_sd_m2']:>5.1f}  "
+              f"{100 * c['successes'] / max(n, 1):>6.0f}%  {100 * c['success_low']:>3.0f}-{100 * c['success_high']:<3.0f}%  "
+              f"{'' if paper is None else f'{paper:.1f}':>11}")  # fmt: skip
     print("\nours against Zhou's, S_obs: measured (paper)")
-    for di, density in enumerate(densities):
-        ours, zhou = summary.get((di, "ours")), summary.get((di, "zhou"))
-        if ours and zhou:
-            paper = PAPER[di][2] / PAPER[di][0] - 1
-            print(f"  density {density:g}: {100 * (ours / zhou - 1):+.1f} % ({100 * paper:+.0f} %)")
+    for di, density, ours, zhou in margins(table):
+        paper = PAPER[di][2] / PAPER[di][0] - 1
+        print(f"  density {density:g}: {100 * (ours / zhou - 1):+.1f} % ({100 * paper:+.0f} %)")
+
+
+def margins(table: list[dict]) -> list[tuple[int, float, float, float]]:
+    """(density index, density, ours' mean S_obs, Zhou's) for every density where both were flown."""
+    mean = {(c["density_index"], c["method"]): c["s_obs_mean_m2"] for c in table if c["flights"]}
+    return [(di, c["density"], mean[(di, "ours")], mean[(di, "zhou")])
+            for di, c in ((c["density_index"], c) for c in table if c["method"] == "ours") if (di, "ours") in mean and (di, "zhou") in mean]  # fmt: skip
 
 
 if __name__ == "__main__":

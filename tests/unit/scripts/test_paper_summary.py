@@ -1,0 +1,59 @@
+"""scripts/table3_report.py and scripts/paper_summary.py read their numbers from the stores (issue 28, deliverable 4)."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPTS = Path(__file__).resolve().parents[3] / "scripts"
+sys.path.insert(0, str(SCRIPTS))
+import paper_summary  # noqa: E402
+import table3_report  # noqa: E402
+
+YAWS = [{"method": "zhou"}, {"exploring_mode": False}, {"tracking_mode": False}, {}]
+AREAS = {0: [500.0, 520.0], 1: [400.0, 410.0], 2: [505.0, 515.0], 3: [440.0, 460.0]}  # per cell (method), two seeds
+
+
+def _table3_store(root: Path) -> Path:
+    store = root / "table3"
+    store.mkdir(parents=True)
+    axes = [["world.obstacle_density_per_100m2", [4.0]], ["denied.yaw", YAWS]]
+    (store / "sweep.json").write_text(json.dumps({"sweep": {"axes": axes}}))
+    rows = []
+    for cell, areas in AREAS.items():
+        for seed, area in enumerate(areas):
+            ok = not (cell == 3 and seed == 1)  # one failure, in "ours"
+            rows.append({"cell": cell, "seed": seed, "git_rev": "0" * 40, "metrics": {"observed_area_swarm_m2": area, "success": ok}})
+    rows.append({"cell": 0, "seed": 2, "git_rev": "0" * 40, "metrics": None, "error": "x"})  # a failed flight is left out
+    (store / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return store
+
+
+def test_table3_cells_and_margin_come_from_the_store(tmp_path):
+    table = table3_report.cells(_table3_store(tmp_path))
+    assert [c["method"] for c in table] == ["zhou", "no_exploring", "no_tracking", "ours"]
+    ours = table[3]
+    assert (ours["flights"], ours["successes"], ours["s_obs_mean_m2"]) == (2, 1, 450.0)
+    assert ours["s_obs_sd_m2"] == pytest.approx(math.sqrt(200.0))
+    assert ours["paper_s_obs_m2"] == 167.5 and table[2]["paper_s_obs_m2"] is None
+    assert table3_report.margins(table) == [(0, 4.0, 450.0, 510.0)]
+
+
+def test_the_summary_prints_the_stores_numbers_and_names_what_is_missing(tmp_path):
+    _table3_store(tmp_path)
+    (tmp_path / "akf_pipeline").mkdir()
+    rows = [{"speed_mps": 0.5, "filter": "akf", "pos_rmse_m": 0.0477, "vel_rmse_mps": 0.1194}]
+    (tmp_path / "akf_pipeline" / "results.json").write_text(json.dumps({"rows": rows}))
+    out = subprocess.run([sys.executable, str(SCRIPTS / "paper_summary.py"), str(tmp_path)], capture_output=True, text=True, check=True).stdout
+    lines = out.splitlines()
+    assert lines[0].startswith("| paper figure | paper | ours | command | commit | date |")
+    assert "| Table III, ours, density 4 | 167.5 m^2 | 450.0 +- 14.1 m^2, success 1 of 2 |" in out
+    assert "| Table III, ours against Zhou's, density 4 | +17 % | -11.8 % |" in out  # 450 / 510 - 1
+    assert "| AKF vs KF, AKF at 0.5 m/s | 0.06 m, 0.25 m/s | position 0.048 m, velocity 0.119 m/s |" in out
+    assert "<!-- fig10:" in out and "<!-- fig6:" in out  # no such reports here: said, not invented
+    assert paper_summary.revisions(tmp_path / "table3")[0] == "0000000"
