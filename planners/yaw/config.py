@@ -153,8 +153,9 @@ class YawPlannerConfig:
             sweep, reversing at each end, that on entering the tracking mode
             turns first to the end whose direction the camera saw longest ago
             (the yaws of the last ``window_s``; never seen counts oldest);
-            ``tracking_sweep_period_s`` is then unused. Not in MP-CDE; off
-            until a fixed-seed sweep measures it. Why: the clock's wave is
+            ``tracking_sweep_period_s`` is then unused. Not in MP-CDE; off: on
+            183 flights of the fixed-seed forest sweep it lost more seeds than
+            it kept at 0.5 and 2 m/s (docs/results/safety.md). Why: the clock's wave is
             open-loop, so after observing or exploring the camera meets it
             wherever it happens to be and may spend its first second on the
             side it has just looked at; traced on the forest sweep (seed 54
