@@ -77,9 +77,12 @@ def main() -> None:
 def margins(table: list[dict]) -> list[tuple[int, float, float, float]]:
     """(density index, density, ours' mean S_obs, Zhou's) for every density where both were flown."""
     mean = {(c["density_index"], c["method"]): c["s_obs_mean_m2"] for c in table if c["flights"]}
-    return [(di, c["density"], mean[(di, "ours")], mean[(di, "zhou")])
-            for di, c in ((c["density_index"], c) for c in table if c["method"] == "ours") if (di, "ours") in mean and (di, "zhou") in mean]  # fmt: skip
-
+    out = []
+    for c in table:
+        di = c["density_index"]
+        if c["method"] == "ours" and (di, "ours") in mean and (di, "zhou") in mean:
+            out.append((di, c["density"], mean[(di, "ours")], mean[(di, "zhou")]))
+    return out
 
 if __name__ == "__main__":
     main()

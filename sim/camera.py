@@ -19,6 +19,7 @@ import numpy as np
 from sim.checks import ConfigError
 
 __all__ = [
+    "VIEW",
     "CameraConfig",
     "apply_depth_sensor_model",
     "depth_buffer_to_depth_m",
@@ -27,6 +28,11 @@ __all__ = [
     "opengl_view_from_camera_to_world",
     "rotation_camera_to_body",
 ]
+
+VIEW = ("visible", "outside horizontal view", "outside vertical view", "beyond depth range", "behind an obstacle")
+"""Where a point truly is for a camera, by index (``FlightSession.view_of``): in view, or the first test that failed
+(in front of the camera and within its horizontal field of view, a point behind the image plane counting as
+outside it; within the vertical one; within the depth range; unoccluded)."""
 
 
 @dataclass(frozen=True)

@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from mpcde.config.scenario import ScenarioConfig
+from sim.camera import VIEW as WHERE
 from sim.obstacles import ObstacleField
 from sim.rotations import rotation_from_quat_xyzw, yaw_from_rotation
 
@@ -66,11 +67,6 @@ TRACK_GATE_M = 1.0
 """A track prediction within this [m] of the neighbour's true position tracks it."""
 CONTROL_MARGIN_M = 0.1
 """References at least this [m] clear of contact (2 r apart, or r from an obstacle, plus this) make a collision the controller's."""
-WHERE = ("visible", "outside horizontal view", "outside vertical view", "beyond depth range", "behind an obstacle")
-"""Where a neighbour's centre truly was for a camera (:func:`_where`): inside the frustum and in line of sight, or
-the first of these that failed: in front of the camera and within its horizontal field of view (a neighbour
-behind the image plane, e.g. close below a pitched-up drone, counts as outside it), within the vertical one,
-within the depth range, unoccluded."""
 CAUSES = (
     "fallback", "control overshoot", "never in view", "late detection", "track loss",
     "optimiser local minimum", "prediction error", "map miss", "comm mode", "unexplained",
@@ -110,7 +106,7 @@ class _Tick:
     comm_mode: np.ndarray  # (n,) bool
     yaw_modes: list  # per drone: the mode of its last yaw plan ("exploring", "observing", "tracking"), or None
     off_axis_deg: np.ndarray  # (n, n) true horizontal bearing of j from i's camera axis [deg], in (-180, 180]
-    where: np.ndarray  # (n, n) int: index into WHERE, where j's centre truly was for i's camera
+    where: np.ndarray  # (n, n) int: index into WHERE (sim.camera.VIEW, FlightSession.view_of), where j's centre truly was for i's camera
     z_m: np.ndarray  # (n,) true altitudes [m]
     travel_off_deg: np.ndarray  # (n, n) true horizontal bearing of j from i's horizontal velocity [deg] (nan: i still)
 
@@ -184,7 +180,7 @@ class _Recorder:
         moving = np.hypot(v[:, 0], v[:, 1]) >= 0.1
         trav = np.degrees(np.arctan2(d[..., 1], d[..., 0]) - np.arctan2(v[:, 1], v[:, 0])[:, None])
         trav = np.where(moving[:, None], (trav + 180.0) % 360.0 - 180.0, np.nan)
-        where = np.array([[_where(s, i, j) if i != j else 0 for j in range(n)] for i in range(n)])
+        where = np.array([[s.view_of(i, j) if i != j else 0 for j in range(n)] for i in range(n)])
         self.ticks.append(_Tick(t, in_view, detected, track_err, predictions, plans, braking, comm_mode, yaw_modes, off, where, truth.pos_world[:, 2].copy(), trav))
         while self.ticks and self.ticks[0].time_s < t - LOOKBACK_S - 1e-9:
             self.ticks.popleft()
@@ -196,22 +192,6 @@ class _Recorder:
             if tick.time_s <= t + 1e-9:
                 best = tick
         return best
-
-
-def _where(session: Any, i: int, j: int) -> int:
-    """Index into :data:`WHERE` of drone j's true centre for drone i's true camera (truth: a judge's reading)."""
-    from mpcde.flight.session import line_of_sight
-
-    truth, cam = session.truth, session.config.camera
-    T = session.rig.transform_camera_to_world(truth.pos_world[i], truth.rotation_body_to_world[i])
-    p = T[:3, :3].T @ (truth.pos_world[j] - T[:3, 3])
-    if p[2] <= 0.0 or abs(p[0]) > p[2] * np.tan(np.radians(cam.hfov_deg) / 2):
-        return 1
-    if abs(p[1]) > p[2] * np.tan(np.radians(cam.vfov_deg) / 2):
-        return 2
-    if not cam.depth_min_m <= p[2] <= cam.depth_max_m:
-        return 3
-    return 0 if line_of_sight(session.world, T[:3, 3], truth.pos_world[j]) else 4
 
 
 def _direction(rec: _Recorder, i: int, j: int, t_event: float, true_future: np.ndarray, times: np.ndarray, two_r: float) -> tuple[str, dict]:

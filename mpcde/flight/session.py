@@ -250,16 +250,23 @@ class FlightSession:
             self.next_radio += self.radio_period
 
     def _in_view(self, receiver: int, sender: int) -> bool:
-        """Whether ``sender`` is in ``receiver``'s camera view now (the view-gated radio): inside the field of view and
-        depth range of the receiver's true camera pose, and not hidden by an obstacle (truth: the channel's physics)."""
+        """Whether ``sender`` is in ``receiver``'s camera view now (the view-gated radio): :meth:`view_of` is visible."""
+        return self.view_of(receiver, sender) == 0
+
+    def view_of(self, receiver: int, sender: int) -> int:
+        """Where ``sender``'s centre truly is for ``receiver``'s true camera, an index into :data:`sim.camera.VIEW`: 0 inside the
+        field of view and depth range and not hidden by an obstacle, else the first of those that fails (truth: the
+        view-gated radio's physics, and the collision explainer's judge)."""
         truth, cam = self.truth, self.config.camera
         T = self.rig.transform_camera_to_world(truth.pos_world[receiver], truth.rotation_body_to_world[receiver])
         p = T[:3, :3].T @ (truth.pos_world[sender] - T[:3, 3])  # the sender in the receiver's camera frame
+        if p[2] <= 0.0 or abs(p[0]) > p[2] * np.tan(np.radians(cam.hfov_deg) / 2):
+            return 1
+        if abs(p[1]) > p[2] * np.tan(np.radians(cam.vfov_deg) / 2):
+            return 2
         if not cam.depth_min_m <= p[2] <= cam.depth_max_m:
-            return False
-        if abs(p[0]) > p[2] * np.tan(np.radians(cam.hfov_deg) / 2) or abs(p[1]) > p[2] * np.tan(np.radians(cam.vfov_deg) / 2):
-            return False
-        return line_of_sight(self.world, T[:3, 3], truth.pos_world[sender])
+            return 3
+        return 0 if line_of_sight(self.world, T[:3, 3], truth.pos_world[sender]) else 4
 
     def _finish_frames(self) -> tuple[float, list[RgbdFrame], list | None]:
         """Collect the render batch in flight: onboard frames (+ truth labels), and the workers' detections if they ran it."""

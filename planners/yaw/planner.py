@@ -73,7 +73,7 @@ class YawPlanner:
         self._fan = FanGeometry.from_config(self.config)
         self._in_safe_regime = False
         self._window: deque[tuple[float, np.ndarray]] = deque()
-        self._yaws: deque[tuple[float, float]] = deque()  # (time [s], yaw [rad]) of the calls in the last window_s
+        self._yaws: deque[tuple[float, float]] = deque()  # (time [s], yaw [rad]) of the last window_s's calls ("stalest")
         self._sweep_plan: tuple[np.ndarray, np.ndarray] | None = None  # the "stalest" swing's last layers and ends
         self.last_path: LatticePath | None = None
         """The lattice path of the last exploring plan (for inspection), else None."""
@@ -122,8 +122,9 @@ class YawPlanner:
         active = list(predictions)
         recent = [q for q in active if time_s - q.stamp_s <= cfg.t_hold_s]
         self._remember_sector(time_s, yaw, positions[0], snapshot)
-        self._yaws = deque(entry for entry in self._yaws if 0.0 < time_s - entry[0] <= cfg.window_s)
-        self._yaws.append((time_s, yaw))
+        if cfg.tracking_sweep_pattern == "stalest":  # the yaws it reads when a tracking spell starts
+            self._yaws = deque(entry for entry in self._yaws if 0.0 < time_s - entry[0] <= cfg.window_s)
+            self._yaws.append((time_s, yaw))
         self.last_path = None
         safe = self._in_safe_regime or not cfg.tracking_mode  # without tracking mode, never the safety turn
         # |V| = |A|: every neighbour recently seen; with roster_aware, A also holds the roster's untracked neighbours
