@@ -127,6 +127,10 @@ class _Recorder:
         self.n = n
         self.ticks: deque[_Tick] = deque()
         self.boxes: list[list] = [[] for _ in range(n)]
+        # the whole flight's history, one entry per delivery: time, and per ordered pair whether j was in i's
+        # frame, detected by i, tracked by i (for "when did i last know of j", beyond the look-back)
+        self.history_t: list[float] = []
+        self.history: list[np.ndarray] = []  # (3, n, n) bool: in view, detected, tracked
         for a in session.agents:
             original = a.on_frame
 
@@ -181,9 +185,24 @@ class _Recorder:
         trav = np.degrees(np.arctan2(d[..., 1], d[..., 0]) - np.arctan2(v[:, 1], v[:, 0])[:, None])
         trav = np.where(moving[:, None], (trav + 180.0) % 360.0 - 180.0, np.nan)
         where = np.array([[s.view_of(i, j) if i != j else 0 for j in range(n)] for i in range(n)])
+        self.history_t.append(t)
+        self.history.append(np.stack([in_view > 0, detected, track_err <= TRACK_GATE_M]))
         self.ticks.append(_Tick(t, in_view, detected, track_err, predictions, plans, braking, comm_mode, yaw_modes, off, where, truth.pos_world[:, 2].copy(), trav))
         while self.ticks and self.ticks[0].time_s < t - LOOKBACK_S - 1e-9:
             self.ticks.popleft()
+
+    def last_known(self, i: int, j: int, t: float) -> dict[str, float | None]:
+        """How long before ``t`` [s] drone i last had j in its frame, detected it and tracked it (None: never)."""
+        times = np.asarray(self.history_t)
+        keep = times <= t + 1e-9
+        out: dict[str, float | None] = {}
+        if not keep.any():
+            return {"in_view": None, "detected": None, "tracked": None}
+        flags = np.stack(self.history)[keep][:, :, i, j]  # (k, 3)
+        for c, name in enumerate(("in_view", "detected", "tracked")):
+            hit = np.nonzero(flags[:, c])[0]
+            out[name] = None if hit.size == 0 else round(float(t - times[keep][hit[-1]]), 2)
+        return out
 
     def at(self, t: float) -> _Tick | None:
         """The newest record at or before ``t``."""
@@ -200,6 +219,8 @@ def _direction(rec: _Recorder, i: int, j: int, t_event: float, true_future: np.n
     seen = [k.time_s for k in ticks if k.in_view[i, j] > 0]
     found = [k.time_s for k in ticks if k.detected[i, j]]
     detail = {"in_view_frames": len(seen), "detected_frames": len(found)}
+    # over the whole flight: how long before the event i last had j in view, detected it, tracked it
+    detail["last_known_s_before"] = rec.last_known(i, j, t_event)
     modes = [k.yaw_modes[i] for k in ticks if k.yaw_modes[i] is not None]
     if modes:  # what drone i's yaw planner was doing in the look-back: the fraction of deliveries in each mode
         detail["yaw_modes"] = {m: round(modes.count(m) / len(modes), 2) for m in sorted(set(modes))}

@@ -36,12 +36,17 @@ def _ticks(braking_at: dict[float, list[int]]) -> _Recorder:
     """A recorder with one delivery per listed time for two drones that never saw each other."""
     rec = _Recorder.__new__(_Recorder)
     rec.n, rec.ticks = 2, deque()
+    early = np.zeros((3, 2, 2), bool)
+    early[:, 0, 1] = True  # at 1 s, long before the look-back, drone 0 saw, detected and tracked drone 1
+    rec.history_t, rec.history = [1.0], [early]
     for t, braking in sorted(braking_at.items()):
         b = np.zeros(2, bool)
         b[braking] = True
         modes = ["observing" if t < 4.97 else "exploring", None]  # drone 0's yaw planner switches just before the event
         rec.ticks.append(_Tick(t, np.zeros((2, 2), int), np.zeros((2, 2), bool), np.full((2, 2), np.inf), [[], []], [None, None], b, np.zeros(2, bool), modes, np.array([[0.0, 90.0 + t], [-100.0, 0.0]]),
                               np.array([[0, 2], [1, 0]]), np.array([1.5, 1.5 + (5.0 - t)]), np.array([[np.nan, 30.0 + t], [np.nan, np.nan]])))  # fmt: skip
+        rec.history_t.append(t)
+        rec.history.append(np.zeros((3, 2, 2), bool))  # in the look-back, neither saw the other
     return rec
 
 
@@ -58,6 +63,8 @@ def test_fallback_is_a_brake_already_on_before_the_event_not_one_that_reacts_to_
         assert "yaw_modes" not in out.detail["1->0"] and out.detail["1->0"]["tracks_before"] == 0
         assert out.detail["0->1"]["off_axis_deg"] == {"nearest": round(90.0 + t - BEFORE_S - 0.04, 1), "last": 95.0}
         assert out.detail["1->0"]["off_axis_deg"] == {"nearest": 100.0, "last": 100.0}
+        assert out.detail["0->1"]["last_known_s_before"] == {"in_view": 4.0, "detected": 4.0, "tracked": 4.0}
+        assert out.detail["1->0"]["last_known_s_before"] == {"in_view": None, "detected": None, "tracked": None}
         # where each truly was for the other's camera, their height difference, the bearing from travel
         assert out.detail["0->1"]["where"] == {"outside vertical view": 1.0}
         assert out.detail["1->0"]["where"] == {"outside horizontal view": 1.0}
