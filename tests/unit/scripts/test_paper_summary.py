@@ -57,3 +57,26 @@ def test_the_summary_prints_the_stores_numbers_and_names_what_is_missing(tmp_pat
     assert "| AKF vs KF, AKF at 0.5 m/s | 0.06 m, 0.25 m/s | position 0.048 m, velocity 0.119 m/s |" in out
     assert "<!-- fig10:" in out and "<!-- fig6:" in out  # no such reports here: said, not invented
     assert paper_summary.revisions(tmp_path / "table3")[0] == "0000000"
+
+
+def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
+    """The paper's Fig. 6 comparison is MP-CDE against view-gated baselines; a store flown over the scenario's
+    own radio (auto) is listed beside MP-CDE, not as a baseline it must beat."""
+    stores = []
+    for name, overrides in (("denied", {}), ("gated", {"radio.view_gated": True}), ("auto", {})):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "results.jsonl").write_text(json.dumps({"git_rev": "0" * 40}) + "\n")
+        stores.append({"name": name, "folder": str(tmp_path / name), "overrides": overrides})
+    settings = {"planner.cruise_speed_mps": 1.0}
+    cell = {"settings": settings, "flights": 30, "success_rate": 0.9, "success_low": 0.74, "success_high": 0.97, "collisions_per_flight": 0.1}
+    cells = [{**cell, "store": "denied", "values": {}},
+             {**cell, "store": "gated", "values": {"planner.kind": "dmpc", "radio.view_gated": True}},
+             {**cell, "store": "auto", "values": {"planner.kind": "auto"}}]  # fmt: skip
+    pair = {"a_success_paired": 27, "b_success_paired": 3, "paired_seeds": 30, "mcnemar_p": 1e-6}
+    report = {"stores": stores, "cells": cells, "pairs": [{**pair, "a": 0, "b": 1}, {**pair, "a": 0, "b": 2}]}
+    (tmp_path / "fig6").mkdir()
+    (tmp_path / "fig6" / "report.json").write_text(json.dumps(report))
+    rows = paper_summary.fig6(tmp_path)
+    assert rows[0].startswith("| Fig. 6, MP-CDE at 1 m/s | about 95 % | 90 % (74-97 %) of 30, 0.10 collisions per flight |")
+    assert rows[1].startswith("| Fig. 6, baseline at 1 m/s | below MP-CDE | gated (planner.kind=dmpc), view-gated: 3 successes against MP-CDE's 27 on 30")
+    assert rows[2].startswith("| Fig. 6, beside at 1 m/s | - | auto (planner.kind=auto), scenario's radio (not view-gated): 3 successes")
