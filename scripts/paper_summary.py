@@ -78,11 +78,11 @@ def fig6(runs: Path) -> list[str]:
             continue
         v = a["settings"]["planner.cruise_speed_mps"]
         what = ", ".join(f"{k}={val}" for k, val in b["values"].items() if k not in ("planner.cruise_speed_mps", "radio.view_gated"))
-        # the paper's comparison is against view-gated baselines; another store (auto over the scenario's own radio) is beside it, not ranked
-        radio, paper = ("view-gated", "below MP-CDE") if gated[b["store"]] else ("scenario's radio (not view-gated)", "-")
+        # the paper ranks MP-CDE against view-gated baselines; another store (auto over the scenario's radio) sits beside it
+        role, paper, radio = ("baseline", "below MP-CDE", "view-gated") if gated[b["store"]] else ("beside", "-", "scenario's radio (not view-gated)")
         ours = (f"{b['store']} ({what}), {radio}: {p['b_success_paired']} successes against MP-CDE's "
                 f"{p['a_success_paired']} on {p['paired_seeds']} paired seeds, McNemar p = {p['mcnemar_p']:.2g}")  # fmt: skip
-        rows.append(f"| Fig. 6, {'baseline' if gated[b['store']] else 'beside'} at {v:g} m/s | {paper} | {ours} | (same) | {' | '.join(revs[b['store']])} |")
+        rows.append(f"| Fig. 6, {role} at {v:g} m/s | {paper} | {ours} | (same) | {' | '.join(revs[b['store']])} |")
     return rows
 
 

@@ -195,13 +195,12 @@ class _Recorder:
         """How long before ``t`` [s] drone i last had j in its frame, detected it and tracked it (None: never)."""
         times = np.asarray(self.history_t)
         keep = times <= t + 1e-9
+        times = times[keep]
+        flags = np.stack(self.history)[keep][:, :, i, j] if keep.any() else np.zeros((0, 3), bool)  # (k, 3)
         out: dict[str, float | None] = {}
-        if not keep.any():
-            return {"in_view": None, "detected": None, "tracked": None}
-        flags = np.stack(self.history)[keep][:, :, i, j]  # (k, 3)
         for c, name in enumerate(("in_view", "detected", "tracked")):
             hit = np.nonzero(flags[:, c])[0]
-            out[name] = None if hit.size == 0 else round(float(t - times[keep][hit[-1]]), 2)
+            out[name] = None if hit.size == 0 else round(float(t - times[hit[-1]]), 2)
         return out
 
     def at(self, t: float) -> _Tick | None:
