@@ -6,9 +6,12 @@ import math
 from dataclasses import dataclass, field
 
 from mpcde.errors import ConfigError
-from sim.checks import require_instance, require_positive
+from sim.checks import require_instance, require_one_of, require_positive
 
-__all__ = ["AutoAgentConfig", "FusionConfig"]
+__all__ = ["HANDOVERS", "AutoAgentConfig", "FusionConfig"]
+
+HANDOVERS = ("continue", "halt")
+"""``auto.handover``: how the denied half takes over when the radio goes out (:class:`AutoAgentConfig`)."""
 
 
 @dataclass(frozen=True)
@@ -57,14 +60,26 @@ class AutoAgentConfig:
             drones and the tracker takes them over.
         fusion: when a neighbour's plan is stale and how near its track must be
             (:class:`mpcde.onboard.fusion.FusionConfig`).
+        handover: how the denied half takes over when the radio goes out.
+            ``continue``: from the DMPC reference's state, replanning at once.
+            ``halt``: the drone first flies its last broadcast DMPC plan to
+            that plan's halt (DMPC-Swarm Eq. 13e; it is the plan its
+            neighbours remember, and they halt too), turns the camera once
+            round there at the yaw-rate limit, so that the neighbours about it
+            become tracks, and only then plans; ``plan_memory_s`` then counts
+            from the end of the turn. A plan that does not end at rest (no
+            ``commit_when_unheard``) is replaced by the denied half's
+            stopping piece. Measured: docs/results/radio_outage.md.
     """
 
     radio_silence_s: float = 1.0
     plan_memory_s: float = 2.0
     fusion: FusionConfig = field(default_factory=FusionConfig)
+    handover: str = "continue"
 
     def __post_init__(self) -> None:
         require_positive("radio_silence_s", self.radio_silence_s, "s")
+        require_one_of("handover", self.handover, HANDOVERS)
         require_instance("fusion", self.fusion, FusionConfig)
         m = self.plan_memory_s
         if isinstance(m, bool) or not (isinstance(m, (int, float)) and math.isfinite(m) and m >= 0):

@@ -51,7 +51,7 @@ import numpy as np
 from mpcde.config.auto import AutoAgentConfig
 from mpcde.onboard.base import AgentCounters, OnboardAgent
 from mpcde.onboard.denied import DeniedAgent
-from mpcde.onboard.dmpc import DmpcAgent
+from mpcde.onboard.dmpc import HALT_TOLERANCE_MPS, DmpcAgent
 from mpcde.onboard.fusion import fuse_neighbours
 from perception.types import Detection, NeighborPrediction
 from planners.dmpc import DmpcPlan
@@ -84,9 +84,14 @@ class AutoAgent(OnboardAgent):
         self.mode = COMM
         self.last_heard_s: float | None = None  # newest send time heard (None: the first estimate's time)
         self.switches: list[tuple[float, str]] = []
+        self.handovers: list[tuple[float, float]] = []  # per halting hand-over: (halt reached, turn ended) [s]
         self.mode_time_s = {COMM: 0.0, DENIED: 0.0}
         self._last_round_s: float | None = None
         self.remembered_plans = 0  # denied-mode neighbour sets that used a remembered radio plan (summed over plans)
+        # halting hand-over (config.handover "halt"): until _hold_until_s the drone flies its last DMPC plan to its
+        # halt; the radio memory is lengthened by the hold and the turn that follow the switch
+        self._hold_until_s = -np.inf
+        self._memory_extra_s = 0.0
         denied.neighbour_source = self._denied_neighbours
 
     # inputs ------------------------------------------------------------------
@@ -100,7 +105,7 @@ class AutoAgent(OnboardAgent):
     def on_frame(self, frame: RgbdFrame, detections: list[Detection] | None = None) -> None:
         """Track and map every frame; in ``denied`` mode also plan on it."""
         self.counters.frames += 1
-        if self.mode == DENIED:
+        if self.mode == DENIED and frame.time_s >= self._hold_until_s - 1e-9:
             self.denied.on_frame(frame, detections)
         else:
             self.denied.observe(frame, detections)
@@ -137,14 +142,40 @@ class AutoAgent(OnboardAgent):
     def _choose_mode(self, t: float) -> None:
         out = self.radio_out(t)
         if self.mode == COMM and out:
-            pva = np.stack(self.comm.reference_state(t))
-            self.denied.take_over(t, pva, self.comm.yaw)
+            self._hand_over_to_denied(t)
             self._switch(t, DENIED)
         elif self.mode == DENIED and not out:
             plan = self._denied_plan(t)
             if plan is not None:
-                self.comm.take_over(plan, self.denied.reference(t).yaw)
+                self.comm.take_over(plan, self.reference(t).yaw)
+            self._hold_until_s, self._memory_extra_s = -np.inf, 0.0
             self._switch(t, COMM)
+
+    def _hand_over_to_denied(self, t: float) -> None:
+        """comm -> denied at ``t`` [s], as ``config.handover`` says (:class:`AutoAgentConfig`).
+
+        ``continue``: the denied half starts from the DMPC reference's state and replans at once.
+        ``halt``: the drone flies its last broadcast DMPC plan to that plan's halt (DMPC-Swarm Eq. 13e: the
+        plan its neighbours remember; without a halting plan, the denied half's stopping piece), turns the
+        camera once round there, and only then plans; the radio memory lasts ``plan_memory_s`` past the turn.
+        """
+        pva = np.stack(self.comm.reference_state(t))
+        plan = self.comm.plan
+        t_halt = _halt_time(plan) if self.config.handover == "halt" and plan is not None else None
+        if t_halt is not None:
+            t_halt = max(t_halt, t)
+            self._hold_until_s = t_halt
+            self.denied.look_around_at(t_halt, self.comm.reference_state(t_halt)[0], self.comm.yaw)
+        else:
+            self.denied.take_over(t, pva, self.comm.yaw)
+            if self.config.handover == "halt":  # not a halting plan: the stopping piece, then the turn
+                stop = self.denied.trajectory
+                t_stop = stop.t0_s + stop.total_duration
+                self.denied.look_around_at(t_stop, stop.pos(np.array([stop.total_duration]))[0], self.comm.yaw)
+        turn_end = self.denied._scan[2] if self.denied._scan is not None else t
+        self._memory_extra_s = max(0.0, turn_end - t)
+        if self.denied._scan is not None:
+            self.handovers.append((self.denied._scan[0], turn_end))
 
     def _denied_neighbours(self, t: float, count: bool = True) -> list[NeighborPrediction]:
         """What the denied half plans, maps and points its camera against at ``t`` [s]: tracks plus radio memory.
@@ -158,7 +189,7 @@ class AutoAgent(OnboardAgent):
         tracks = self.perception.predictions(t)
         if self.config.plan_memory_s <= 0:
             return tracks
-        plans = self.comm.radio_predictions(t, self.config.plan_memory_s)
+        plans = self.comm.radio_predictions(t, self.config.plan_memory_s + self._memory_extra_s)
         if not plans:
             return tracks
         f = self.config.fusion
@@ -177,13 +208,21 @@ class AutoAgent(OnboardAgent):
             return None
         cfg = self.comm.qp_config
         times = t + cfg.step_s * np.arange(cfg.horizon_steps + 1)
-        pva = np.stack([self.denied.state_at(tk) for tk in times])  # (K+1, 3, 3)
+        pva = np.stack([self._state_at(tk) for tk in times])  # (K+1, 3, 3)
         return DmpcPlan(t0_s=t, h_s=cfg.step_s, pos_world=pva[:, 0], vel_world=pva[:, 1], acc_world=pva[:, 2])
+
+    def _holding(self, t: float) -> bool:
+        """Whether at ``t`` [s] the drone still flies its last DMPC plan to its halt (``handover: halt``)."""
+        return self.mode == COMM or t < self._hold_until_s - 1e-9
+
+    def _state_at(self, t: float) -> np.ndarray:
+        """(3, 3) position, velocity, acceleration of the reference flown at ``t`` [s] in ``denied`` mode."""
+        return np.stack(self.comm.reference_state(t)) if self._holding(t) else self.denied.state_at(t)
 
     # output ------------------------------------------------------------------
     def reference(self, time_s: float) -> FlatOutputReference:
-        """Controller reference at ``time_s`` [s] from the half that flies now."""
-        return self.comm.reference(time_s) if self.mode == COMM else self.denied.reference(time_s)
+        """Controller reference at ``time_s`` [s] from the half that flies now (DMPC while a hand-over holds)."""
+        return self.comm.reference(time_s) if self._holding(time_s) else self.denied.reference(time_s)
 
     def extra_metrics(self) -> dict[str, Any]:
         """Mode shares and switches, and each half's own statistics."""
@@ -194,6 +233,18 @@ class AutoAgent(OnboardAgent):
             "mode_switches": len(self.switches),
             "remembered_plans": self.remembered_plans,
             "switches": [{"time_s": round(t, 3), "to": m} for t, m in self.switches],
+            "halting_handovers": [{"halt_s": round(a, 3), "turn_end_s": round(b, 3)} for a, b in self.handovers],
             "dmpc": self.comm.extra_metrics(),
             "denied": self.denied.extra_metrics(),
         }
+
+
+
+def _halt_time(plan: DmpcPlan) -> float | None:
+    """The first sample time [s] of ``plan`` from which it is at rest (every later sample's velocity below
+    :data:`mpcde.onboard.dmpc.HALT_TOLERANCE_MPS` on every axis); None when it does not end at rest."""
+    moving = np.any(np.abs(plan.vel_world) >= HALT_TOLERANCE_MPS, axis=1)  # (K+1,)
+    if moving[-1]:
+        return None
+    last_moving = np.flatnonzero(moving)
+    return float(plan.times_s[last_moving[-1] + 1 if last_moving.size else 0])

@@ -114,6 +114,8 @@ class DeniedAgent(OnboardAgent):
         self.map = OccupancyMap(config.map, on_esdf=lambda seconds: self.budget.add("esdf", seconds))
         self.maps_frames = True
         self._scan: tuple[float, float, float] | None = None  # (start [s], start yaw [rad], end [s]) of the look-around turn
+        self._escaping = False  # leaving the obstacle band of a halting hand-over (_escape_floor)
+        self._escape_floor_m: float | None = None
         self.trajectory: MincoTrajectory | None = None
         self.braking = False  # whether self.trajectory is a stopping piece (committed until a replan succeeds)
         self.last_plan_time_s = -np.inf
@@ -203,7 +205,9 @@ class DeniedAgent(OnboardAgent):
             with self.budget.measure("yaw"):
                 yaw_trigger = self.heading.update(t, self.map.snapshot(), self.trajectory, self.hover_world, neighbours)
         # the per-frame check reads the newest ESDF and the voxels occupied since (no transform)
-        unsafe = self.trajectory is not None and not self._safe(self.trajectory, self.map.clearance, t)
+        unsafe = self.trajectory is not None and not self._safe(
+            self.trajectory, self.map.clearance, t, self._escape_floor(self.map.clearance, self.state_at(t)[0])
+        )
         conflict = self.trajectory is not None and self._swarm_conflict(self.trajectory, neighbours, t)
         due = t - self.last_plan_time_s >= self.config.replan_period_s
         if self.trajectory is None or unsafe or conflict or yaw_trigger or due:
@@ -238,21 +242,43 @@ class DeniedAgent(OnboardAgent):
         self.trajectory = self._stopping_piece(time_s, np.asarray(pos_vel_acc, float))
         self.braking = True
         self.last_plan_time_s = -np.inf
+        self._scan, self._escaping = None, False
         if self.heading is not None:
             self.heading.restart(yaw, time_s)
 
+    def look_around_at(self, time_s: float, pos_world: np.ndarray, yaw: float) -> None:
+        """Hover at ``pos_world`` (3,) [m] from ``time_s`` [s] on and turn the camera once round from ``yaw`` [rad]
+        at the yaw-rate limit, then plan (the ``auto`` agent's halting hand-over, ``auto.handover: halt``).
+
+        Until ``time_s`` this stack neither plans nor flies: the caller flies the drone to ``pos_world`` at rest
+        (its last broadcast plan to its halt, or the stopping piece :meth:`take_over` set). A current trajectory
+        is kept for that time (:meth:`reference` follows it); the look-around is ``config.look_around``'s turn.
+        """
+        self.hover_world = np.asarray(pos_world, float).copy()
+        self._escaping, self._escape_floor_m = True, None
+        self.braking = self.trajectory is not None
+        self.last_plan_time_s = -np.inf
+        t0 = float(time_s)
+        self._scan = (t0, float(yaw), t0 + 2.0 * np.pi / self.config.yaw_rate_max_radps)
+
 
     def _scanning(self, t: float) -> bool:
-        """Whether the look-around turn (config.look_around) is still on at ``t`` [s]; when it ends, the heading
-        continues from where the turn left it."""
+        """Whether a look-around turn (config.look_around, :meth:`look_around_at`) is due or on at ``t`` [s], so
+        that nothing is planned; when it ends, the trajectory is dropped (the drone hovers where the turn was) and
+        the heading continues from where the turn left it."""
         if self._scan is None:
             return False
         t0, yaw0, t_end = self._scan
         if t < t_end - 1e-9:
             return True
         self._scan = None
+        self.trajectory, self.braking = None, False
         self.heading.restart(yaw0 + 2.0 * np.pi, t)
         return False
+
+    def _turning(self, t: float) -> bool:
+        """Whether the look-around turn itself is on at ``t`` [s] (started, not ended; see :meth:`_scanning`)."""
+        return self._scanning(t) and t >= self._scan[0] - 1e-9
 
     # planning ---------------------------------------------------------------
     def state_at(self, t: float) -> np.ndarray:
@@ -261,17 +287,42 @@ class DeniedAgent(OnboardAgent):
             return np.stack([self.hover_world, np.zeros(3), np.zeros(3)])
         return self.trajectory.pos_vel_acc(t - self.trajectory.t0_s)
 
-    def _safe(self, traj: MincoTrajectory, distance: Callable[[np.ndarray], np.ndarray], t: float) -> bool:
-        """Whether ``traj`` keeps 0.75 clearance_m from the map's obstacles from ``t`` [s] on.
+    def _safe(
+        self, traj: MincoTrajectory, distance: Callable[[np.ndarray], np.ndarray], t: float, floor_m: float | None = None
+    ) -> bool:
+        """Whether ``traj`` keeps 0.75 clearance_m (or ``floor_m`` [m] when given) from the map's obstacles from
+        ``t`` [s] on.
 
         ``distance`` maps (n, 3) points [m] to their obstacle distance (n,) [m]:
         :meth:`perception.occupancy_map.OccupancyMap.clearance` on the hot
         path, the fresh snapshot's ESDF for a new plan. No escape rule for a
-        plan starting inside the band (tried and dropped: docs/results/radio_outage.md).
+        plan starting inside the band in flight (tried and dropped:
+        docs/results/radio_outage.md); one handed over there has :meth:`_escape_floor`.
         """
         tau = np.linspace(max(t - traj.t0_s, 0.0), traj.total_duration, 40)
         d = distance(traj.pos(tau))
-        return bool(np.min(d) >= 0.75 * self.config.clearance_m)
+        return bool(np.min(d) >= (0.75 * self.config.clearance_m if floor_m is None else floor_m))
+
+    def _escape_floor(self, distance: Callable[[np.ndarray], np.ndarray], pos_world: np.ndarray) -> float | None:
+        """The obstacle clearance [m] :meth:`_safe` asks of a plan from ``pos_world`` (3,) [m] while the drone
+        leaves the band it was handed over in; None (0.75 clearance_m) otherwise.
+
+        A halting hand-over (:meth:`look_around_at`) leaves the drone where the DMPC plan halted, which may be
+        inside the denied stack's band (DMPC keeps its own, smaller obstacle margin), and no plan from there
+        keeps 0.75 clearance_m. Until the reference first leaves the band, a plan may come no closer than the
+        hover point's clearance (at the first plan from it), to the ESDF's resolution (half a voxel). A drone that entered the band in flight gets no
+        such rule (tried and dropped for all plans: docs/results/radio_outage.md).
+        """
+        if not self._escaping:
+            return None
+        band = 0.75 * self.config.clearance_m
+        d = float(distance(np.asarray(pos_world, float)[None])[0])
+        if d >= band:
+            self._escaping = False
+            return None
+        if self._escape_floor_m is None:  # fixed at the first plan from the hover point: no ratchet inwards
+            self._escape_floor_m = d - 0.5 * self.config.map.voxel_m
+        return self._escape_floor_m
 
     def _swarm_conflict(self, traj: MincoTrajectory, neighbours: list[NeighborPrediction], t: float) -> bool:
         """Whether ``traj`` comes within C_s (metric E of Eq. 16) of a prediction in the next ``conflict_horizon_s``."""
@@ -310,7 +361,8 @@ class DeniedAgent(OnboardAgent):
             self.stats.failures += 1
             return False
         self.stats.solve_ms.append(1e3 * (time.perf_counter() - t0))
-        if not self._safe(result.trajectory, lambda p: snap.distance_and_gradient(p)[0], t):
+        esdf = lambda p: snap.distance_and_gradient(p)[0]  # noqa: E731
+        if not self._safe(result.trajectory, esdf, t, self._escape_floor(esdf, start[0])):
             self.stats.failures += 1
             return False
         self.trajectory = result.trajectory
@@ -349,7 +401,7 @@ class DeniedAgent(OnboardAgent):
         """Reference at ``time_s`` [s]: the current MINCO trajectory and the heading of :mod:`mpcde.onboard.heading`."""
         if self.heading is None:  # no pose estimate yet
             return FlatOutputReference.hover(np.zeros(3), 0.0)
-        if self._scanning(time_s):  # config.look_around: hover, turning at the yaw-rate limit
+        if self._turning(time_s):  # config.look_around or look_around_at: hover, turning at the yaw-rate limit
             t0, yaw0, _ = self._scan
             rate = self.config.yaw_rate_max_radps
             return FlatOutputReference(self.hover_world, np.zeros(3), np.zeros(3), yaw0 + rate * (time_s - t0), rate)
