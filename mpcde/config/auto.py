@@ -66,8 +66,9 @@ class AutoAgentConfig:
             that plan's halt (DMPC-Swarm Eq. 13e; it is the plan its
             neighbours remember, and they halt too), turns the camera once
             round there at the yaw-rate limit, so that the neighbours about it
-            become tracks, and only then plans; ``plan_memory_s`` then counts
-            from the end of the turn. A plan that does not end at rest (no
+            become tracks, and only then plans; the radio memory
+            (``plan_memory_s``) is lengthened by the time from the switch to
+            the end of the turn. A plan that does not end at rest (no
             ``commit_when_unheard``) is replaced by the denied half's
             stopping piece. Measured: docs/results/radio_outage.md.
     """

@@ -15,8 +15,8 @@ from sim.types import PlanMessage, PoseEstimate, RadioMessage
 ROUND = 0.2  # radio period [s] (5 Hz)
 
 
-def _agent() -> AutoAgent:
-    cfg = load_scenario("crossing")
+def _agent(**auto) -> AutoAgent:
+    cfg = load_scenario("crossing", {"auto": auto} if auto else None)
     cfg = replace(cfg, planner=replace(cfg.planner, kind="auto"))
     cfg.__post_init__()
     agent = make_agent(cfg, 0, np.stack([GOAL, NEIGHBOUR]), ())
@@ -131,3 +131,43 @@ def test_invalid_auto_settings_name_the_field():
         load_scenario("crossing", {"auto": {"fusion": {"gate_m": -1}}})
     with pytest.raises(ConfigError, match=r"^auto\.plan_memory_s=-1(\.0)?: a finite number >= 0"):
         load_scenario("crossing", {"auto": {"plan_memory_s": -1}})
+    with pytest.raises(ConfigError, match=r"^auto\.handover='stop': one of 'continue', 'halt'"):
+        load_scenario("crossing", {"auto": {"handover": "stop"}})
+
+
+def test_a_halting_hand_over_flies_the_last_plan_to_its_halt_turns_once_round_and_only_then_plans():
+    agent = _agent(handover="halt")
+    t_switch = 0.4 + agent.config.radio_silence_s + ROUND
+    _run(agent, 0.0, t_switch + 0.04, lambda t: t < 0.6, behind=True)  # last messages sent at 0.4 s
+    assert agent.mode == "denied"
+    plan = agent.comm.plan
+    assert np.all(np.abs(plan.vel_world[-1]) < 1e-3)  # commit_when_unheard: the plan flown ends in a halt
+    (halt_s, turn_end_s), = agent.handovers
+    rate = agent.denied.config.yaw_rate_max_radps
+    assert t_switch < halt_s <= plan.t_end_s and turn_end_s == pytest.approx(halt_s + 2.0 * np.pi / rate)
+    halt_pos = plan.position(np.array([plan.t_end_s]))[0]
+    # until the halt the reference is the DMPC plan its neighbours remember; the denied half does not plan
+    for t in np.arange(t_switch + 0.04, halt_s - 0.01, 0.2):
+        np.testing.assert_allclose(agent.reference(t).pos_world, agent.comm.reference_state(t)[0], atol=1e-12)
+    _run(agent, t_switch + 0.04, turn_end_s - 0.04, lambda t: False, behind=True)
+    assert agent.denied.stats.replans == 0 and agent.denied.stats.failures == 0
+    # at the halt: hovering there, turning at the yaw-rate limit
+    ref = agent.reference(halt_s + 1.0)
+    np.testing.assert_allclose(ref.pos_world, halt_pos, atol=1e-6)
+    np.testing.assert_allclose(ref.vel_world, 0.0, atol=1e-9)
+    assert ref.yaw_rate == pytest.approx(rate)
+    assert agent.reference(halt_s + 2.0).yaw - ref.yaw == pytest.approx(rate)
+    # drone 2 (never seen) is still remembered from its last plan when the turn ends, though sent long before
+    by_id = {p.neighbor_id: p for p in agent.denied.neighbours(turn_end_s, count=False)}
+    assert by_id[2].source == "radio" and turn_end_s - 0.4 > agent.config.plan_memory_s
+    _run(agent, turn_end_s - 0.04, turn_end_s + 0.4, lambda t: False, behind=True)
+    assert agent.denied.stats.replans >= 1  # it plans once the turn is over
+    m = agent.extra_metrics()["halting_handovers"]
+    assert m == [{"halt_s": round(halt_s, 3), "turn_end_s": round(turn_end_s, 3)}]
+
+
+def test_the_default_hand_over_replans_at_once_and_records_no_halt():
+    agent = _agent()
+    assert agent.config.handover == "continue"
+    _run(agent, 0.0, 2.2, lambda t: t < 0.6)
+    assert agent.mode == "denied" and agent.denied.stats.replans >= 1 and agent.handovers == []

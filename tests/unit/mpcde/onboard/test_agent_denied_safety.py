@@ -59,3 +59,16 @@ def test_the_altitude_band_is_set_from_the_first_pose_estimate_and_the_goal():
     assert banded.optimizer.altitude_band_m == pytest.approx((1.3, 2.2))
     voxel = banded.config.map.voxel_m
     assert (banded.search.min_altitude_m, banded.search.max_altitude_m) == pytest.approx((1.3 - voxel, 2.2 + voxel))
+
+
+def test_a_drone_handed_over_inside_the_obstacle_band_may_leave_it_no_closer_than_it_was():
+    agent = DeniedAgent(0, np.array([6.0, 0.0, 1.5]), DeniedAgentConfig())
+    band, half_voxel = 0.75 * agent.config.clearance_m, 0.5 * agent.config.map.voxel_m
+    at = lambda d: (lambda p: np.full(len(p), d))  # noqa: E731  a map whose every point is d [m] from obstacles
+    here = np.zeros(3)
+    assert agent._escape_floor(at(0.2), here) is None  # a drone that entered the band in flight: the band holds
+    agent.look_around_at(1.0, np.array([0.0, 0.0, 1.5]), 0.0)
+    assert agent._escape_floor(at(0.2), here) == pytest.approx(0.2 - half_voxel)
+    assert agent._escape_floor(at(0.15), here) == pytest.approx(0.2 - half_voxel)  # fixed: no ratchet inwards
+    assert agent._escape_floor(at(band), here) is None  # out of the band: the rule ends for good
+    assert agent._escape_floor(at(0.2), here) is None
