@@ -80,7 +80,7 @@ def test_a_neighbour_whose_plan_goes_stale_is_planned_against_by_its_track():
 
 
 def test_silence_switches_to_the_denied_stack_and_a_message_switches_back_with_a_continuous_reference():
-    agent = _agent()
+    agent = _agent(handover="continue")
     silence = agent.config.radio_silence_s
     t_switch = 0.4 + silence + ROUND  # last message sent at 0.4 s; the first round whose silence exceeds the limit
     modes = _run(agent, 0.0, t_switch, lambda t: t < 0.6)
@@ -105,7 +105,7 @@ def test_silence_switches_to_the_denied_stack_and_a_message_switches_back_with_a
 
 
 def test_in_denied_mode_an_untracked_neighbour_is_remembered_from_the_radio_for_plan_memory_s():
-    agent = _agent()
+    agent = _agent(handover="continue")  # the memory is counted from the send time (a halt lengthens it)
     memory = agent.config.plan_memory_s
     _run(agent, 0.0, 2.0, lambda t: t < 0.6, behind=True)  # last messages sent at 0.4 s; denied from 1.6 s
     assert agent.mode == "denied"
@@ -136,7 +136,7 @@ def test_invalid_auto_settings_name_the_field():
 
 
 def test_a_halting_hand_over_flies_the_last_plan_to_its_halt_turns_once_round_and_only_then_plans():
-    agent = _agent(handover="halt")
+    agent = _agent()  # handover: halt is the default
     t_switch = 0.4 + agent.config.radio_silence_s + ROUND
     _run(agent, 0.0, t_switch + 0.04, lambda t: t < 0.6, behind=True)  # last messages sent at 0.4 s
     assert agent.mode == "denied"
@@ -166,8 +166,7 @@ def test_a_halting_hand_over_flies_the_last_plan_to_its_halt_turns_once_round_an
     assert m == [{"halt_s": round(halt_s, 3), "turn_end_s": round(turn_end_s, 3)}]
 
 
-def test_the_default_hand_over_replans_at_once_and_records_no_halt():
-    agent = _agent()
-    assert agent.config.handover == "continue"
+def test_the_continuing_hand_over_replans_at_once_and_records_no_halt():
+    agent = _agent(handover="continue")
     _run(agent, 0.0, 2.2, lambda t: t < 0.6)
     assert agent.mode == "denied" and agent.denied.stats.replans >= 1 and agent.handovers == []
