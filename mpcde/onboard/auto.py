@@ -157,25 +157,21 @@ class AutoAgent(OnboardAgent):
         ``continue``: the denied half starts from the DMPC reference's state and replans at once.
         ``halt``: the drone flies its last broadcast DMPC plan to that plan's halt (DMPC-Swarm Eq. 13e: the
         plan its neighbours remember; without a halting plan, the denied half's stopping piece), turns the
-        camera once round there, and only then plans; the radio memory lasts ``plan_memory_s`` past the turn.
+        camera once round there, and only then plans; the radio memory is lengthened by the time from the
+        switch to the turn's end.
         """
-        pva = np.stack(self.comm.reference_state(t))
         plan = self.comm.plan
         t_halt = _halt_time(plan) if self.config.handover == "halt" and plan is not None else None
         if t_halt is not None:
-            t_halt = max(t_halt, t)
-            self._hold_until_s = t_halt
-            self.denied.look_around_at(t_halt, self.comm.reference_state(t_halt)[0], self.comm.yaw)
+            self._hold_until_s = max(t_halt, t)
+            halt = self.comm.reference_state(self._hold_until_s)[0]
+            turn_end = self.denied.look_around_at(self._hold_until_s, halt, self.comm.yaw)
         else:
-            self.denied.take_over(t, pva, self.comm.yaw)
-            if self.config.handover == "halt":  # not a halting plan: the stopping piece, then the turn
-                stop = self.denied.trajectory
-                t_stop = stop.t0_s + stop.total_duration
-                self.denied.look_around_at(t_stop, stop.pos(np.array([stop.total_duration]))[0], self.comm.yaw)
-        turn_end = self.denied._scan[2] if self.denied._scan is not None else t
-        self._memory_extra_s = max(0.0, turn_end - t)
-        if self.denied._scan is not None:
-            self.handovers.append((self.denied._scan[0], turn_end))
+            pva = np.stack(self.comm.reference_state(t))
+            turn_end = self.denied.take_over(t, pva, self.comm.yaw, look_around=self.config.handover == "halt")
+        if turn_end is not None:
+            self._memory_extra_s = turn_end - t
+            self.handovers.append((turn_end - 2.0 * np.pi / self.denied.config.yaw_rate_max_radps, turn_end))
 
     def _denied_neighbours(self, t: float, count: bool = True) -> list[NeighborPrediction]:
         """What the denied half plans, maps and points its camera against at ``t`` [s]: tracks plus radio memory.
@@ -237,7 +233,6 @@ class AutoAgent(OnboardAgent):
             "dmpc": self.comm.extra_metrics(),
             "denied": self.denied.extra_metrics(),
         }
-
 
 
 def _halt_time(plan: DmpcPlan) -> float | None:

@@ -230,7 +230,7 @@ class DeniedAgent(OnboardAgent):
         """Denied: nothing is broadcast."""
         return None
 
-    def take_over(self, time_s: float, pos_vel_acc: np.ndarray, yaw: float) -> None:
+    def take_over(self, time_s: float, pos_vel_acc: np.ndarray, yaw: float, look_around: bool = False) -> float | None:
         """Start flying this stack from another stack's reference (the ``auto`` agent's fallback).
 
         The current trajectory becomes a stopping piece from ``pos_vel_acc``
@@ -238,6 +238,11 @@ class DeniedAgent(OnboardAgent):
         reference being left at ``time_s``), so the reference is continuous;
         the next frame replans (it is due) from that state. The heading
         continues from ``yaw`` [rad] and the yaw planner plans at the next frame.
+        ``look_around``: nothing is planned until the stop is over and the camera
+        has turned once round where it ended (:meth:`look_around_at`).
+
+        Returns:
+            The time [s] the turn ends (None without ``look_around``).
         """
         self.trajectory = self._stopping_piece(time_s, np.asarray(pos_vel_acc, float))
         self.braking = True
@@ -245,22 +250,31 @@ class DeniedAgent(OnboardAgent):
         self._scan, self._escaping = None, False
         if self.heading is not None:
             self.heading.restart(yaw, time_s)
+        if not look_around:
+            return None
+        stop = self.trajectory
+        return self._begin_turn(stop.t0_s + stop.total_duration, stop.pos(np.array([stop.total_duration]))[0], yaw)
 
-    def look_around_at(self, time_s: float, pos_world: np.ndarray, yaw: float) -> None:
-        """Hover at ``pos_world`` (3,) [m] from ``time_s`` [s] on and turn the camera once round from ``yaw`` [rad]
-        at the yaw-rate limit, then plan (the ``auto`` agent's halting hand-over, ``auto.handover: halt``).
+    def look_around_at(self, time_s: float, pos_world: np.ndarray, yaw: float) -> float:
+        """Hover at ``pos_world`` (3,) [m] from ``time_s`` [s] on, turn the camera once round from ``yaw`` [rad] at
+        the yaw-rate limit, then plan (the ``auto`` agent's halting hand-over, ``auto.handover: halt``).
 
-        Until ``time_s`` this stack neither plans nor flies: the caller flies the drone to ``pos_world`` at rest
-        (its last broadcast plan to its halt, or the stopping piece :meth:`take_over` set). A current trajectory
-        is kept for that time (:meth:`reference` follows it); the look-around is ``config.look_around``'s turn.
+        Until ``time_s`` this stack neither plans nor flies: the caller flies the drone to ``pos_world`` and
+        brings it to rest there (its last broadcast DMPC plan, to that plan's halt). Returns the time [s] the turn
+        ends.
         """
+        self.trajectory, self.braking = None, False
+        return self._begin_turn(time_s, pos_world, yaw)
+
+    def _begin_turn(self, time_s: float, pos_world: np.ndarray, yaw: float) -> float:
+        """Schedule ``config.look_around``'s turn from ``time_s`` [s] at ``pos_world`` (3,) [m] from ``yaw`` [rad],
+        with the escape from the obstacle band (:meth:`_escape_floor`) after it; returns the turn's end [s]."""
         self.hover_world = np.asarray(pos_world, float).copy()
         self._escaping, self._escape_floor_m = True, None
-        self.braking = self.trajectory is not None
         self.last_plan_time_s = -np.inf
         t0 = float(time_s)
         self._scan = (t0, float(yaw), t0 + 2.0 * np.pi / self.config.yaw_rate_max_radps)
-
+        return self._scan[2]
 
     def _scanning(self, t: float) -> bool:
         """Whether a look-around turn (config.look_around, :meth:`look_around_at`) is due or on at ``t`` [s], so
@@ -310,8 +324,9 @@ class DeniedAgent(OnboardAgent):
         A halting hand-over (:meth:`look_around_at`) leaves the drone where the DMPC plan halted, which may be
         inside the denied stack's band (DMPC keeps its own, smaller obstacle margin), and no plan from there
         keeps 0.75 clearance_m. Until the reference first leaves the band, a plan may come no closer than the
-        hover point's clearance (at the first plan from it), to the ESDF's resolution (half a voxel). A drone that entered the band in flight gets no
-        such rule (tried and dropped for all plans: docs/results/radio_outage.md).
+        hover point's clearance (taken at the first plan from it), to the ESDF's resolution (half a voxel). A
+        drone that entered the band in flight gets no such rule (tried and dropped for all plans:
+        docs/results/radio_outage.md).
         """
         if not self._escaping:
             return None
