@@ -36,12 +36,24 @@ def test_blind_lines_collide_on_the_crossing_and_dmpc_over_an_ideal_radio_does_n
 
 @pytest.mark.slow
 def test_two_jobs_fly_the_same_flights_as_one(tmp_path):
-    """--jobs only changes where flights run: every row but the wall-clock one is identical."""
+    """--jobs only changes where flights run: the physics is identical step for step, and every row but the
+    wall-clock one is identical, except that the tracking errors agree to 1e-6 (relative) rather than to the bit.
+
+    On an AMD EPYC machine (2026-11-27) comm's tracking RMSE differed in its eighth digit between one job and two,
+    at 864a1da as at later commits: the detector's arithmetic is not bit-stable across how a flight's frames are
+    split over processes there. comm's planner reads no camera data, so its flight is unchanged."""
     kwargs = {"modes": ("placeholder", "comm"), "seeds": (1,), "duration_s": 3.0, "progress": False}
     one = run_compare(tmp_path / "one", "crossing", **kwargs)
     two = run_compare(tmp_path / "two", "crossing", jobs=2, **kwargs)
-    strip = [[{k: v for k, v in r.items() if k != "real_time_factor"} for r in res["rows"]] for res in (one, two)]
+    tracking = ("tracking_pos_rmse_m", "tracking_vel_rmse_mps")
+    drop = ("real_time_factor", *tracking)
+    strip = [[{k: v for k, v in r.items() if k not in drop} for r in res["rows"]] for res in (one, two)]
     assert strip[0] == strip[1]
+    for a, b in zip(one["rows"], two["rows"]):
+        for key in tracking:
+            assert (a[key] is None) == (b[key] is None), key
+            if a[key] is not None:
+                assert a[key] == pytest.approx(b[key], rel=1e-6), key
     assert [(r["mode"], r["seed"]) for r in two["rows"]] == [("placeholder", 1), ("comm", 1)]
     for mode, seed in [("placeholder", 1), ("comm", 1)]:
         a, b = (np.load(tmp_path / d / "runs" / f"{mode}-seed{seed}" / "states.npz") for d in ("one", "two"))
