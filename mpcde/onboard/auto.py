@@ -103,12 +103,12 @@ class AutoAgent(OnboardAgent):
         self.denied.on_pose_estimate(estimate)
 
     def on_frame(self, frame: RgbdFrame, detections: list[Detection] | None = None) -> None:
-        """Track and map every frame; in ``denied`` mode also plan on it."""
+        """Track and map every frame; in ``denied`` mode, once a halting hand-over is over, also plan on it."""
         self.counters.frames += 1
-        if self.mode == DENIED and frame.time_s >= self._hold_until_s - 1e-9:
-            self.denied.on_frame(frame, detections)
-        else:
+        if self._holding(frame.time_s):
             self.denied.observe(frame, detections)
+        else:
+            self.denied.on_frame(frame, detections)
 
     def on_radio(self, messages: list[RadioMessage]) -> None:
         """This round's inbox: to the DMPC half; any message from another drone restarts the silence clock."""
@@ -165,13 +165,13 @@ class AutoAgent(OnboardAgent):
         if t_halt is not None:
             self._hold_until_s = max(t_halt, t)
             halt = self.comm.reference_state(self._hold_until_s)[0]
-            turn_end = self.denied.look_around_at(self._hold_until_s, halt, self.comm.yaw)
+            turn = self.denied.look_around_at(self._hold_until_s, halt, self.comm.yaw)
         else:
             pva = np.stack(self.comm.reference_state(t))
-            turn_end = self.denied.take_over(t, pva, self.comm.yaw, look_around=self.config.handover == "halt")
-        if turn_end is not None:
-            self._memory_extra_s = turn_end - t
-            self.handovers.append((turn_end - 2.0 * np.pi / self.denied.config.yaw_rate_max_radps, turn_end))
+            turn = self.denied.take_over(t, pva, self.comm.yaw, look_around=self.config.handover == "halt")
+        if turn is not None:
+            self._memory_extra_s = turn[1] - t
+            self.handovers.append(turn)
 
     def _denied_neighbours(self, t: float, count: bool = True) -> list[NeighborPrediction]:
         """What the denied half plans, maps and points its camera against at ``t`` [s]: tracks plus radio memory.
@@ -208,11 +208,12 @@ class AutoAgent(OnboardAgent):
         return DmpcPlan(t0_s=t, h_s=cfg.step_s, pos_world=pva[:, 0], vel_world=pva[:, 1], acc_world=pva[:, 2])
 
     def _holding(self, t: float) -> bool:
-        """Whether at ``t`` [s] the drone still flies its last DMPC plan to its halt (``handover: halt``)."""
+        """Whether at ``t`` [s] the DMPC half flies the drone: in ``comm`` mode, or in ``denied`` mode while the
+        drone still flies its last DMPC plan to its halt (``handover: halt``); the denied half then only observes."""
         return self.mode == COMM or t < self._hold_until_s - 1e-9
 
     def _state_at(self, t: float) -> np.ndarray:
-        """(3, 3) position, velocity, acceleration of the reference flown at ``t`` [s] in ``denied`` mode."""
+        """(3, 3) position, velocity, acceleration of the reference flown at ``t`` [s] (:meth:`_holding`)."""
         return np.stack(self.comm.reference_state(t)) if self._holding(t) else self.denied.state_at(t)
 
     # output ------------------------------------------------------------------

@@ -155,7 +155,7 @@ class DeniedAgent(OnboardAgent):
                 self.yaw_config, c.active_yaw, yaw, c.swarm_clearance_m, c.swarm_z_scale, self.swarm_neighbours
             )
             if c.look_around:  # one revolution from the first estimate on (config.look_around)
-                self._scan = (float(estimate.time_s), yaw, float(estimate.time_s) + 2.0 * np.pi / c.yaw_rate_max_radps)
+                self._schedule_turn(float(estimate.time_s), yaw)
 
     def on_radio(self, messages: list[RadioMessage]) -> None:
         """Denied: the radio is not used (messages are counted only)."""
@@ -205,9 +205,10 @@ class DeniedAgent(OnboardAgent):
             with self.budget.measure("yaw"):
                 yaw_trigger = self.heading.update(t, self.map.snapshot(), self.trajectory, self.hover_world, neighbours)
         # the per-frame check reads the newest ESDF and the voxels occupied since (no transform)
-        unsafe = self.trajectory is not None and not self._safe(
-            self.trajectory, self.map.clearance, t, self._escape_floor(self.map.clearance, self.state_at(t)[0])
-        )
+        unsafe = False
+        if self.trajectory is not None:  # the escape floor is read (and first fixed) only for a plan in hand
+            floor = self._escape_floor(self.map.clearance, self.state_at(t)[0]) if self._escaping else None
+            unsafe = not self._safe(self.trajectory, self.map.clearance, t, floor)
         conflict = self.trajectory is not None and self._swarm_conflict(self.trajectory, neighbours, t)
         due = t - self.last_plan_time_s >= self.config.replan_period_s
         if self.trajectory is None or unsafe or conflict or yaw_trigger or due:
@@ -230,7 +231,9 @@ class DeniedAgent(OnboardAgent):
         """Denied: nothing is broadcast."""
         return None
 
-    def take_over(self, time_s: float, pos_vel_acc: np.ndarray, yaw: float, look_around: bool = False) -> float | None:
+    def take_over(
+        self, time_s: float, pos_vel_acc: np.ndarray, yaw: float, look_around: bool = False
+    ) -> tuple[float, float] | None:
         """Start flying this stack from another stack's reference (the ``auto`` agent's fallback).
 
         The current trajectory becomes a stopping piece from ``pos_vel_acc``
@@ -242,7 +245,7 @@ class DeniedAgent(OnboardAgent):
         has turned once round where it ended (:meth:`look_around_at`).
 
         Returns:
-            The time [s] the turn ends (None without ``look_around``).
+            The turn's start and end [s] (None without ``look_around``).
         """
         self.trajectory = self._stopping_piece(time_s, np.asarray(pos_vel_acc, float))
         self.braking = True
@@ -255,26 +258,31 @@ class DeniedAgent(OnboardAgent):
         stop = self.trajectory
         return self._begin_turn(stop.t0_s + stop.total_duration, stop.pos(np.array([stop.total_duration]))[0], yaw)
 
-    def look_around_at(self, time_s: float, pos_world: np.ndarray, yaw: float) -> float:
+    def look_around_at(self, time_s: float, pos_world: np.ndarray, yaw: float) -> tuple[float, float]:
         """Hover at ``pos_world`` (3,) [m] from ``time_s`` [s] on, turn the camera once round from ``yaw`` [rad] at
         the yaw-rate limit, then plan (the ``auto`` agent's halting hand-over, ``auto.handover: halt``).
 
         Until ``time_s`` this stack neither plans nor flies: the caller flies the drone to ``pos_world`` and
-        brings it to rest there (its last broadcast DMPC plan, to that plan's halt). Returns the time [s] the turn
-        ends.
+        brings it to rest there (its last broadcast DMPC plan, to that plan's halt). Returns the turn's start and
+        end [s].
         """
         self.trajectory, self.braking = None, False
         return self._begin_turn(time_s, pos_world, yaw)
 
-    def _begin_turn(self, time_s: float, pos_world: np.ndarray, yaw: float) -> float:
-        """Schedule ``config.look_around``'s turn from ``time_s`` [s] at ``pos_world`` (3,) [m] from ``yaw`` [rad],
-        with the escape from the obstacle band (:meth:`_escape_floor`) after it; returns the turn's end [s]."""
+    def _begin_turn(self, time_s: float, pos_world: np.ndarray, yaw: float) -> tuple[float, float]:
+        """Schedule the turn from ``time_s`` [s] at ``pos_world`` (3,) [m] from ``yaw`` [rad], with the escape from
+        the obstacle band (:meth:`_escape_floor`) after it; returns the turn's start and end [s]."""
         self.hover_world = np.asarray(pos_world, float).copy()
         self._escaping, self._escape_floor_m = True, None
         self.last_plan_time_s = -np.inf
+        return self._schedule_turn(time_s, yaw)
+
+    def _schedule_turn(self, time_s: float, yaw: float) -> tuple[float, float]:
+        """One revolution at the yaw-rate limit from ``time_s`` [s] and ``yaw`` [rad] (``_scan``); returns its start
+        and end [s]."""
         t0 = float(time_s)
         self._scan = (t0, float(yaw), t0 + 2.0 * np.pi / self.config.yaw_rate_max_radps)
-        return self._scan[2]
+        return t0, self._scan[2]
 
     def _scanning(self, t: float) -> bool:
         """Whether a look-around turn (config.look_around, :meth:`look_around_at`) is due or on at ``t`` [s], so
