@@ -32,7 +32,10 @@ A plan that fails or leaves obstacle clearance violated is rejected (one that
 keeps obstacle clearance but not all of C_s is kept: the optimiser's best
 separation beats the old plan's); if the current trajectory is itself unsafe
 with respect to obstacles, the agent brakes to a stop along it (a stopping
-MINCO piece from its current state).
+MINCO piece from its current state). A stop that ends inside the obstacle band
+(0.75 clearance_m) would leave the drone there for good, since every plan from
+that point starts inside the band; it begins an escape instead: a plan may come
+no closer than where the drone rests (:meth:`DeniedAgent._escape_floor`).
 
 Yaw (MP-CDE Sec. IV-A, :mod:`mpcde.onboard.heading`): every t_y = 0.1 s of frame
 time the active yaw planner (:mod:`planners.yaw`, Alg. 1) chooses exploring,
@@ -79,6 +82,7 @@ class PlanningStats:
     brakes: int = 0
     swarm_replans: int = 0
     yaw_replans: int = 0
+    rest_escapes: int = 0  # stops that ended inside the obstacle band and began an escape (_escape_floor)
     solve_ms: list = field(default_factory=list)
     map_ms: list = field(default_factory=list)
 
@@ -206,6 +210,9 @@ class DeniedAgent(OnboardAgent):
                 yaw_trigger = self.heading.update(t, self.map.snapshot(), self.trajectory, self.hover_world, neighbours)
         # the per-frame check reads the newest ESDF and the voxels occupied since (no transform)
         unsafe = False
+        if self._resting_in_band(t):
+            self._escaping, self._escape_floor_m = True, None
+            self.stats.rest_escapes += 1
         if self.trajectory is not None:  # the escape floor is read (and first fixed) only for a plan in hand
             floor = self._escape_floor(self.map.clearance, self.state_at(t)[0]) if self._escaping else None
             unsafe = not self._safe(self.trajectory, self.map.clearance, t, floor)
@@ -327,7 +334,8 @@ class DeniedAgent(OnboardAgent):
 
     def _escape_floor(self, distance: Callable[[np.ndarray], np.ndarray], pos_world: np.ndarray) -> float | None:
         """The obstacle clearance [m] :meth:`_safe` asks of a plan from ``pos_world`` (3,) [m] while the drone
-        leaves the band it was handed over in; None (0.75 clearance_m) otherwise.
+        leaves the band it was handed over in or came to rest in (:meth:`_resting_in_band`); None
+        (0.75 clearance_m) otherwise.
 
         A halting hand-over (:meth:`look_around_at`) leaves the drone where the DMPC plan halted, which may be
         inside the denied stack's band (DMPC keeps its own, smaller obstacle margin), and no plan from there
@@ -346,6 +354,21 @@ class DeniedAgent(OnboardAgent):
         if self._escape_floor_m is None:  # fixed at the first plan from the hover point: no ratchet inwards
             self._escape_floor_m = d - 0.5 * self.config.map.voxel_m
         return self._escape_floor_m
+
+    def _resting_in_band(self, t: float) -> bool:
+        """Whether a stop (:meth:`_brake`) has ended by ``t`` [s] with the drone inside the obstacle band
+        (0.75 clearance_m on the map's newest clearance) and no escape under way.
+
+        From there every plan starts inside the band, so :meth:`_safe` refuses them all and the drone would hover
+        until the map changed (radio_outage seed 19, denied: 667 refused replans, docs/results/radio_outage.md).
+        Only a drone at rest qualifies: the same rule for plans begun inside the band in flight was tried and
+        dropped (radio_outage.md, "Tried and dropped").
+        """
+        stop = self.trajectory
+        if not self.braking or self._escaping or stop is None or t < stop.t0_s + stop.total_duration - 1e-9:
+            return False
+        rest = stop.pos(np.array([stop.total_duration]))
+        return bool(self.map.clearance(rest)[0] < 0.75 * self.config.clearance_m)
 
     def _swarm_conflict(self, traj: MincoTrajectory, neighbours: list[NeighborPrediction], t: float) -> bool:
         """Whether ``traj`` comes within C_s (metric E of Eq. 16) of a prediction in the next ``conflict_horizon_s``."""
@@ -444,6 +467,7 @@ class DeniedAgent(OnboardAgent):
             "brakes": s.brakes,
             "swarm_replans": s.swarm_replans,
             "yaw_replans": s.yaw_replans,
+            "rest_escapes": s.rest_escapes,
             "replan_ms_median": float(np.median(s.solve_ms)) if s.solve_ms else None,
             "map_ms_median": float(np.median(s.map_ms)) if s.map_ms else None,
         }

@@ -72,3 +72,31 @@ def test_a_drone_handed_over_inside_the_obstacle_band_may_leave_it_no_closer_tha
     assert agent._escape_floor(at(0.15), here) == pytest.approx(0.2 - half_voxel)  # fixed: no ratchet inwards
     assert agent._escape_floor(at(band), here) is None  # out of the band: the rule ends for good
     assert agent._escape_floor(at(0.2), here) is None
+
+
+def test_a_stop_that_ends_inside_the_obstacle_band_begins_an_escape_no_closer_than_where_it_rests(monkeypatch):
+    agent = DeniedAgent(0, GOAL, DeniedAgentConfig())
+    band, half_voxel = 0.75 * agent.config.clearance_m, 0.5 * agent.config.map.voxel_m
+    clearance = {"d": 0.2}
+    monkeypatch.setattr(agent.map, "clearance", lambda p: np.full(len(p), clearance["d"]))
+    agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([1.0, 0.0, 0.0]), 3.0)
+    assert not agent._resting_in_band(5.0)  # a plan, not a stop: whatever its end, no escape
+    agent._brake(0.0)
+    stop = agent.trajectory
+    end = stop.t0_s + stop.total_duration
+    assert not agent._resting_in_band(end - 0.04)  # still stopping
+    assert agent._resting_in_band(end)
+    clearance["d"] = band
+    assert not agent._resting_in_band(end)  # at rest outside the band: the band holds
+    clearance["d"] = 0.2
+    # what on_frame does on the first frame at rest: begin the escape; the floor is then the rest point's clearance
+    agent._escaping, agent._escape_floor_m = True, None
+    assert not agent._resting_in_band(end + 1.0)  # one escape at a time
+    floor = agent._escape_floor(agent.map.clearance, agent.state_at(end)[0])
+    assert floor == pytest.approx(0.2 - half_voxel)
+    assert agent._safe(stop, agent.map.clearance, end, floor)  # hovering where it rests is no longer refused
+    assert not agent._safe(stop, agent.map.clearance, end)  # (it was, at every frame, before)
+    closer = lambda p: np.full(len(p), 0.2 - 2 * half_voxel)  # noqa: E731  a plan that goes further in
+    away = _line(stop.pos(np.array([stop.total_duration]))[0], np.array([0.0, 1.0, 0.0]), 1.0, end)
+    assert not agent._safe(away, closer, end, floor)
+    assert agent._safe(away, agent.map.clearance, end, floor)
