@@ -34,8 +34,9 @@ separation beats the old plan's); if the current trajectory is itself unsafe
 with respect to obstacles, the agent brakes to a stop along it (a stopping
 MINCO piece from its current state). A stop that ends inside the obstacle band
 (0.75 clearance_m) would leave the drone there for good, since every plan from
-that point starts inside the band; it begins an escape instead: a plan may come
-no closer than where the drone rests (:meth:`DeniedAgent._escape_floor`).
+that point starts inside the band; there the drone turns the camera once round,
+as after a halting hand-over, and then plans out of the band no closer than it
+rests (:meth:`DeniedAgent._escape_from_rest`, :meth:`DeniedAgent._escape_floor`).
 
 Yaw (MP-CDE Sec. IV-A, :mod:`mpcde.onboard.heading`): every t_y = 0.1 s of frame
 time the active yaw planner (:mod:`planners.yaw`, Alg. 1) chooses exploring,
@@ -201,7 +202,7 @@ class DeniedAgent(OnboardAgent):
         The snapshot (a copy of the window; its ESDF deferred further) is taken only
         when the yaw planner or a replan reads it, not on every frame.
         """
-        if t < self.config.start_delay_s or self.latest_estimate is None or self._scanning(t):
+        if t < self.config.start_delay_s or self.latest_estimate is None or self._scanning(t) or self._escape_from_rest(t):
             return
         neighbours = self.neighbours(t)
         yaw_trigger = False
@@ -210,9 +211,6 @@ class DeniedAgent(OnboardAgent):
                 yaw_trigger = self.heading.update(t, self.map.snapshot(), self.trajectory, self.hover_world, neighbours)
         # the per-frame check reads the newest ESDF and the voxels occupied since (no transform)
         unsafe = False
-        if self._resting_in_band(t):
-            self._escaping, self._escape_floor_m = True, None
-            self.stats.rest_escapes += 1
         if self.trajectory is not None:  # the escape floor is read (and first fixed) only for a plan in hand
             floor = self._escape_floor(self.map.clearance, self.state_at(t)[0]) if self._escaping else None
             unsafe = not self._safe(self.trajectory, self.map.clearance, t, floor)
@@ -354,6 +352,17 @@ class DeniedAgent(OnboardAgent):
         if self._escape_floor_m is None:  # fixed at the first plan from the hover point: no ratchet inwards
             self._escape_floor_m = d - 0.5 * self.config.map.voxel_m
         return self._escape_floor_m
+
+    def _escape_from_rest(self, t: float) -> bool:
+        """At the first frame ``t`` [s] at rest inside the obstacle band (:meth:`_resting_in_band`): turn the camera
+        once round where the drone rests, then plan out of the band no closer than it rests (:meth:`_escape_floor`);
+        the halting hand-over's sequence (:meth:`look_around_at`), so that the neighbours about it are tracks before
+        it moves. Returns whether the turn began."""
+        if not self._resting_in_band(t):
+            return False
+        self.stats.rest_escapes += 1
+        self._begin_turn(t, self.state_at(t)[0], self.heading.yaw)
+        return True
 
     def _resting_in_band(self, t: float) -> bool:
         """Whether a stop (:meth:`_brake`) has ended by ``t`` [s] with the drone inside the obstacle band

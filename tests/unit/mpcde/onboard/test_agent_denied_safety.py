@@ -89,10 +89,18 @@ def test_a_stop_that_ends_inside_the_obstacle_band_begins_an_escape_no_closer_th
     clearance["d"] = band
     assert not agent._resting_in_band(end)  # at rest outside the band: the band holds
     clearance["d"] = 0.2
-    # what on_frame does on the first frame at rest: begin the escape; the floor is then the rest point's clearance
-    agent._escaping, agent._escape_floor_m = True, None
-    assert not agent._resting_in_band(end + 1.0)  # one escape at a time
-    floor = agent._escape_floor(agent.map.clearance, agent.state_at(end)[0])
+    # the first frame at rest: the camera turns once round where the drone rests (nothing planned), then the escape
+    from mpcde.onboard.heading import ActiveYaw
+
+    agent.heading = ActiveYaw(agent.yaw_config, True, 0.3, agent.config.swarm_clearance_m, agent.config.swarm_z_scale, 0)
+    assert agent._escape_from_rest(end) and agent.stats.rest_escapes == 1
+    turn = 2.0 * np.pi / agent.config.yaw_rate_max_radps
+    assert agent._scan == pytest.approx((end, 0.3, end + turn))
+    np.testing.assert_allclose(agent.hover_world, stop.pos(np.array([stop.total_duration]))[0])
+    assert agent._scanning(end + turn - 0.04) and not agent._scanning(end + turn)
+    assert agent.trajectory is None and not agent._resting_in_band(end + turn + 1.0)  # one escape at a time
+    assert not agent._escape_from_rest(end + turn + 1.0) and agent.stats.rest_escapes == 1
+    floor = agent._escape_floor(agent.map.clearance, agent.state_at(end + turn)[0])
     assert floor == pytest.approx(0.2 - half_voxel)
     assert agent._safe(stop, agent.map.clearance, end, floor)  # hovering where it rests is no longer refused
     assert not agent._safe(stop, agent.map.clearance, end)  # (it was, at every frame, before)
