@@ -314,6 +314,12 @@ class DeniedAgent(OnboardAgent):
             return np.stack([self.hover_world, np.zeros(3), np.zeros(3)])
         return self.trajectory.pos_vel_acc(t - self.trajectory.t0_s)
 
+    @property
+    def band_m(self) -> float:
+        """The obstacle band [m]: the clearance from the map's obstacles every plan keeps (0.75 clearance_m), which
+        :meth:`_safe` checks and the escapes (:meth:`_escape_floor`, :meth:`_resting_in_band`) start inside."""
+        return 0.75 * self.config.clearance_m
+
     def _safe(
         self, traj: MincoTrajectory, distance: Callable[[np.ndarray], np.ndarray], t: float, floor_m: float | None = None
     ) -> bool:
@@ -328,7 +334,7 @@ class DeniedAgent(OnboardAgent):
         """
         tau = np.linspace(max(t - traj.t0_s, 0.0), traj.total_duration, 40)
         d = distance(traj.pos(tau))
-        return bool(np.min(d) >= (0.75 * self.config.clearance_m if floor_m is None else floor_m))
+        return bool(np.min(d) >= (self.band_m if floor_m is None else floor_m))
 
     def _escape_floor(self, distance: Callable[[np.ndarray], np.ndarray], pos_world: np.ndarray) -> float | None:
         """The obstacle clearance [m] :meth:`_safe` asks of a plan from ``pos_world`` (3,) [m] while the drone
@@ -344,9 +350,8 @@ class DeniedAgent(OnboardAgent):
         """
         if not self._escaping:
             return None
-        band = 0.75 * self.config.clearance_m
         d = float(distance(np.asarray(pos_world, float)[None])[0])
-        if d >= band:
+        if d >= self.band_m:
             self._escaping = False
             return None
         if self._escape_floor_m is None:  # fixed at the first plan from the hover point: no ratchet inwards
@@ -377,7 +382,7 @@ class DeniedAgent(OnboardAgent):
         if not self.braking or self._escaping or stop is None or t < stop.t0_s + stop.total_duration - 1e-9:
             return False
         rest = stop.pos(np.array([stop.total_duration]))
-        return bool(self.map.clearance(rest)[0] < 0.75 * self.config.clearance_m)
+        return bool(self.map.clearance(rest)[0] < self.band_m)
 
     def _swarm_conflict(self, traj: MincoTrajectory, neighbours: list[NeighborPrediction], t: float) -> bool:
         """Whether ``traj`` comes within C_s (metric E of Eq. 16) of a prediction in the next ``conflict_horizon_s``."""
