@@ -25,6 +25,16 @@ on an :class:`perception.types.OccupancySnapshot`:
 Goals outside the window are replaced by the point where the straight segment
 start -> goal leaves the window; a goal voxel that is not traversable is
 replaced by the nearest traversable voxel within ``goal_search_radius_m``.
+When the goal was clipped and that fails too (an obstacle straddles the
+window's edge where the segment leaves it: the search ball is cut in half by
+the edge and a trunk fills the rest), the goal becomes the traversable voxel of
+the whole window nearest the *true* goal, the best progress the window allows
+(``goal_fallback`` in the result). Without it the drone hovers: the window moves
+with the drone, the drone does not move, and the same clipped goal is refused
+at every frame (measured on Table III, density 8 seed 17: 835 refusals, the
+drone never left its start; ``docs/results/mp-cde.md``). A goal inside the
+window that is blocked stays ``"goal_blocked"``: the mission's goal itself is
+unreachable and no other point stands for it.
 
 The path is then shortcut greedily (from each kept point, the farthest later
 path point reachable by a straight segment that stays traversable and costs no
@@ -114,6 +124,9 @@ class PathSearchResult:
         goal_used_world: (3,) goal [m] actually searched for (clipped to the
             window and/or moved off an obstacle).
         goal_clipped: True when the goal lay outside the window.
+        goal_fallback: True when the clipped goal was blocked within
+            ``goal_search_radius_m`` and the window's traversable voxel nearest
+            the true goal was searched for instead (module docstring).
     """
 
     status: str
@@ -123,6 +136,7 @@ class PathSearchResult:
     cost_m: float
     goal_used_world: np.ndarray
     goal_clipped: bool
+    goal_fallback: bool = False
 
     @property
     def found(self) -> bool:
@@ -165,8 +179,12 @@ def search_path(
     goal_used = _clip_to_window(snapshot, start, goal) if goal_clipped else goal
     start_idx = snapshot.world_to_index(start[None])[0]
     goal_idx = snapshot.world_to_index(goal_used[None])[0]
+    goal_fallback = False
     if not ok[_lin(goal_idx, shape)]:
         goal_idx = _nearest_traversable(ok.reshape(snapshot.shape), snapshot, goal_used, config.goal_search_radius_m)
+        if goal_idx is None and goal_clipped:
+            goal_idx = _nearest_traversable(ok.reshape(snapshot.shape), snapshot, goal, np.inf)
+            goal_fallback = goal_idx is not None
         if goal_idx is None:
             return PathSearchResult("goal_blocked", None, None, 0, np.inf, goal_used, goal_clipped)
         goal_used = snapshot.index_to_world(goal_idx[None])[0]
@@ -186,7 +204,7 @@ def search_path(
     )
     if code != 0:
         status = "no_path" if code == 1 else "expansion_limit"
-        return PathSearchResult(status, None, None, int(n_expanded), np.inf, goal_used, goal_clipped)
+        return PathSearchResult(status, None, None, int(n_expanded), np.inf, goal_used, goal_clipped, goal_fallback)
 
     path_world = snapshot.index_to_world(cells)
     path_world[0] = start
@@ -197,7 +215,7 @@ def search_path(
         costs = np.array([0.0, float(np.linalg.norm(goal_used - start))])
     keep = _shortcut(cells, costs, ok.reshape(snapshot.shape), unknown.reshape(snapshot.shape), v, config.unknown_penalty)
     waypoints = _split_long(path_world[keep], config.max_segment_m)
-    return PathSearchResult("found", waypoints, path_world, int(n_expanded), float(costs[-1]), goal_used, goal_clipped)
+    return PathSearchResult("found", waypoints, path_world, int(n_expanded), float(costs[-1]), goal_used, goal_clipped, goal_fallback)
 
 
 def _lin(idx: np.ndarray, shape: np.ndarray) -> int:
@@ -222,11 +240,17 @@ def _clip_to_window(snapshot: OccupancySnapshot, start: np.ndarray, goal: np.nda
 def _nearest_traversable(
     ok: np.ndarray, snapshot: OccupancySnapshot, point: np.ndarray, radius_m: float
 ) -> np.ndarray | None:
-    """Index (3,) of the traversable voxel nearest ``point`` (3,) within ``radius_m``, or None."""
-    r = int(np.ceil(radius_m / snapshot.voxel_m))
-    c = snapshot.world_to_index(point[None])[0]
-    lo = np.maximum(c - r, 0)
-    hi = np.minimum(c + r + 1, np.asarray(ok.shape))
+    """Index (3,) of the traversable voxel nearest ``point`` (3,) within ``radius_m``, or None.
+
+    ``point`` may lie outside the window when ``radius_m`` is infinite (the whole window is searched).
+    """
+    if np.isinf(radius_m):
+        lo, hi = np.zeros(3, np.int64), np.asarray(ok.shape)
+    else:
+        r = int(np.ceil(radius_m / snapshot.voxel_m))
+        c = snapshot.world_to_index(point[None])[0]
+        lo = np.maximum(c - r, 0)
+        hi = np.minimum(c + r + 1, np.asarray(ok.shape))
     if np.any(hi <= lo):
         return None
     sub = np.argwhere(ok[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]) + lo

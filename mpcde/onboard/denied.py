@@ -84,6 +84,8 @@ class PlanningStats:
     swarm_replans: int = 0
     yaw_replans: int = 0
     rest_escapes: int = 0  # stops that ended inside the obstacle band and began an escape (_escape_floor)
+    front_end_failures: dict = field(default_factory=dict)  # refused front-end searches by status ("goal_blocked", "no_path", ...)
+    goal_fallbacks: int = 0  # found paths to the window's voxel nearest the goal (the clipped goal was blocked)
     solve_ms: list = field(default_factory=list)
     map_ms: list = field(default_factory=list)
 
@@ -411,7 +413,9 @@ class DeniedAgent(OnboardAgent):
                 return False
         if not path.found:
             self.stats.failures += 1
+            self.stats.front_end_failures[path.status] = self.stats.front_end_failures.get(path.status, 0) + 1
             return False
+        self.stats.goal_fallbacks += path.goal_fallback
         goal_pva = np.stack([path.goal_used_world, np.zeros(3), np.zeros(3)])
         try:
             with self.budget.measure("optimiser"):
@@ -482,6 +486,8 @@ class DeniedAgent(OnboardAgent):
             "swarm_replans": s.swarm_replans,
             "yaw_replans": s.yaw_replans,
             "rest_escapes": s.rest_escapes,
+            "front_end_failures": dict(sorted(s.front_end_failures.items())),
+            "goal_fallbacks": s.goal_fallbacks,
             "replan_ms_median": float(np.median(s.solve_ms)) if s.solve_ms else None,
             "map_ms_median": float(np.median(s.map_ms)) if s.map_ms else None,
         }

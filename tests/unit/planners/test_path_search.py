@@ -114,6 +114,40 @@ def test_goal_outside_window_is_clipped_towards_the_goal() -> None:
     assert res.goal_used_world[0] == pytest.approx(snap.upper_world[0] - 0.5 * VOXEL_M)
 
 
+def edge_block_grid() -> np.ndarray:
+    """40 x 40 x 12 grid with a full-height block on the window's +x edge, astride y = 0 (a trunk cut by the edge)."""
+    occ = np.zeros((40, 40, 12), bool)
+    occ[34:, 14:27, :] = True
+    return occ
+
+
+def test_clipped_goal_blocked_at_the_edge_falls_back_to_the_window_voxel_nearest_the_goal() -> None:
+    snap = make_snapshot(edge_block_grid())
+    start, goal, clearance = np.array([-2.0, 0.0, 0.9]), np.array([20.0, 0.0, 0.9]), 0.4
+    res = search_path(snap, start, goal, clearance, PathSearchConfig(goal_search_radius_m=1.0))
+    assert res.found and res.goal_clipped and res.goal_fallback
+    # the goal used is traversable and, of every traversable voxel of the window, the nearest to the true goal
+    ok = (snap.state != OccupancySnapshot.OCCUPIED) & (snap.distance_m >= clearance)
+    centres = snap.index_to_world(np.argwhere(ok))
+    best = np.min(np.linalg.norm(centres - goal, axis=1))
+    assert np.linalg.norm(res.goal_used_world - goal) == pytest.approx(best, abs=1e-9)
+    assert snap.distance_and_gradient(res.goal_used_world[None])[0][0] >= clearance - 1e-6
+    # it is beside the block on the window's far face, where the straight line left the window
+    assert res.goal_used_world[0] == pytest.approx(snap.upper_world[0] - 0.5 * VOXEL_M)
+    assert abs(res.goal_used_world[1]) > 1.0
+    np.testing.assert_allclose(res.waypoints_world[-1], res.goal_used_world)
+
+
+def test_fallback_is_only_for_a_clipped_goal() -> None:
+    snap = make_snapshot(edge_block_grid())
+    start = np.array([-2.0, 0.0, 0.9])
+    inside = search_path(snap, start, np.array([2.6, 0.0, 0.9]), 0.4, PathSearchConfig(goal_search_radius_m=1.0))
+    assert inside.status == "goal_blocked" and not inside.goal_clipped and not inside.goal_fallback
+    # a clipped goal free within the radius is moved as before, without the fallback
+    free = search_path(snap, np.array([-2.0, -2.0, 0.9]), np.array([20.0, -2.0, 0.9]), 0.4)
+    assert free.found and free.goal_clipped and not free.goal_fallback
+
+
 def test_long_segments_are_split() -> None:
     snap = make_snapshot(np.zeros((40, 40, 12), bool))
     res = search_path(snap, np.array([-2.5, -2.5, 0.3]), np.array([2.5, 2.5, 1.5]), 0.1, PathSearchConfig(max_segment_m=1.0))
