@@ -108,3 +108,31 @@ def test_a_stop_that_ends_inside_the_obstacle_band_begins_an_escape_no_closer_th
     away = _line(stop.pos(np.array([stop.total_duration]))[0], np.array([0.0, 1.0, 0.0]), 1.0, end)
     assert not agent._safe(away, closer, end, floor)
     assert agent._safe(away, agent.map.clearance, end, floor)
+
+
+def test_front_end_refusals_are_counted_by_status_and_fallbacks_counted(monkeypatch):
+    from types import SimpleNamespace
+
+    import mpcde.onboard.denied as denied
+    from planners.path_search import PathSearchResult
+
+    agent = DeniedAgent(0, GOAL, DeniedAgentConfig())
+    agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([1.0, 0.0, 0.0]), 3.0)
+    snap = SimpleNamespace(distance_m=None)
+    outcome = {"r": PathSearchResult("goal_blocked", None, None, 0, np.inf, np.zeros(3), True)}
+    monkeypatch.setattr(denied, "with_neighbour_capsules", lambda s, *a, **k: s)
+    monkeypatch.setattr(denied, "search_path", lambda *a: outcome["r"])
+    assert not agent._replan(snap, [], 0.0) and not agent._replan(snap, [], 0.04)
+    outcome["r"] = PathSearchResult("no_path", None, None, 10, np.inf, np.zeros(3), False)
+    assert not agent._replan(snap, [], 0.08)
+    path = np.array([[0.0, 0.0, 1.5], [4.9, 0.0, 1.5]])
+    outcome["r"] = PathSearchResult("found", path, path, 10, 4.9, path[-1], True, goal_fallback=True)
+
+    def refuse(*a):
+        raise ValueError("optimiser refused")
+
+    monkeypatch.setattr(denied, "build_trajectory_problem", refuse)
+    assert not agent._replan(snap, [], 0.12)  # the fallback path was found (counted); the optimiser then failed
+    m = agent.extra_metrics()
+    assert m["front_end_failures"] == {"goal_blocked": 2, "no_path": 1}
+    assert m["goal_fallbacks"] == 1 and m["plan_failures"] == 4
