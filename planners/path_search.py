@@ -29,12 +29,18 @@ When the goal was clipped and that fails too (an obstacle straddles the
 window's edge where the segment leaves it: the search ball is cut in half by
 the edge and a trunk fills the rest), the goal becomes the traversable voxel of
 the whole window nearest the *true* goal, the best progress the window allows
-(``goal_fallback`` in the result). Without it the drone hovers: the window moves
-with the drone, the drone does not move, and the same clipped goal is refused
-at every frame (measured on Table III, density 8 seed 17: 835 refusals, the
-drone never left its start; ``docs/results/mp-cde.md``). A goal inside the
-window that is blocked stays ``"goal_blocked"``: the mission's goal itself is
-unreachable and no other point stands for it.
+(``goal_fallback`` in the result). Without it a drone that has no plan to fly
+hovers for good: the window moves with the drone, the drone does not move, and
+the same clipped goal is refused at every frame (measured on Table III, density
+8 seed 17: 835 refusals, the drone never left its start;
+``docs/results/mp-cde.md``). The caller decides when to allow it
+(``goal_fallback=False`` refuses as before): the denied agent allows it only
+while it has no plan or is stopping, because a drone still flying a plan moves
+its window and the clipped goal moves off the obstacle within a few frames,
+while the fallback's point may lie well to the side of the course (allowed in
+flight, it turned a radio_outage flight into a collision with a drone flying
+abreast). A goal inside the window that is blocked stays ``"goal_blocked"``:
+the mission's goal itself is unreachable and no other point stands for it.
 
 The path is then shortcut greedily (from each kept point, the farthest later
 path point reachable by a straight segment that stays traversable and costs no
@@ -150,10 +156,13 @@ def search_path(
     goal_world: np.ndarray,
     clearance_m: float,
     config: PathSearchConfig = PathSearchConfig(),
+    goal_fallback: bool = True,
 ) -> PathSearchResult:
     """A* from ``start_world`` (3,) to ``goal_world`` (3,) [m] keeping ``clearance_m`` [m] from obstacles.
 
-    ``start_world`` must lie inside the window (raises ValueError otherwise).
+    ``start_world`` must lie inside the window (raises ValueError otherwise). ``goal_fallback``: a clipped goal
+    blocked within ``goal_search_radius_m`` is replaced by the window's traversable voxel nearest the true goal
+    (module docstring); False: refused as ``"goal_blocked"``.
     """
     start = np.asarray(start_world, float).reshape(3)
     goal = np.asarray(goal_world, float).reshape(3)
@@ -179,12 +188,12 @@ def search_path(
     goal_used = _clip_to_window(snapshot, start, goal) if goal_clipped else goal
     start_idx = snapshot.world_to_index(start[None])[0]
     goal_idx = snapshot.world_to_index(goal_used[None])[0]
-    goal_fallback = False
+    fell_back = False
     if not ok[_lin(goal_idx, shape)]:
         goal_idx = _nearest_traversable(ok.reshape(snapshot.shape), snapshot, goal_used, config.goal_search_radius_m)
-        if goal_idx is None and goal_clipped:
+        if goal_idx is None and goal_clipped and goal_fallback:
             goal_idx = _nearest_traversable(ok.reshape(snapshot.shape), snapshot, goal, np.inf)
-            goal_fallback = goal_idx is not None
+            fell_back = goal_idx is not None
         if goal_idx is None:
             return PathSearchResult("goal_blocked", None, None, 0, np.inf, goal_used, goal_clipped)
         goal_used = snapshot.index_to_world(goal_idx[None])[0]
@@ -204,7 +213,7 @@ def search_path(
     )
     if code != 0:
         status = "no_path" if code == 1 else "expansion_limit"
-        return PathSearchResult(status, None, None, int(n_expanded), np.inf, goal_used, goal_clipped, goal_fallback)
+        return PathSearchResult(status, None, None, int(n_expanded), np.inf, goal_used, goal_clipped, fell_back)
 
     path_world = snapshot.index_to_world(cells)
     path_world[0] = start
@@ -215,7 +224,7 @@ def search_path(
         costs = np.array([0.0, float(np.linalg.norm(goal_used - start))])
     keep = _shortcut(cells, costs, ok.reshape(snapshot.shape), unknown.reshape(snapshot.shape), v, config.unknown_penalty)
     waypoints = _split_long(path_world[keep], config.max_segment_m)
-    return PathSearchResult("found", waypoints, path_world, int(n_expanded), float(costs[-1]), goal_used, goal_clipped, goal_fallback)
+    return PathSearchResult("found", waypoints, path_world, int(n_expanded), float(costs[-1]), goal_used, goal_clipped, fell_back)
 
 
 def _lin(idx: np.ndarray, shape: np.ndarray) -> int:

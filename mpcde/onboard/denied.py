@@ -85,7 +85,7 @@ class PlanningStats:
     yaw_replans: int = 0
     rest_escapes: int = 0  # stops that ended inside the obstacle band and began an escape (_escape_floor)
     front_end_failures: dict = field(default_factory=dict)  # refused front-end searches by status ("goal_blocked", "no_path", ...)
-    goal_fallbacks: int = 0  # found paths to the window's voxel nearest the goal (the clipped goal was blocked)
+    goal_fallbacks: int = 0  # found paths to the window's voxel nearest the goal (clipped goal blocked, no plan or stopping)
     solve_ms: list = field(default_factory=list)
     map_ms: list = field(default_factory=list)
 
@@ -407,7 +407,10 @@ class DeniedAgent(OnboardAgent):
                 snap, neighbours, t, c.conflict_horizon_s, c.swarm_clearance_m, self.t_hold_s, reach_m=c.front_end_clearance_m + 0.3
             )
             try:
-                path = search_path(front, start[0], self.goal_world, c.front_end_clearance_m, self.search)
+                # the window's nearest voxel to the goal stands in for a blocked clipped goal only for a drone with
+                # no plan to fly or stopping: its window no longer moves (planners.path_search, module docstring)
+                stalled = self.trajectory is None or self.braking
+                path = search_path(front, start[0], self.goal_world, c.front_end_clearance_m, self.search, goal_fallback=stalled)
             except ValueError:  # the planned start left the map window (the map moves with the frames it gets)
                 self.stats.failures += 1
                 return False

@@ -143,6 +143,9 @@ def test_fallback_is_only_for_a_clipped_goal() -> None:
     start = np.array([-2.0, 0.0, 0.9])
     inside = search_path(snap, start, np.array([2.6, 0.0, 0.9]), 0.4, PathSearchConfig(goal_search_radius_m=1.0))
     assert inside.status == "goal_blocked" and not inside.goal_clipped and not inside.goal_fallback
+    # the caller may refuse it: a clipped goal blocked at the edge is then refused as before
+    off = search_path(snap, start, np.array([20.0, 0.0, 0.9]), 0.4, PathSearchConfig(goal_search_radius_m=1.0), goal_fallback=False)
+    assert off.status == "goal_blocked" and off.goal_clipped and not off.goal_fallback
     # a clipped goal free within the radius is moved as before, without the fallback
     free = search_path(snap, np.array([-2.0, -2.0, 0.9]), np.array([20.0, -2.0, 0.9]), 0.4)
     assert free.found and free.goal_clipped and not free.goal_fallback

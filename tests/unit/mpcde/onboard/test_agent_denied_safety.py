@@ -121,8 +121,11 @@ def test_front_end_refusals_are_counted_by_status_and_fallbacks_counted(monkeypa
     snap = SimpleNamespace(distance_m=None)
     outcome = {"r": PathSearchResult("goal_blocked", None, None, 0, np.inf, np.zeros(3), True)}
     monkeypatch.setattr(denied, "with_neighbour_capsules", lambda s, *a, **k: s)
-    monkeypatch.setattr(denied, "search_path", lambda *a: outcome["r"])
+    allowed = []
+    monkeypatch.setattr(denied, "search_path", lambda *a, goal_fallback: allowed.append(goal_fallback) or outcome["r"])
     assert not agent._replan(snap, [], 0.0) and not agent._replan(snap, [], 0.04)
+    assert allowed == [False, False]  # flying a plan: its window moves, so no fallback point
+    agent._brake(0.04)
     outcome["r"] = PathSearchResult("no_path", None, None, 10, np.inf, np.zeros(3), False)
     assert not agent._replan(snap, [], 0.08)
     path = np.array([[0.0, 0.0, 1.5], [4.9, 0.0, 1.5]])
@@ -133,6 +136,7 @@ def test_front_end_refusals_are_counted_by_status_and_fallbacks_counted(monkeypa
 
     monkeypatch.setattr(denied, "build_trajectory_problem", refuse)
     assert not agent._replan(snap, [], 0.12)  # the fallback path was found (counted); the optimiser then failed
+    assert allowed[2:] == [True, True]  # stopping: the fallback is allowed
     m = agent.extra_metrics()
     assert m["front_end_failures"] == {"goal_blocked": 2, "no_path": 1}
     assert m["goal_fallbacks"] == 1 and m["plan_failures"] == 4
