@@ -9,7 +9,7 @@ collision; ``--flights`` names them (``1:36`` is cell 1, seed 36). ``--set``
 overrides a scenario field for every flight (``denied.yaw.free_max_age_s=1.5``),
 on top of the sweep's own overrides and the cell's axes. Prints one line per
 flight (collisions, drones arrived, minimum inter-drone distance, mission
-time) and the totals.
+time) and the totals; ``--jsonl FILE`` also appends each flight's metrics there.
 
 A screen is chosen *because* the flights collided, so what it shows is that a
 change removes those collisions, never a success rate: a change is judged on
@@ -19,12 +19,13 @@ a sweep whose seeds were fixed before the first flight.
 from __future__ import annotations
 
 import argparse
+import json
 from functools import partial
 from pathlib import Path
 
 import yaml
 
-from mpcde.sweep.engine import FlightTask, run_flights, share_cores_count
+from mpcde.sweep.engine import FlightTask, git_revision, run_flights, share_cores_count
 from mpcde.sweep.runner import prepare_flight
 from mpcde.sweep.spec import load_sweep
 from mpcde.sweep.store import ResultsStore
@@ -37,6 +38,7 @@ def main() -> None:
     ap.add_argument("--flights", nargs="*", default=[], help="CELL:SEED pairs")
     ap.add_argument("--set", dest="sets", action="append", default=[], help="FIELD=YAML_VALUE override")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--jsonl", type=Path, help="also append each flight's {cell, seed, git_rev, metrics} to this file")
     args = ap.parse_args()
     spec = load_sweep(args.sweep)
     sets = {}
@@ -59,6 +61,9 @@ def main() -> None:
             print(f"{cells[c].label} seed {s}: FAILED {o.error}", flush=True)
             return
         m = o.metrics
+        if args.jsonl is not None:
+            with args.jsonl.open("a") as f:
+                f.write(json.dumps({"cell": c, "seed": s, "git_rev": git_revision(), "metrics": m}) + "\n")
         totals["flights"] += 1
         totals["collisions"] += m["collisions"]
         totals["with_collision"] += m["collisions"] > 0
