@@ -54,6 +54,7 @@ def main() -> None:
     render_workers = share_cores_count(args.jobs) if args.jobs > 1 else None  # as `mpcde sweep` shares the cores
     tasks = [FlightTask((c, s), partial(prepare_flight, spec, cells[c], s, render_workers)) for c, s in keys]
     totals = {"flights": 0, "collisions": 0, "with_collision": 0, "all_arrived": 0}
+    rev = git_revision() if args.jsonl is not None else None  # once: every flight of this process flies the same code
 
     def on_done(o) -> None:  # noqa: ANN001
         c, s = o.key
@@ -63,7 +64,7 @@ def main() -> None:
         m = o.metrics
         if args.jsonl is not None:
             with args.jsonl.open("a") as f:
-                f.write(json.dumps({"cell": c, "seed": s, "git_rev": git_revision(), "metrics": m}) + "\n")
+                f.write(json.dumps({"cell": c, "seed": s, "git_rev": rev, "metrics": m}) + "\n")
         totals["flights"] += 1
         totals["collisions"] += m["collisions"]
         totals["with_collision"] += m["collisions"] > 0
