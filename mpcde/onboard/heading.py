@@ -130,6 +130,10 @@ class ActiveYaw:
         self.yaw += step
         return self.yaw, step / dt if dt > 0 else 0.0
 
+    def _reported_modes(self) -> tuple[str, ...]:
+        """The modes whose fractions metrics.json reports: Alg. 1's three, and ``"spinning"`` under ``method: spin``."""
+        return ("exploring", "observing", "tracking") + (("spinning",) if self.config.method == "spin" else ())
+
     def metrics(self) -> dict:
         """Mode counts and planning time for metrics.json."""
         if not self.active:
@@ -137,6 +141,6 @@ class ActiveYaw:
         total = sum(self.modes.values())
         return {
             "yaw_plans": total,
-            "yaw_mode_fraction": {m: self.modes[m] / total for m in ("exploring", "observing", "tracking")} if total else None,
+            "yaw_mode_fraction": {m: self.modes[m] / total for m in self._reported_modes()} if total else None,
             "yaw_plan_ms_median": float(np.median(self.plan_ms)) if self.plan_ms else None,
         }

@@ -213,7 +213,23 @@ class YawPlannerConfig:
             the same lattice (n, m, rate limit, turn penalty) whose edge reward
             is only the unknown area in view (Eq. 3 without the coverage window
             W), always: no safety metric, no tracking or observing mode, no
-            neighbour visibility term.
+            neighbour visibility term. ``"spin"`` (not in MP-CDE): the camera
+            turns counter-clockwise at ``yaw_rate_max_radps`` in every
+            situation, whatever the map, the tracks or S(0) say (mode
+            ``"spinning"``; S(0) is still computed for Alg. 1 line 13's
+            trigger). Every direction is in the horizontal view for
+            fov_h / yaw_rate_max of each revolution of 2 pi / yaw_rate_max
+            (0.74 s of 3.14 s by default, 18 frames at 25 Hz), so a neighbour
+            in range is seen at least once a revolution wherever it is,
+            where the three modes may leave a side unwatched for as long as
+            they choose; the price is that the direction of travel is also
+            in view only that fraction of the time. A track must outlive a
+            revolution to be held between views: pair it with
+            ``perception.tracker.t_drop_s`` above 2 pi / yaw_rate_max. Why it
+            exists: every collision of the forest sweep is between drones that
+            did not have each other in view in the 2 s before contact, most of
+            them neighbours tracked and dropped seconds earlier
+            (docs/results/safety.md).
     """
 
     period_s: float = 0.1
@@ -273,7 +289,7 @@ class YawPlannerConfig:
         if self.alpha + self.beta <= 0.0:
             raise ConfigError("beta", self.beta, f"allowed alpha + beta > 0 (alpha={self.alpha!r})")
         require_positive("free_max_age_s", self.free_max_age_s, inf_means="free space never ages")
-        require_one_of("method", self.method, ("mpcde", "zhou"))
+        require_one_of("method", self.method, ("mpcde", "zhou", "spin"))
         require_one_of("free_distance", self.free_distance, ("horizontal", "voxel", "occupied"))
         require_one_of("tracking_sweep_pattern", self.tracking_sweep_pattern, ("clock", "stalest"))
         require_integer_at_least("n_steps", self.n_steps, 1)

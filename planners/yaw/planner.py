@@ -27,7 +27,9 @@ flies heading-along-travel where exploring would run; ``tracking_mode:
 false`` never takes the safety turn of step 5. ``method: zhou`` is the
 paper's comparison, Zhou et al.'s perception-aware yaw (see
 :class:`planners.yaw.config.YawPlannerConfig`): the lattice with the unknown
-area in view as its only reward, in every situation.
+area in view as its only reward, in every situation. ``method: spin`` (not in
+the paper) turns the camera counter-clockwise at the yaw-rate limit in every
+situation, one revolution every 2 pi / yaw_rate_max (3.1 s by default).
 
 Every mode's output starts at the current yaw, is unwrapped and changes by
 at most yaw_rate_max t_y per step. The planner also remembers the sectors of
@@ -129,7 +131,10 @@ class YawPlanner:
         safe = self._in_safe_regime or not cfg.tracking_mode  # without tracking mode, never the safety turn
         # |V| = |A|: every neighbour recently seen; with roster_aware, A also holds the roster's untracked neighbours
         all_seen = bool(active) and len(recent) == len(active) and not (cfg.roster_aware and len(active) < self.swarm_neighbours)
-        if cfg.method == "zhou":  # Zhou et al.'s yaw: the most unknown space in view along the trajectory, always
+        if cfg.method == "spin":  # every direction in view once per revolution, whatever the map or the tracks say
+            mode = "spinning"
+            yaws = yaw + cfg.yaw_rate_max_radps * (times - time_s)
+        elif cfg.method == "zhou":  # Zhou et al.'s yaw: the most unknown space in view along the trajectory, always
             mode = "exploring"
             yaws = self._explore(yaw, times, positions, snapshot, (), zhou=True)
         elif not safe or not (cfg.exploring_mode or all_seen):

@@ -132,6 +132,25 @@ def test_zhou_s_method_always_looks_for_the_most_unknown_space():
         YawPlannerConfig(method="fuel")
 
 
+def test_spin_turns_counter_clockwise_at_the_rate_limit_whatever_the_situation():
+    """``method: spin``: a small margin (tracking), a large one (exploring) and a neighbour seen (observing)
+    all give the same constant turn at yaw_rate_max, one revolution every 2 pi / yaw_rate_max; S(0) is still
+    reported for Alg. 1 line 13."""
+    from dataclasses import replace
+
+    cfg = replace(paper_config(), method="spin")
+    fwd = line(np.array([1.0, 0.0, 0.0]))
+    seen = neighbour((2.0, 1.0, 1.1), stamp_s=0.95)
+    planner = YawPlanner(cfg)
+    for t, snap, nbs in ((1.0, uniform_snapshot(1.0), []), (1.1, uniform_snapshot(3.0), []), (1.2, uniform_snapshot(3.0), [seen])):
+        plan = planner.plan(t, 0.3, fwd, snap, nbs)
+        assert plan.mode == "spinning"
+        assert_rate_limited(plan, 0.3, cfg)
+        np.testing.assert_allclose(np.diff(plan.yaws), cfg.max_step_rad)  # counter-clockwise, at the limit
+    assert plan.safety_margin_s == pytest.approx(3.0)
+    assert plan.min_neighbour_distance_m < np.inf
+
+
 def test_observing_needs_every_neighbour_recently_seen():
     planner = YawPlanner(paper_config())
     snap = uniform_snapshot(3.0)
