@@ -11,6 +11,11 @@ on top of the sweep's own overrides and the cell's axes. Prints one line per
 flight (collisions, drones arrived, minimum inter-drone distance, mission
 time) and the totals; ``--jsonl FILE`` also appends each flight's metrics there.
 
+``--into STORE_DIR`` writes each flight as a row of the sweep's own store (created if absent, as `mpcde
+sweep SWEEP.yaml --out STORE_DIR` creates it; flights already there are skipped), so that chosen flights can
+be flown first, in a chosen order, and `mpcde sweep` resumes the rest. Refused with ``--set``: the store
+holds the sweep's flights, not variants of them.
+
 A screen is chosen *because* the flights collided, so what it shows is that a
 change removes those collisions, never a success rate: a change is judged on
 a sweep whose seeds were fixed before the first flight.
@@ -25,10 +30,10 @@ from pathlib import Path
 
 import yaml
 
-from mpcde.sweep.engine import FlightTask, git_revision, run_flights, share_cores_count
+from mpcde.sweep.engine import FlightTask, git_revision, package_version, run_flights, share_cores_count
 from mpcde.sweep.runner import prepare_flight
 from mpcde.sweep.spec import load_sweep
-from mpcde.sweep.store import ResultsStore
+from mpcde.sweep.store import ResultsStore, flight_row
 
 
 def main() -> None:
@@ -39,7 +44,10 @@ def main() -> None:
     ap.add_argument("--set", dest="sets", action="append", default=[], help="FIELD=YAML_VALUE override")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--jsonl", type=Path, help="also append each flight's {cell, seed, git_rev, metrics} to this file")
+    ap.add_argument("--into", type=Path, help="write each flight as a row of this store of the sweep (no --set)")
     args = ap.parse_args()
+    if args.into is not None and args.sets:
+        raise SystemExit("screen_flights: --into STORE_DIR writes the sweep's own flights: drop --set")
     spec = load_sweep(args.sweep)
     sets = {}
     for item in args.sets:
@@ -51,13 +59,20 @@ def main() -> None:
     keys: list[tuple[int, int]] = [tuple(int(x) for x in f.split(":")) for f in args.flights]  # type: ignore[misc]
     if args.store is not None:
         keys += [(r["cell"], r["seed"]) for r in ResultsStore.read(args.store).rows() if (r.get("metrics") or {}).get("collisions")]
+    store = ResultsStore.for_sweep(args.into, spec) if args.into is not None else None
+    if store is not None:
+        done = store.done()
+        keys = [k for k in keys if k not in done]
     render_workers = share_cores_count(args.jobs) if args.jobs > 1 else None  # as `mpcde sweep` shares the cores
     tasks = [FlightTask((c, s), partial(prepare_flight, spec, cells[c], s, render_workers)) for c, s in keys]
     totals = {"flights": 0, "collisions": 0, "with_collision": 0, "all_arrived": 0}
-    rev = git_revision() if args.jsonl is not None else None  # once: every flight of this process flies the same code
+    rev = git_revision() if args.jsonl is not None or store is not None else None  # once: every flight flies the same code
+    version = package_version()
 
     def on_done(o) -> None:  # noqa: ANN001
         c, s = o.key
+        if store is not None:
+            store.append(flight_row(c, cells[c].values, s, o, version, rev))
         if o.metrics is None:
             print(f"{cells[c].label} seed {s}: FAILED {o.error}", flush=True)
             return
