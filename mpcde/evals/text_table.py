@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import math
+import re
 
 __all__ = ["cell"]
+
+_WIDTH = re.compile(r"(?:.?[<>=^])?[+\- ]?z?#?0?(\d*)")
 
 
 def cell(value: float | None, spec: str) -> str:
@@ -13,5 +16,11 @@ def cell(value: float | None, spec: str) -> str:
     Missing: None (a metric that does not apply, e.g. no mission time without arrival) or NaN.
     """
     if value is None or (isinstance(value, float) and math.isnan(value)):
-        return format("-", f">{spec.split('.')[0]}")
+        return "-".rjust(_width(spec))
     return format(value, spec)
+
+
+def _width(spec: str) -> int:
+    """The width field of a format ``spec`` (0 if none): ``[[fill]align][sign][z][#][0][width]...``."""
+    m = _WIDTH.match(spec)
+    return int(m.group(1)) if m and m.group(1) else 0
