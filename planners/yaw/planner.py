@@ -35,7 +35,9 @@ Every mode's output starts at the current yaw, is unwrapped and changes by
 at most yaw_rate_max t_y per step. The planner also remembers the sectors of
 the yaws it was called with during the last ``window_s`` (the coverage
 window W of Eq. 3; see :mod:`planners.yaw.coverage`), in every mode, so the
-window is complete when exploring starts.
+window is complete when exploring starts; only under ``method: mpcde``, the
+one method whose exploring reads it (Zhou's reward has no window, the spin
+never explores).
 """
 
 from __future__ import annotations
@@ -123,7 +125,8 @@ class YawPlanner:
         self._in_safe_regime = safe_regime(self._in_safe_regime, s0, cfg.tau_thr_s, cfg.hysteresis_s)
         active = list(predictions)
         recent = [q for q in active if time_s - q.stamp_s <= cfg.t_hold_s]
-        self._remember_sector(time_s, yaw, positions[0], snapshot)
+        if cfg.method == "mpcde":  # the window is read only by MP-CDE's exploring (Eq. 3)
+            self._remember_sector(time_s, yaw, positions[0], snapshot)
         if cfg.tracking_sweep_pattern == "stalest":  # the yaws it reads when a tracking spell starts
             self._yaws = deque(entry for entry in self._yaws if 0.0 < time_s - entry[0] <= cfg.window_s)
             self._yaws.append((time_s, yaw))
