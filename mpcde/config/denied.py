@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from perception.map_config import MapConfig
 from planners.yaw.config import YawPlannerConfig
-from sim.checks import require_at_least, require_boolean, require_instance, require_non_negative, require_positive
+from sim.checks import ConfigError, require_at_least, require_boolean, require_instance, require_non_negative, require_positive
 
 __all__ = ["DeniedAgentConfig"]
 
@@ -43,6 +45,21 @@ class DeniedAgentConfig:
             the two drones were 0.55-0.85 m apart in height. inf (default): no band, the paper's free
             altitude; on 39 flights of the fixed-seed forest sweep b = 0.2 m added collisions (3
             flights against none on the same seeds) and 15-20 % mission time (docs/results/safety.md).
+        flight_level_spacing_m: s, vertical spacing [m] of the flight levels: drone k of a mission of N
+            cruises at z_k = z_c + (k - (N - 1) / 2) s, z_c the mean of its own start and goal altitudes
+            (its first pose estimate and its goal), held within s / 8 of it by the altitude penalty of the
+            optimiser and the front end's layer. It leaves the level for its goal once within
+            ``flight_level_release_m`` of it horizontally, for good. Procedural vertical separation: the
+            rule of airspace without surveillance, where traffic that cannot see each other is kept
+            apart by assignment rather than by sight. Not in MP-CDE. Why: in the forest sweep the
+            remaining drone-drone contacts are between neighbours that tracked each other, lost each
+            other from the camera's view and closed unseen (docs/results/safety.md); drones on levels
+            s apart cannot touch (contact is 2 robot radii, 0.2 m) while both hold their levels, seen
+            or not. The id and N are the mission's assignment, as the goal is: no neighbour's state
+            is read. inf (default): no levels, the paper's free altitude. Exclusive with
+            ``altitude_band_m``.
+        flight_level_release_m: horizontal distance [m] from the goal at which a drone on flight
+            levels leaves its level for the goal's altitude.
         map: occupancy map settings.
         yaw: active yaw planner settings; its speed limit, yaw-rate limit, t_hold
             and field of view are taken from ``v_max_mps``, ``yaw_rate_max_radps``,
@@ -63,6 +80,8 @@ class DeniedAgentConfig:
     active_yaw: bool = True
     look_around: bool = False
     altitude_band_m: float = float("inf")
+    flight_level_spacing_m: float = float("inf")
+    flight_level_release_m: float = 1.0
     map: MapConfig = field(default_factory=MapConfig)
     yaw: YawPlannerConfig = field(default_factory=YawPlannerConfig)
 
@@ -76,6 +95,12 @@ class DeniedAgentConfig:
         require_non_negative("start_delay_s", self.start_delay_s, "s")
         require_boolean("look_around", self.look_around)
         require_positive("altitude_band_m", self.altitude_band_m, "m", inf_means="no altitude band")
+        require_positive("flight_level_spacing_m", self.flight_level_spacing_m, "m", inf_means="no flight levels")
+        require_non_negative("flight_level_release_m", self.flight_level_release_m, "m")
+        if np.isfinite(self.altitude_band_m) and np.isfinite(self.flight_level_spacing_m):
+            raise ConfigError(
+                "flight_level_spacing_m", self.flight_level_spacing_m, "allowed only with altitude_band_m unset (inf): both set the layer"
+            )
         require_at_least("swarm_z_scale", self.swarm_z_scale, 1.0)
         require_boolean("perceive_neighbours", self.perceive_neighbours)
         require_boolean("active_yaw", self.active_yaw)

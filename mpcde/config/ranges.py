@@ -88,6 +88,7 @@ RANGES: dict[type, dict[str, B]] = {
         "front_end_clearance_m": B(0, 5, "m"), "replan_period_s": B(0.02, 10, "s"), "yaw_rate_max_radps": B(0, 20, "rad/s"),
         "start_delay_s": B(0, 60, "s"), "swarm_clearance_m": B(0, 10, "m"), "swarm_z_scale": B(0.1, 10),
         "conflict_horizon_s": B(0, 30, "s"), "altitude_band_m": B(0.05, 20, "m", inf="no altitude band"),
+        "flight_level_spacing_m": B(0.05, 5, "m", inf="no flight levels"), "flight_level_release_m": B(0, 50, "m"),
     },
     MapConfig: {
         "voxel_m": B(0.02, 2, "m"), "window_size_m": B(1, 100, "m"), "min_range_m": B(0, 10, "m"),

@@ -139,6 +139,9 @@ class DeniedAgent(OnboardAgent):
         # detector_request: what the loop's batched detector reads (None: no detections)
         self.perception, self.detector_request = onboard_perception(c.perceive_neighbours, perception_config, perception)
         self.search = PathSearchConfig()
+        self.flight_level_m: float | None = None  # config.flight_level_spacing_m: this drone's level, fixed by its first estimate
+        self.level_reached = False  # came within s / 8 of the level: from then on held there, for good
+        self.level_released = False  # left the level for the goal (within flight_level_release_m of it), for good
         # where plan_step reads the neighbours from (None: this drone's tracks); the auto agent adds its radio memory
         # (t, count) -> predictions; count: whether the call is a planning use the source may tally
         self.neighbour_source: Callable[[float, bool], list[NeighborPrediction]] | None = None
@@ -156,6 +159,10 @@ class DeniedAgent(OnboardAgent):
                 self.optimizer = dataclasses.replace(self.optimizer, altitude_band_m=(lo, hi))
                 pad = self.config.map.voxel_m  # the search's voxels: the start's own voxel stays in the layer
                 self.search = dataclasses.replace(self.search, min_altitude_m=max(0.0, lo - pad), max_altitude_m=hi + pad)
+            spacing = self.config.flight_level_spacing_m
+            if np.isfinite(spacing):  # z_k = z_c + (k - (N - 1) / 2) s (config.flight_level_spacing_m)
+                centre = 0.5 * (float(self.hover_world[2]) + float(self.goal_world[2]))
+                self.flight_level_m = centre + (self.drone_id - 0.5 * self.swarm_neighbours) * spacing
             yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
             c = self.config
             self.heading = ActiveYaw(
@@ -410,7 +417,8 @@ class DeniedAgent(OnboardAgent):
                 # the window's nearest voxel to the goal stands in for a blocked clipped goal only for a drone with
                 # no plan to fly or stopping: its window no longer moves (planners.path_search, module docstring)
                 stalled = self.trajectory is None or self.braking
-                path = search_path(front, start[0], self.goal_world, c.front_end_clearance_m, self.search, goal_fallback=stalled)
+                goal = self._level_goal(start[0])
+                path = search_path(front, start[0], goal, c.front_end_clearance_m, self.search, goal_fallback=stalled)
             except ValueError:  # the planned start left the map window (the map moves with the frames it gets)
                 self.stats.failures += 1
                 return False
@@ -437,6 +445,37 @@ class DeniedAgent(OnboardAgent):
         self.last_plan_time_s = t
         self.stats.replans += 1
         return True
+
+    def _level_goal(self, pos_world: np.ndarray) -> np.ndarray:
+        """The goal this replan flies to, and with flight levels the layer it is flown in.
+
+        Without levels: the goal. With them (``config.flight_level_spacing_m``) the goal is
+        carried to the drone's level until the drone is within ``flight_level_release_m`` of
+        it horizontally (then released, for good), and the optimiser's altitude penalty and
+        the front end's layer span the level, the current altitude ``pos_world[2]`` [m] until
+        the drone first comes within s / 8 of its level (then only the level: no creep away
+        from it one replan at a time) and, once released, the goal's, widened by s / 8.
+        """
+        level = self.flight_level_m
+        if level is None:
+            return self.goal_world
+        c = self.config
+        b = c.flight_level_spacing_m / 8.0
+        z = float(pos_world[2])
+        self.level_reached = self.level_reached or abs(z - level) <= b
+        if np.linalg.norm(pos_world[:2] - self.goal_world[:2]) <= c.flight_level_release_m:
+            self.level_released = True
+        heights = [level] if self.level_reached else [level, z]
+        if self.level_released:
+            heights.append(float(self.goal_world[2]))
+            goal = self.goal_world
+        else:
+            goal = np.array([self.goal_world[0], self.goal_world[1], level])
+        lo, hi = min(heights) - b, max(heights) + b
+        self.optimizer = dataclasses.replace(self.optimizer, altitude_band_m=(lo, hi))
+        pad = c.map.voxel_m  # the search's voxels: the start's own voxel stays in the layer
+        self.search = dataclasses.replace(self.search, min_altitude_m=max(0.0, lo - pad), max_altitude_m=hi + pad)
+        return goal
 
     def _brake(self, t: float) -> None:
         """Stop from the current state with a single minimum-jerk piece (no obstacle knowledge).

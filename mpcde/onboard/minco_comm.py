@@ -65,7 +65,7 @@ class MincoCommAgent(OnboardAgent):
     def __init__(self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig, budget: ComputeBudget | None = None) -> None:
         self.drone_id = drone_id
         own = replace(
-            config, perceive_neighbours=False, active_yaw=False,
+            config, perceive_neighbours=False, active_yaw=False, flight_level_spacing_m=float("inf"),
             map=replace(config.map, neighbour_exclusion_m=max(config.map.neighbour_exclusion_m, EXCLUSION_M)),
         )  # fmt: skip
         self.denied = DeniedAgent(drone_id, goal_world, own, None, budget=budget)

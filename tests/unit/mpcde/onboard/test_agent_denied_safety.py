@@ -140,3 +140,55 @@ def test_front_end_refusals_are_counted_by_status_and_fallbacks_counted(monkeypa
     m = agent.extra_metrics()
     assert m["front_end_failures"] == {"goal_blocked": 2, "no_path": 1}
     assert m["goal_fallbacks"] == 1 and m["plan_failures"] == 4
+
+
+def _first_estimate(agent: DeniedAgent, pos: np.ndarray) -> None:
+    from sim.types import PoseEstimate
+
+    agent.on_pose_estimate(PoseEstimate(0.0, np.asarray(pos, float), np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3)))
+
+
+def test_flight_levels_are_spaced_by_id_about_the_mission_altitude_and_distinct():
+    goal = np.array([9.0, 0.0, 1.5])
+    config = DeniedAgentConfig(flight_level_spacing_m=0.4)
+    levels = []
+    for k in range(6):
+        agent = DeniedAgent(k, goal, config, swarm_neighbours=5)
+        _first_estimate(agent, [-9.0, 0.0, 1.5])
+        levels.append(agent.flight_level_m)
+    np.testing.assert_allclose(levels, 1.5 + 0.4 * (np.arange(6) - 2.5))
+    free = DeniedAgent(0, goal, DeniedAgentConfig(), swarm_neighbours=5)
+    _first_estimate(free, [-9.0, 0.0, 1.5])
+    assert free.flight_level_m is None
+    np.testing.assert_array_equal(free._level_goal(np.array([0.0, 0.0, 1.5])), goal)  # no levels: the goal, no layer
+    assert free.optimizer.altitude_band_m == (-np.inf, np.inf)
+
+
+def test_a_drone_climbs_to_its_level_is_held_there_and_released_near_its_goal():
+    goal = np.array([9.0, 0.0, 1.5])
+    agent = DeniedAgent(5, goal, DeniedAgentConfig(flight_level_spacing_m=0.4), swarm_neighbours=5)
+    _first_estimate(agent, [-9.0, 0.0, 1.5])
+    level, b, pad = 2.5, 0.05, agent.config.map.voxel_m
+    assert agent.flight_level_m == pytest.approx(level)
+    # climbing: the goal carried to the level, the layer spans the current altitude and the level
+    np.testing.assert_allclose(agent._level_goal(np.array([-9.0, 0.0, 1.5])), [9.0, 0.0, level])
+    assert agent.optimizer.altitude_band_m == pytest.approx((1.5 - b, level + b))
+    assert (agent.search.min_altitude_m, agent.search.max_altitude_m) == pytest.approx((1.5 - b - pad, level + b + pad))
+    # reached (within s / 8): held to the level from then on, even if the next replan starts a little off it
+    agent._level_goal(np.array([-7.0, 0.0, level - 0.04]))
+    agent._level_goal(np.array([-6.0, 0.0, level - 0.3]))
+    assert agent.optimizer.altitude_band_m == pytest.approx((level - b, level + b))
+    # within flight_level_release_m (1 m) of the goal horizontally: the goal itself, the layer down to it
+    np.testing.assert_allclose(agent._level_goal(np.array([8.2, 0.3, level])), goal)
+    assert agent.optimizer.altitude_band_m == pytest.approx((1.5 - b, level + b))
+    # released for good: pushed back out of the radius, it does not climb back
+    np.testing.assert_allclose(agent._level_goal(np.array([7.0, 0.0, 2.0])), goal)
+
+
+@pytest.mark.parametrize("fields", [{"flight_level_spacing_m": 0.0}, {"flight_level_spacing_m": -1.0}, {"flight_level_release_m": -0.1},
+                                    {"flight_level_spacing_m": 0.4, "altitude_band_m": 0.2}])  # fmt: skip
+def test_flight_level_settings_are_checked(fields):
+    from sim.checks import ConfigError
+
+    with pytest.raises(ConfigError):
+        DeniedAgentConfig(**fields)
