@@ -25,6 +25,7 @@ from mpcde.config.layout import build_layout, resolve_obstacles
 from mpcde.config.mlr import MlrAgentConfig
 from mpcde.config.perception import PerceptionConfig
 from mpcde.config.ranges import RANGES
+from mpcde.config.level_rules import check_flight_levels
 from mpcde.config.stack_rules import check_admm, check_mlr
 from mpcde.errors import ConfigError
 from planners.yaw.config import YawPlannerConfig
@@ -323,6 +324,7 @@ class ScenarioConfig:
             self.faults.check_drones(len(starts))
         except ConfigError as e:
             raise e.under("faults") from None
+        check_flight_levels(self, starts, goals)
         if self.planner.kind == "mlr":
             check_mlr(self, starts, goals)
         if self.planner.kind == "admm":
