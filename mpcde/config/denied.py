@@ -48,7 +48,8 @@ class DeniedAgentConfig:
         flight_level_spacing_m: s, vertical spacing [m] of the flight levels: drone k of a mission of N
             cruises at z_k = z_c + (k - (N - 1) / 2) s, z_c the mean of its own start and goal altitudes
             (its first pose estimate and its goal), held within s / 8 of it by the altitude penalty of the
-            optimiser and the front end's layer. It leaves the level for its goal once within
+            optimiser and the front end's layer. It first climbs (or descends) to its level where it
+            is, before it leaves its start, and leaves the level for its goal once within
             ``flight_level_release_m`` of it horizontally, for good. Procedural vertical separation: the
             rule of airspace without surveillance, where traffic that cannot see each other is kept
             apart by assignment rather than by sight. Not in MP-CDE. Why: in the forest sweep the

@@ -224,7 +224,7 @@ class DeniedAgent(OnboardAgent):
             floor = self._escape_floor(self.map.clearance, self.state_at(t)[0]) if self._escaping else None
             unsafe = not self._safe(self.trajectory, self.map.clearance, t, floor)
         conflict = self.trajectory is not None and self._swarm_conflict(self.trajectory, neighbours, t)
-        due = t - self.last_plan_time_s >= self.config.replan_period_s
+        due = t - self.last_plan_time_s >= self.config.replan_period_s or self._climbed(t)
         if self.trajectory is None or unsafe or conflict or yaw_trigger or due:
             replanned = self._replan(self.map.snapshot(), neighbours, t)
             self.stats.swarm_replans += int(replanned and conflict)
@@ -449,12 +449,17 @@ class DeniedAgent(OnboardAgent):
     def _level_goal(self, pos_world: np.ndarray) -> np.ndarray:
         """The goal this replan flies to, and with flight levels the layer it is flown in.
 
-        Without levels: the goal. With them (``config.flight_level_spacing_m``) the goal is
-        carried to the drone's level until the drone is within ``flight_level_release_m`` of
-        it horizontally (then released, for good), and the optimiser's altitude penalty and
-        the front end's layer span the level, the current altitude ``pos_world[2]`` [m] until
-        the drone first comes within s / 8 of its level (then only the level: no creep away
-        from it one replan at a time) and, once released, the goal's, widened by s / 8.
+        Without levels: the goal. With them (``config.flight_level_spacing_m`` s):
+        1. until the drone first comes within s / 8 of its level, it climbs (or descends)
+           to it where it is: the goal is its own position ``pos_world`` [m] carried to the
+           level, the layer spans its altitude and the level. Climbing in place, before
+           leaving the start, no drone crosses another's level on the way (a climb spread
+           along the path left two drones 0.2 m apart at 1.58 m, both still between their
+           levels 5 s into the flight: docs/results/safety.md);
+        2. then it flies to its goal carried to the level, held within s / 8 of it;
+        3. within ``flight_level_release_m`` of the goal horizontally it is released, for
+           good: the goal itself, the layer down (or up) to the goal's altitude.
+        The optimiser's altitude penalty and the front end's layer are set here.
         """
         level = self.flight_level_m
         if level is None:
@@ -465,17 +470,23 @@ class DeniedAgent(OnboardAgent):
         self.level_reached = self.level_reached or abs(z - level) <= b
         if np.linalg.norm(pos_world[:2] - self.goal_world[:2]) <= c.flight_level_release_m:
             self.level_released = True
-        heights = [level] if self.level_reached else [level, z]
         if self.level_released:
-            heights.append(float(self.goal_world[2]))
-            goal = self.goal_world
+            heights, goal = [level, z, float(self.goal_world[2])], self.goal_world
+        elif self.level_reached:
+            heights, goal = [level], np.array([self.goal_world[0], self.goal_world[1], level])
         else:
-            goal = np.array([self.goal_world[0], self.goal_world[1], level])
+            heights, goal = [level, z], np.array([pos_world[0], pos_world[1], level])
         lo, hi = min(heights) - b, max(heights) + b
         self.optimizer = dataclasses.replace(self.optimizer, altitude_band_m=(lo, hi))
         pad = c.map.voxel_m  # the search's voxels: the start's own voxel stays in the layer
         self.search = dataclasses.replace(self.search, min_altitude_m=max(0.0, lo - pad), max_altitude_m=hi + pad)
         return goal
+
+    def _climbed(self, t: float) -> bool:
+        """Whether the plan in hand has just brought the drone to its flight level (replan at once for the goal)."""
+        if self.flight_level_m is None or self.level_reached or self.trajectory is None:
+            return False
+        return abs(float(self.state_at(t)[0][2]) - self.flight_level_m) <= self.config.flight_level_spacing_m / 8.0
 
     def _brake(self, t: float) -> None:
         """Stop from the current state with a single minimum-jerk piece (no obstacle knowledge).

@@ -164,18 +164,20 @@ def test_flight_levels_are_spaced_by_id_about_the_mission_altitude_and_distinct(
     assert free.optimizer.altitude_band_m == (-np.inf, np.inf)
 
 
-def test_a_drone_climbs_to_its_level_is_held_there_and_released_near_its_goal():
+def test_a_drone_climbs_to_its_level_in_place_is_held_there_and_released_near_its_goal():
     goal = np.array([9.0, 0.0, 1.5])
     agent = DeniedAgent(5, goal, DeniedAgentConfig(flight_level_spacing_m=0.4), swarm_neighbours=5)
     _first_estimate(agent, [-9.0, 0.0, 1.5])
     level, b, pad = 2.5, 0.05, agent.config.map.voxel_m
     assert agent.flight_level_m == pytest.approx(level)
-    # climbing: the goal carried to the level, the layer spans the current altitude and the level
-    np.testing.assert_allclose(agent._level_goal(np.array([-9.0, 0.0, 1.5])), [9.0, 0.0, level])
+    # climbing: in place, the layer spans the current altitude and the level
+    np.testing.assert_allclose(agent._level_goal(np.array([-9.0, 0.1, 1.5])), [-9.0, 0.1, level])
     assert agent.optimizer.altitude_band_m == pytest.approx((1.5 - b, level + b))
     assert (agent.search.min_altitude_m, agent.search.max_altitude_m) == pytest.approx((1.5 - b - pad, level + b + pad))
-    # reached (within s / 8): held to the level from then on, even if the next replan starts a little off it
-    agent._level_goal(np.array([-7.0, 0.0, level - 0.04]))
+    np.testing.assert_allclose(agent._level_goal(np.array([-9.0, 0.1, 2.2])), [-9.0, 0.1, level])  # still climbing
+    assert agent.optimizer.altitude_band_m == pytest.approx((2.2 - b, level + b))
+    # reached (within s / 8): to the goal carried to the level, held to the level from then on
+    np.testing.assert_allclose(agent._level_goal(np.array([-9.0, 0.0, level - 0.04])), [9.0, 0.0, level])
     agent._level_goal(np.array([-6.0, 0.0, level - 0.3]))
     assert agent.optimizer.altitude_band_m == pytest.approx((level - b, level + b))
     # within flight_level_release_m (1 m) of the goal horizontally: the goal itself, the layer down to it
@@ -183,6 +185,16 @@ def test_a_drone_climbs_to_its_level_is_held_there_and_released_near_its_goal():
     assert agent.optimizer.altitude_band_m == pytest.approx((1.5 - b, level + b))
     # released for good: pushed back out of the radius, it does not climb back
     np.testing.assert_allclose(agent._level_goal(np.array([7.0, 0.0, 2.0])), goal)
+
+
+def test_reaching_the_level_on_a_climb_triggers_the_replan_to_the_goal():
+    agent = DeniedAgent(0, np.array([9.0, 0.0, 1.5]), DeniedAgentConfig(flight_level_spacing_m=0.4), swarm_neighbours=1)
+    _first_estimate(agent, [-9.0, 0.0, 1.5])  # level 1.3 m
+    assert not agent._climbed(0.0)  # no plan in hand
+    agent.trajectory = _line(np.array([-9.0, 0.0, 1.5]), np.array([0.0, 0.0, -0.2]))
+    assert not agent._climbed(0.5) and agent._climbed(0.9)  # 1.4 m, then 1.32 m: within s / 8 of 1.3 m
+    agent.level_reached = True
+    assert not agent._climbed(0.9)  # once reached, the replan period rules again
 
 
 @pytest.mark.parametrize("fields", [{"flight_level_spacing_m": 0.0}, {"flight_level_spacing_m": -1.0}, {"flight_level_release_m": -0.1},
