@@ -19,10 +19,15 @@ from mpcde.errors import ConfigError
 if TYPE_CHECKING:
     from mpcde.config.scenario import ScenarioConfig
 
-__all__ = ["LEVEL_ALTITUDES_M", "check_flight_levels"]
+__all__ = ["LEVEL_ALTITUDES_M", "check_flight_levels", "flight_level_m"]
 
 LEVEL_ALTITUDES_M = (0.3, 20.0)
 """(lowest, highest) altitude [m] a flight level may have: those a layout's starts and goals may have."""
+
+
+def flight_level_m(centre_m: float, drone_id: int, drones: int, spacing_m: float) -> float:
+    """z_k = z_c + (k - (N - 1) / 2) s [m]: the level of drone ``drone_id`` of ``drones`` about ``centre_m`` [m]."""
+    return centre_m + (drone_id - 0.5 * (drones - 1)) * spacing_m
 
 
 def check_flight_levels(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> None:
@@ -41,11 +46,11 @@ def check_flight_levels(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarr
         raise ConfigError("denied.flight_level_spacing_m", spacing, allowed)
     n = len(starts)
     lo, hi = LEVEL_ALTITUDES_M
-    reach = 0.5 * (n - 1)  # levels from z_c - reach s to z_c + reach s
-    if n > 1 and not (centres[0] - reach * spacing >= lo and centres[0] + reach * spacing <= hi):
-        largest = min(centres[0] - lo, hi - centres[0]) / reach
+    lowest, highest = flight_level_m(centres[0], 0, n, spacing), flight_level_m(centres[0], n - 1, n, spacing)
+    if n > 1 and not (lowest >= lo and highest <= hi):
+        largest = min(centres[0] - lo, hi - centres[0]) / (0.5 * (n - 1))
         allowed = (
             f"<= {largest:.3g} m for {n} drones about {centres[0]:.3g} m (levels from "
-            f"{centres[0] - reach * spacing:.3g} to {centres[0] + reach * spacing:.3g} m; allowed {lo:g} to {hi:g} m)"
+            f"{lowest:.3g} to {highest:.3g} m; allowed {lo:g} to {hi:g} m)"
         )
         raise ConfigError("denied.flight_level_spacing_m", spacing, allowed)

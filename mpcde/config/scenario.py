@@ -22,10 +22,10 @@ from mpcde.config.denied import DeniedAgentConfig
 from mpcde.config.dmpc import DmpcAgentConfig
 from mpcde.config.io import from_dict, load_yaml
 from mpcde.config.layout import build_layout, resolve_obstacles
+from mpcde.config.level_rules import check_flight_levels
 from mpcde.config.mlr import MlrAgentConfig
 from mpcde.config.perception import PerceptionConfig
 from mpcde.config.ranges import RANGES
-from mpcde.config.level_rules import check_flight_levels
 from mpcde.config.stack_rules import check_admm, check_mlr
 from mpcde.errors import ConfigError
 from planners.yaw.config import YawPlannerConfig

@@ -56,6 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mpcde.config.denied import DeniedAgentConfig
+from mpcde.config.level_rules import flight_level_m
 from mpcde.config.perception import PerceptionConfig
 from mpcde.onboard.base import AgentCounters, OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
@@ -156,13 +157,11 @@ class DeniedAgent(OnboardAgent):
             if np.isfinite(band):  # the layer between the start and goal altitudes, widened by the band
                 lo = min(float(self.hover_world[2]), float(self.goal_world[2])) - band
                 hi = max(float(self.hover_world[2]), float(self.goal_world[2])) + band
-                self.optimizer = dataclasses.replace(self.optimizer, altitude_band_m=(lo, hi))
-                pad = self.config.map.voxel_m  # the search's voxels: the start's own voxel stays in the layer
-                self.search = dataclasses.replace(self.search, min_altitude_m=max(0.0, lo - pad), max_altitude_m=hi + pad)
+                self._hold_layer(lo, hi)
             spacing = self.config.flight_level_spacing_m
-            if np.isfinite(spacing):  # z_k = z_c + (k - (N - 1) / 2) s (config.flight_level_spacing_m)
+            if np.isfinite(spacing):
                 centre = 0.5 * (float(self.hover_world[2]) + float(self.goal_world[2]))
-                self.flight_level_m = centre + (self.drone_id - 0.5 * self.swarm_neighbours) * spacing
+                self.flight_level_m = flight_level_m(centre, self.drone_id, self.swarm_neighbours + 1, spacing)
             yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
             c = self.config
             self.heading = ActiveYaw(
@@ -459,7 +458,7 @@ class DeniedAgent(OnboardAgent):
         2. then it flies to its goal carried to the level, held within s / 8 of it;
         3. within ``flight_level_release_m`` of the goal horizontally it is released, for
            good: the goal itself, the layer down (or up) to the goal's altitude.
-        The optimiser's altitude penalty and the front end's layer are set here.
+        The optimiser's altitude penalty and the front end's layer are set here (``_hold_layer``).
         """
         level = self.flight_level_m
         if level is None:
@@ -476,11 +475,14 @@ class DeniedAgent(OnboardAgent):
             heights, goal = [level], np.array([self.goal_world[0], self.goal_world[1], level])
         else:
             heights, goal = [level, z], np.array([pos_world[0], pos_world[1], level])
-        lo, hi = min(heights) - b, max(heights) + b
-        self.optimizer = dataclasses.replace(self.optimizer, altitude_band_m=(lo, hi))
-        pad = c.map.voxel_m  # the search's voxels: the start's own voxel stays in the layer
-        self.search = dataclasses.replace(self.search, min_altitude_m=max(0.0, lo - pad), max_altitude_m=hi + pad)
+        self._hold_layer(min(heights) - b, max(heights) + b)
         return goal
+
+    def _hold_layer(self, lo: float, hi: float) -> None:
+        """Hold the optimiser's samples (altitude penalty) and the front end's search in altitudes [lo, hi] [m]."""
+        self.optimizer = dataclasses.replace(self.optimizer, altitude_band_m=(lo, hi))
+        pad = self.config.map.voxel_m  # the search's voxels: the start's own voxel stays in the layer
+        self.search = dataclasses.replace(self.search, min_altitude_m=max(0.0, lo - pad), max_altitude_m=hi + pad)
 
     def _climbed(self, t: float) -> bool:
         """Whether the plan in hand has just brought the drone to its flight level (replan at once for the goal)."""
