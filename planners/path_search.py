@@ -29,13 +29,20 @@ When the goal was clipped and that fails too (an obstacle straddles the
 window's edge where the segment leaves it: the search ball is cut in half by
 the edge and a trunk fills the rest), the goal becomes the traversable voxel of
 the whole window nearest the *true* goal, the best progress the window allows
-(``goal_fallback`` in the result). Without it a drone that has no plan to fly
+(``goal_fallback`` in the result). Likewise when the clipped goal is traversable
+but cut off: it lies in a pocket the start cannot reach inside the window (the
+unseen shadow behind a trunk at the window's edge, fenced by the trunk and its
+clearance band; in a thin altitude layer nothing leads round it). A* then
+exhausts the start's component, and the goal becomes the reachable voxel
+nearest the true goal, if it is at least a voxel nearer than the start
+(measured: a drone at rest at its flight level refused 562 times over 23 s,
+forest_swarm 2 m/s seed 41; ``docs/results/safety.md``). Without it a drone that has no plan to fly
 hovers for good: the window moves with the drone, the drone does not move, and
 the same clipped goal is refused at every frame (measured on Table III, density
 8 seed 17: 835 refusals, the drone never left its start;
 ``docs/results/mp-cde.md``). The caller decides when to allow it
 (``goal_fallback=False`` refuses as before): the denied agent allows it only
-while it has no plan or is stopping, because a drone still flying a plan moves
+while it has no plan, is stopping or has come to rest at its plan's end, because a drone still flying a plan moves
 its window and the clipped goal moves off the obstacle within a few frames,
 while the fallback's point may lie well to the side of the course (allowed in
 flight, it turned a radio_outage flight into a collision with a drone flying
@@ -131,8 +138,9 @@ class PathSearchResult:
             window and/or moved off an obstacle).
         goal_clipped: True when the goal lay outside the window.
         goal_fallback: True when the clipped goal was blocked within
-            ``goal_search_radius_m`` and the window's traversable voxel nearest
-            the true goal was searched for instead (module docstring).
+            ``goal_search_radius_m``, or cut off from the start, and the
+            window's traversable (then: reachable) voxel nearest the true goal
+            was searched for instead (module docstring).
     """
 
     status: str
@@ -161,8 +169,9 @@ def search_path(
     """A* from ``start_world`` (3,) to ``goal_world`` (3,) [m] keeping ``clearance_m`` [m] from obstacles.
 
     ``start_world`` must lie inside the window (raises ValueError otherwise). ``goal_fallback``: a clipped goal
-    blocked within ``goal_search_radius_m`` is replaced by the window's traversable voxel nearest the true goal
-    (module docstring); False: refused as ``"goal_blocked"``.
+    blocked within ``goal_search_radius_m`` is replaced by the window's traversable voxel nearest the true goal,
+    and one cut off from the start by the reachable voxel nearest it (module docstring); False: refused as
+    ``"goal_blocked"`` and ``"no_path"``.
     """
     start = np.asarray(start_world, float).reshape(3)
     goal = np.asarray(goal_world, float).reshape(3)
@@ -198,19 +207,18 @@ def search_path(
             return PathSearchResult("goal_blocked", None, None, 0, np.inf, goal_used, goal_clipped)
         goal_used = snapshot.index_to_world(goal_idx[None])[0]
 
-    cells, costs, n_expanded, code = _astar(
-        unknown,
-        dist,
-        ok,
-        np.ascontiguousarray(hard_ok),
-        shape,
-        start_idx.astype(np.int64),
-        goal_idx.astype(np.int64),
-        v,
-        config.unknown_penalty,
-        config.heuristic_weight,
-        config.max_expansions,
-    )
+    hard_ok = np.ascontiguousarray(hard_ok)
+    args = (unknown, dist, ok, hard_ok, shape, start_idx.astype(np.int64))
+    weights = (v, config.unknown_penalty, config.heuristic_weight, config.max_expansions)
+    cells, costs, n_expanded, code, closed = _astar(*args, goal_idx.astype(np.int64), *weights)
+    if code == 1 and goal_clipped and goal_fallback:
+        # A* exhausted the start's component, so ``closed`` is everything reachable: the clipped goal lies in a
+        # pocket cut off inside the window (module docstring); search for the reachable voxel nearest the true goal
+        best = _nearest_reachable(closed.reshape(snapshot.shape) & ok.reshape(snapshot.shape), snapshot, start, goal)
+        if best is not None:
+            goal_idx, goal_used, fell_back = best, snapshot.index_to_world(best[None])[0], True
+            cells, costs, more, code, _ = _astar(*args, goal_idx.astype(np.int64), *weights)
+            n_expanded += more
     if code != 0:
         status = "no_path" if code == 1 else "expansion_limit"
         return PathSearchResult(status, None, None, int(n_expanded), np.inf, goal_used, goal_clipped, fell_back)
@@ -268,6 +276,23 @@ def _nearest_traversable(
     d2 = np.sum((snapshot.index_to_world(sub) - point) ** 2, axis=1)
     best = int(np.argmin(d2))
     return sub[best] if d2[best] <= radius_m**2 + 1e-12 else None
+
+
+def _nearest_reachable(
+    reachable: np.ndarray, snapshot: OccupancySnapshot, start: np.ndarray, goal: np.ndarray
+) -> np.ndarray | None:
+    """Index (3,) of the voxel of ``reachable`` (window-shaped bool) nearest ``goal`` (3,) [m], or None.
+
+    None when that voxel is no nearer the goal than ``start`` (3,) [m] by a voxel: then no progress is possible.
+    """
+    cand = np.argwhere(reachable)
+    if cand.size == 0:
+        return None
+    d = np.linalg.norm(snapshot.index_to_world(cand) - goal, axis=1)
+    best = int(np.argmin(d))
+    if d[best] > float(np.linalg.norm(start - goal)) - snapshot.voxel_m:
+        return None
+    return cand[best]
 
 
 def _split_long(points: np.ndarray, max_segment_m: float) -> np.ndarray:
@@ -336,7 +361,8 @@ def _octile(ix, iy, iz, gx, gy, gz):
 
 @njit(cache=True)
 def _astar(unknown, dist, ok, hard_ok, shape, start, goal, voxel_m, unknown_penalty, h_weight, max_expansions):
-    """26-connected A*; returns (cells (n, 3), cumulative costs (n,) [m], expanded, code 0 ok / 1 none / 2 limit)."""
+    """26-connected A*; returns (cells (n, 3), cumulative costs (n,) [m], expanded, code 0 ok / 1 none / 2 limit,
+    closed (nx * ny * nz,) bool: the voxels expanded, with code 1 every voxel reachable from ``start``)."""
     nx, ny, nz = shape[0], shape[1], shape[2]
     n = nx * ny * nz
     g = np.full(n, np.inf)
@@ -404,7 +430,7 @@ def _astar(unknown, dist, ok, hard_ok, shape, start, goal, voxel_m, unknown_pena
                             keys, vals = keys2, vals2
                         size = _heap_push(keys, vals, size, g_new + hw * _octile(x, y, z, goal[0], goal[1], goal[2]), nb)
     if code != 0:
-        return np.empty((0, 3), np.int64), np.empty(0), expanded, code
+        return np.empty((0, 3), np.int64), np.empty(0), expanded, code, closed == 1
     count = 1
     c = t
     while c != s:
@@ -419,7 +445,7 @@ def _astar(unknown, dist, ok, hard_ok, shape, start, goal, voxel_m, unknown_pena
         cells[k, 2] = c % nz
         costs[k] = g[c]
         c = parent[c]
-    return cells, costs, expanded, 0
+    return cells, costs, expanded, 0, closed == 1
 
 
 @njit(cache=True)

@@ -413,9 +413,11 @@ class DeniedAgent(OnboardAgent):
                 snap, neighbours, t, c.conflict_horizon_s, c.swarm_clearance_m, self.t_hold_s, reach_m=c.front_end_clearance_m + 0.3
             )
             try:
-                # the window's nearest voxel to the goal stands in for a blocked clipped goal only for a drone with
-                # no plan to fly or stopping: its window no longer moves (planners.path_search, module docstring)
-                stalled = self.trajectory is None or self.braking
+                # the window's nearest voxel to the goal stands in for a blocked or cut-off clipped goal only for a
+                # drone with no plan to fly, stopping, or at rest at its plan's end (a climb to its flight level):
+                # its window no longer moves (planners.path_search, module docstring)
+                plan = self.trajectory
+                stalled = plan is None or self.braking or t >= plan.t0_s + plan.total_duration
                 goal = self._level_goal(start[0])
                 path = search_path(front, start[0], goal, c.front_end_clearance_m, self.search, goal_fallback=stalled)
             except ValueError:  # the planned start left the map window (the map moves with the frames it gets)

@@ -138,6 +138,51 @@ def test_clipped_goal_blocked_at_the_edge_falls_back_to_the_window_voxel_nearest
     np.testing.assert_allclose(res.waypoints_world[-1], res.goal_used_world)
 
 
+def pocket_grid() -> np.ndarray:
+    """40 x 40 x 12 grid with a full-height U of walls open onto the window's +x edge, astride y = 0: the shadow
+    behind a trunk, cut off inside the window (x index 31-39, y index 11-28)."""
+    occ = np.zeros((40, 40, 12), bool)
+    occ[30, 10:30, :] = True
+    occ[30:, 10, :] = True
+    occ[30:, 29, :] = True
+    return occ
+
+
+def test_clipped_goal_cut_off_in_a_pocket_falls_back_to_the_reachable_voxel_nearest_the_goal() -> None:
+    from scipy.ndimage import label
+
+    snap = make_snapshot(pocket_grid())
+    start, goal, clearance = np.array([-2.0, 0.0, 0.9]), np.array([20.0, 0.0, 0.9]), 0.4
+    # the clipped goal is traversable (the pocket is 2.7 m wide) but nothing leads into the pocket
+    off = search_path(snap, start, goal, clearance, goal_fallback=False)
+    assert off.status == "no_path" and off.goal_clipped and not off.goal_fallback
+    assert off.goal_used_world[0] > 1.6  # inside the pocket
+    res = search_path(snap, start, goal, clearance)
+    assert res.found and res.goal_clipped and res.goal_fallback
+    # the goal used is, of every voxel reachable from the start (26-connected traversable component), the nearest
+    ok = (snap.state != OccupancySnapshot.OCCUPIED) & (snap.distance_m >= clearance)
+    comp, _ = label(ok, structure=np.ones((3, 3, 3), bool))
+    reach = comp == comp[tuple(snap.world_to_index(start[None])[0])]
+    assert not reach[tuple(snap.world_to_index(off.goal_used_world[None])[0])]
+    centres = snap.index_to_world(np.argwhere(reach))
+    best = np.min(np.linalg.norm(centres - goal, axis=1))
+    assert np.linalg.norm(res.goal_used_world - goal) == pytest.approx(best, abs=1e-9)
+    # beside the U on the window's far face, and the path reaches it
+    assert res.goal_used_world[0] == pytest.approx(snap.upper_world[0] - 0.5 * VOXEL_M)
+    assert abs(res.goal_used_world[1]) > 1.5
+    np.testing.assert_allclose(res.waypoints_world[-1], res.goal_used_world)
+
+
+def test_a_cut_off_goal_with_no_progress_left_is_refused() -> None:
+    # the start already stands where the reachable set comes nearest the goal: nothing to fall back to
+    occ = np.zeros((40, 40, 12), bool)
+    occ[30, :, :] = True  # a full wall across the window: the +x side is cut off from the start at x index 29
+    snap = make_snapshot(occ)
+    start = snap.index_to_world(np.array([[26, 20, 6]]))[0]
+    res = search_path(snap, start, np.array([20.0, start[1], start[2]]), 0.4)
+    assert res.status == "no_path" and res.goal_clipped and not res.goal_fallback
+
+
 def test_fallback_is_only_for_a_clipped_goal() -> None:
     snap = make_snapshot(edge_block_grid())
     start = np.array([-2.0, 0.0, 0.9])

@@ -142,6 +142,26 @@ def test_front_end_refusals_are_counted_by_status_and_fallbacks_counted(monkeypa
     assert m["goal_fallbacks"] == 1 and m["plan_failures"] == 4
 
 
+def test_a_drone_at_rest_at_its_plans_end_may_fall_back(monkeypatch):
+    """At rest where its plan ends (the climb to its flight level ends in a hover) the window no longer moves, so
+    the front end's fallback point is allowed, as for a drone stopping (2 m/s seed 41: 562 refusals over 23 s)."""
+    from types import SimpleNamespace
+
+    import mpcde.onboard.denied as denied
+    from planners.path_search import PathSearchResult
+
+    agent = DeniedAgent(0, GOAL, DeniedAgentConfig())
+    agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([0.0, 0.0, 0.2]), 1.0, t0_s=2.0)
+    monkeypatch.setattr(denied, "with_neighbour_capsules", lambda s, *a, **k: s)
+    allowed = []
+    refused = PathSearchResult("no_path", None, None, 10, np.inf, np.zeros(3), True)
+    monkeypatch.setattr(denied, "search_path", lambda *a, goal_fallback: allowed.append(goal_fallback) or refused)
+    for t in (2.0, 2.96, 3.0, 4.5):
+        assert not agent._replan(SimpleNamespace(distance_m=None), [], t)
+    assert allowed == [False, False, True, True]
+    assert agent.extra_metrics()["front_end_failures"] == {"no_path": 4}
+
+
 def _first_estimate(agent: DeniedAgent, pos: np.ndarray) -> None:
     from sim.types import PoseEstimate
 
