@@ -25,11 +25,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
+import sys
 from functools import partial
 from pathlib import Path
 
 import yaml
 
+from mpcde.errors import Terminated
 from mpcde.sweep.engine import FlightTask, git_revision, package_version, run_flights, share_cores_count
 from mpcde.sweep.runner import prepare_flight
 from mpcde.sweep.spec import load_sweep
@@ -89,7 +92,19 @@ def main() -> None:
               f"min distance {d if d is None else round(d, 3)} m, mission {m['mission_time_s']}"
               + (f", S_obs {m['observed_area_swarm_m2']:.1f} m^2" if "observed_area_swarm_m2" in m else ""), flush=True)  # fmt: skip
 
-    run_flights(tasks, on_done, jobs=args.jobs)
+    def raise_terminated(signum: int, frame: object) -> None:
+        raise Terminated()
+
+    # SIGTERM unwinds like Ctrl-C, so the engine stops its pool workers (they used to outlive the script)
+    signal.signal(signal.SIGTERM, raise_terminated)
+    try:
+        run_flights(tasks, on_done, jobs=args.jobs)
+    except (KeyboardInterrupt, Terminated) as e:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        print(f"screen_flights: {'interrupted' if isinstance(e, KeyboardInterrupt) else 'terminated'} after "
+              f"{totals['flights']} flights (rows written stay)", file=sys.stderr)
+        sys.exit(130 if isinstance(e, KeyboardInterrupt) else 143)
     print(f"total: {totals['flights']} flights, {totals['collisions']} collisions in {totals['with_collision']} flights, "
           f"{totals['all_arrived']} with every drone arrived")  # fmt: skip
 
