@@ -214,8 +214,11 @@ def search_path(
     if code == 1 and goal_clipped and goal_fallback:
         # A* exhausted the start's component, so ``closed`` is everything reachable: the clipped goal lies in a
         # pocket cut off inside the window (module docstring); search for the reachable voxel nearest the true goal
-        best = _nearest_reachable(closed.reshape(snapshot.shape) & ok.reshape(snapshot.shape), snapshot, start, goal)
-        if best is not None:
+        reachable = closed.reshape(snapshot.shape).astype(bool) & ok.reshape(snapshot.shape)
+        best = _nearest_traversable(reachable, snapshot, goal, np.inf)
+        # only progress counts: a voxel no nearer the true goal than the start by a voxel leaves it "no_path"
+        start_d = float(np.linalg.norm(start - goal)) - v
+        if best is not None and float(np.linalg.norm(snapshot.index_to_world(best[None])[0] - goal)) <= start_d:
             goal_idx, goal_used, fell_back = best, snapshot.index_to_world(best[None])[0], True
             cells, costs, more, code, _ = _astar(*args, goal_idx.astype(np.int64), *weights)
             n_expanded += more
@@ -276,23 +279,6 @@ def _nearest_traversable(
     d2 = np.sum((snapshot.index_to_world(sub) - point) ** 2, axis=1)
     best = int(np.argmin(d2))
     return sub[best] if d2[best] <= radius_m**2 + 1e-12 else None
-
-
-def _nearest_reachable(
-    reachable: np.ndarray, snapshot: OccupancySnapshot, start: np.ndarray, goal: np.ndarray
-) -> np.ndarray | None:
-    """Index (3,) of the voxel of ``reachable`` (window-shaped bool) nearest ``goal`` (3,) [m], or None.
-
-    None when that voxel is no nearer the goal than ``start`` (3,) [m] by a voxel: then no progress is possible.
-    """
-    cand = np.argwhere(reachable)
-    if cand.size == 0:
-        return None
-    d = np.linalg.norm(snapshot.index_to_world(cand) - goal, axis=1)
-    best = int(np.argmin(d))
-    if d[best] > float(np.linalg.norm(start - goal)) - snapshot.voxel_m:
-        return None
-    return cand[best]
 
 
 def _split_long(points: np.ndarray, max_segment_m: float) -> np.ndarray:
@@ -362,7 +348,7 @@ def _octile(ix, iy, iz, gx, gy, gz):
 @njit(cache=True)
 def _astar(unknown, dist, ok, hard_ok, shape, start, goal, voxel_m, unknown_penalty, h_weight, max_expansions):
     """26-connected A*; returns (cells (n, 3), cumulative costs (n,) [m], expanded, code 0 ok / 1 none / 2 limit,
-    closed (nx * ny * nz,) bool: the voxels expanded, with code 1 every voxel reachable from ``start``)."""
+    closed (nx * ny * nz,) uint8: 1 for the voxels expanded, with code 1 every voxel reachable from ``start``)."""
     nx, ny, nz = shape[0], shape[1], shape[2]
     n = nx * ny * nz
     g = np.full(n, np.inf)
@@ -430,7 +416,7 @@ def _astar(unknown, dist, ok, hard_ok, shape, start, goal, voxel_m, unknown_pena
                             keys, vals = keys2, vals2
                         size = _heap_push(keys, vals, size, g_new + hw * _octile(x, y, z, goal[0], goal[1], goal[2]), nb)
     if code != 0:
-        return np.empty((0, 3), np.int64), np.empty(0), expanded, code, closed == 1
+        return np.empty((0, 3), np.int64), np.empty(0), expanded, code, closed
     count = 1
     c = t
     while c != s:
@@ -445,7 +431,7 @@ def _astar(unknown, dist, ok, hard_ok, shape, start, goal, voxel_m, unknown_pena
         cells[k, 2] = c % nz
         costs[k] = g[c]
         c = parent[c]
-    return cells, costs, expanded, 0, closed == 1
+    return cells, costs, expanded, 0, closed
 
 
 @njit(cache=True)
