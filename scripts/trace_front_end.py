@@ -78,19 +78,22 @@ def main() -> None:
         return result
 
     denied.search_path = spy
-    last = -np.inf
-    while not session.done:
-        truth = session.step()
-        now[0] = t = truth.time_s
-        if t > args.until:
-            break
-        if t - last >= args.every - 1e-9:
-            last = t
-            p = truth.pos_world
-            near = sorted((float(np.linalg.norm(p[j] - p[args.drone])), j) for j in range(len(p)) if j != args.drone)[:2]
-            print(f"t={t:5.1f} s  pos ({p[args.drone][0]:6.2f}, {p[args.drone][1]:6.2f}, {p[args.drone][2]:5.2f})  "
-                  f"to goal {np.linalg.norm(p[args.drone][:2] - goal[:2]):5.2f} m  refused {dict(me.stats.front_end_failures)}  "
-                  f"fallbacks {me.stats.goal_fallbacks}  nearest {[(j, round(d, 2)) for d, j in near]}", flush=True)
+    try:
+        last = -np.inf
+        while not session.done:
+            truth = session.step()
+            now[0] = t = truth.time_s
+            if t > args.until:
+                break
+            if t - last >= args.every - 1e-9:
+                last = t
+                p = truth.pos_world
+                near = sorted((float(np.linalg.norm(p[j] - p[args.drone])), j) for j in range(len(p)) if j != args.drone)[:2]
+                print(f"t={t:5.1f} s  pos ({p[args.drone][0]:6.2f}, {p[args.drone][1]:6.2f}, {p[args.drone][2]:5.2f})  "
+                      f"to goal {np.linalg.norm(p[args.drone][:2] - goal[:2]):5.2f} m  refused {dict(me.stats.front_end_failures)}  "
+                      f"fallbacks {me.stats.goal_fallbacks}  nearest {[(j, round(d, 2)) for d, j in near]}", flush=True)
+    finally:
+        session.close()  # render pool and shared memory
 
 
 if __name__ == "__main__":
