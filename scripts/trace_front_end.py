@@ -18,10 +18,7 @@ import argparse
 import numpy as np
 
 import mpcde.onboard.denied as denied
-from mpcde.flight.loop import prepare_run
-from mpcde.flight.session import FlightSession
-from mpcde.onboard.budget import ComputeBudget
-from mpcde.onboard.factory import make_agent
+from mpcde.flight.loop import open_session, prepare_run
 from mpcde.sweep.spec import load_sweep
 from perception.types import OccupancySnapshot
 
@@ -63,10 +60,8 @@ def main() -> None:
     cell, seed = (int(x) for x in args.flight.split(":"))
     cfg = spec.scenario(cells[cell], seed)
     prepared = prepare_run(cfg)
-    budget = ComputeBudget()
-    agents = [make_agent(cfg, i, prepared.goals, prepared.obstacles, budget) for i in range(prepared.starts.shape[0])]
-    session = FlightSession(prepared, agents, budget)
-    me, goal = agents[args.drone], prepared.goals[args.drone]
+    session = open_session(prepared)
+    me, goal = session.agents[args.drone], prepared.goals[args.drone]
     now, dumped = [0.0], [args.dump is None]
     search = denied.search_path
 

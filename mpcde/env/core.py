@@ -1,6 +1,7 @@
 """The machinery both environments share: a :class:`mpcde.flight.session.FlightSession` stepped between control steps.
 
-:class:`EnvCore` builds the session of a scenario with an
+:class:`EnvCore` builds the session of a scenario
+(:func:`mpcde.flight.loop.open_session`) with an
 :class:`mpcde.env.external.ExternalDrone` for every learner-flown drone and the
 scenario's own stack (:func:`mpcde.onboard.factory.make_agent`) for the others,
 so the world, cameras, detector, radio, faults and metrics are those of
@@ -124,10 +125,7 @@ class EnvCore:
 
     def start(self, seed: int) -> dict[str, dict]:
         """Close any running episode and start one with scenario seed ``seed``; the learners' first observations."""
-        from mpcde.flight.loop import prepare_run
-        from mpcde.flight.session import FlightSession
-        from mpcde.onboard.budget import ComputeBudget
-        from mpcde.onboard.factory import make_agent
+        from mpcde.flight.loop import open_session, prepare_run
 
         self.close()
         cfg = replace(self.cfg, seed=int(seed))
@@ -135,16 +133,13 @@ class EnvCore:
         if prepared.starts.shape[0] != self.n:
             raise ConfigError("seed", seed, f"a seed whose layout has {self.n} drones, as the spaces were built for")
         self.prepared = prepared  # its config's seed is the episode's
-        budget = ComputeBudget()
         o = self.options
         perceive = any(k in o.observe for k in ("tracks", "detections"))
         self.drones = {
             name: ExternalDrone(i, o.action, perceive, prepared.config.perception, o.broadcast, o.plan_samples, o.plan_horizon_s)
             for name, i in self.index.items()
         }  # fmt: skip
-        by_index = {d.drone_id: d for d in self.drones.values()}
-        agents = [by_index[i] if i in by_index else make_agent(prepared.config, i, prepared.goals, prepared.obstacles, budget) for i in range(self.n)]
-        self.session = FlightSession(prepared, agents, budget)
+        self.session = open_session(prepared, agents={d.drone_id: d for d in self.drones.values()})
         self._composer = None
         t = self.session.time_s
         for d in self.drones.values():

@@ -270,15 +270,10 @@ def explain_flight(cfg: ScenarioConfig) -> tuple[dict[str, Any], list[CollisionC
     Returns:
         The flight's metrics and one :class:`CollisionCause` per event of ``collision_events``.
     """
-    from mpcde.flight.loop import prepare_run
-    from mpcde.flight.session import FlightSession
-    from mpcde.onboard.budget import ComputeBudget
-    from mpcde.onboard.factory import make_agent
+    from mpcde.flight.loop import open_session, prepare_run
 
     prepared = prepare_run(cfg)
-    budget = ComputeBudget()
-    agents = [make_agent(cfg, i, prepared.goals, prepared.obstacles, budget) for i in range(prepared.starts.shape[0])]
-    session = FlightSession(prepared, agents, budget)
+    session = open_session(prepared)
     rec = _Recorder(session)
     field_ = ObstacleField(prepared.obstacles)
     r = cfg.physics.quadrotor.robot_radius_m

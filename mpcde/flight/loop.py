@@ -9,16 +9,19 @@ frames, their own estimate and their inbox.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from mpcde.config.layout import build_layout, check_layout, resolve_obstacles
 from mpcde.config.resolve import resolve
 from mpcde.config.scenario import ScenarioConfig
 from mpcde.flight.metrics import pose_error_m
 from mpcde.flight.run_types import PreparedRun, RunLog, RunResult
 from mpcde.flight.session import FlightSession, FrameSink
+from mpcde.onboard.base import OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
 from mpcde.onboard.factory import make_agent
 
-__all__ = ["PreparedRun", "RunLog", "RunResult", "pose_error_m", "prepare_run", "run_scenario"]
+__all__ = ["PreparedRun", "RunLog", "RunResult", "open_session", "pose_error_m", "prepare_run", "run_scenario"]
 
 
 def prepare_run(cfg: ScenarioConfig) -> PreparedRun:
@@ -35,6 +38,35 @@ def prepare_run(cfg: ScenarioConfig) -> PreparedRun:
     return PreparedRun(cfg, starts, goals, obstacles)
 
 
+def open_session(
+    prepared: PreparedRun, *, agents: Mapping[int, OnboardAgent] | None = None,
+    frame_sink: FrameSink | None = None, progress: bool = False,
+) -> FlightSession:  # fmt: skip
+    """A :class:`FlightSession` of ``prepared``'s scenario at time 0, each drone flown by the scenario's agent.
+
+    The one place a flight's agents are built from its resolved config
+    (``prepared.config``, so they are the agents ``mpcde fly`` flies), all
+    booking into one fresh :class:`ComputeBudget`. The caller steps the
+    session and must ``close()`` it (its render pool holds processes and
+    shared memory).
+
+    Args:
+        prepared: from :func:`prepare_run`.
+        agents: drone id -> an agent that flies that drone instead of the
+            scenario's own (the PettingZoo environment's externally driven
+            drones, a traced agent); every other drone gets ``make_agent``'s.
+        frame_sink, progress: as in :func:`run_scenario`.
+    """
+    given = dict(agents or {})
+    n = prepared.starts.shape[0]
+    if any(not 0 <= int(i) < n for i in given):
+        raise ValueError(f"agents: drone ids must be in 0..{n - 1}, got {sorted(given)}")
+    budget = ComputeBudget()
+    cfg = prepared.config
+    flown = [given[i] if i in given else make_agent(cfg, i, prepared.goals, prepared.obstacles, budget) for i in range(n)]
+    return FlightSession(prepared, flown, budget, frame_sink=frame_sink, progress=progress)
+
+
 def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, progress: bool = False) -> RunResult:
     """Fly a prepared scenario to its end: a :class:`mpcde.flight.session.FlightSession` of the scenario's agents, stepped until done.
 
@@ -44,10 +76,7 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
             frame per drone); the video writer is one.
         progress: show a progress bar over simulated time.
     """
-    cfg = prepared.config
-    budget = ComputeBudget()
-    agents = [make_agent(cfg, i, prepared.goals, prepared.obstacles, budget) for i in range(prepared.starts.shape[0])]
-    session = FlightSession(prepared, agents, budget, frame_sink=frame_sink, progress=progress)
+    session = open_session(prepared, frame_sink=frame_sink, progress=progress)
     try:
         while not session.done:
             session.step()

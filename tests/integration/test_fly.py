@@ -229,3 +229,24 @@ def test_closing_a_pool_with_an_uncollected_batch_and_idle_workers_returns():
     pool.submit(np.array([[5.0, 0.0, 1.5]]), np.array([[0, 0, 0, 1.0]]), [(0, T)])
     pool.close()
     assert not pool.busy
+
+
+def test_open_session_flies_the_given_agents_and_the_scenarios_own_for_the_rest():
+    from mpcde.flight.loop import open_session
+    from mpcde.onboard.factory import make_agent
+
+    prepared = prepare_run(short("crossing", 0.5, cameras=False))
+    mine = SpyAgent(1, prepared.goals[1], 1.0, 0.0)
+    session = open_session(prepared, agents={1: mine})
+    try:
+        assert session.agents[1] is mine
+        own = make_agent(prepared.config, 0, prepared.goals, prepared.obstacles)
+        assert type(session.agents[0]) is type(own) and session.agents[0].drone_id == 0
+        SpyAgent.seen = []
+        while not session.done:
+            session.step()
+        assert any(k == "pose" for k, _, _ in SpyAgent.seen)  # the given agent was flown
+    finally:
+        session.close()
+    with pytest.raises(ValueError, match=r"agents: drone ids must be in 0\.\.1, got \[2\]"):
+        open_session(prepared, agents={2: mine})
