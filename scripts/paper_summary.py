@@ -6,8 +6,8 @@ Usage: .venv/bin/python scripts/paper_summary.py [RUNS_DIR]   (default runs/)
 Reads RUNS_DIR/fig10/report.json (`mpcde report`), RUNS_DIR/fig6/report.json (the cross-store report of the denied
 sweep, the view-gated baselines and whatever else it pairs, e.g. auto), RUNS_DIR/table3 (a sweep store; scripts/table3_report.py's cells) and
 RUNS_DIR/akf_pipeline/results.json (`mpcde eval-tracking`). The commit column lists the code revisions the
-stores' flights recorded, the date their commit dates; `eval-tracking` records no revision (its section in
-docs/results/mp-cde.md names it). A missing input leaves its rows out.
+stores' flights recorded, the date their commit dates; for `eval-tracking`, the revision its results.json
+records (results written before 2026-11-27 record none: "not recorded"). A missing input leaves its rows out.
 """
 
 from __future__ import annotations
@@ -101,13 +101,19 @@ def table3(runs: Path) -> list[str]:
 
 
 def akf(runs: Path) -> list[str]:
-    rows_in = json.loads((runs / "akf_pipeline" / "results.json").read_text())["rows"]
+    results = json.loads((runs / "akf_pipeline" / "results.json").read_text())
+    rows_in, rev = results["rows"], (results.get("run") or {}).get("git_rev")  # results before 2026-11-27 record no revision
+    commit, date = "not recorded", "-"
+    if rev:
+        commit = rev[:7] + ("+dirty" if rev.endswith("+dirty") else "")
+        out = subprocess.run(["git", "show", "-s", "--format=%cs", rev[:40]], capture_output=True, text=True)
+        date = out.stdout.strip() if out.returncode == 0 else "?"
     rows = []
     for r in rows_in:
         band = {0.5: "low", 2.0: "high"}.get(r["speed_mps"])
         paper = "-" if band is None or r["filter"] != "akf" else f"{AKF_PAPER[band][0]} m, {AKF_PAPER[band][1]} m/s"
         ours = f"position {r['pos_rmse_m']:.3f} m, velocity {r['vel_rmse_mps']:.3f} m/s"
-        rows.append(f"| AKF vs KF, {r['filter'].upper()} at {r['speed_mps']:g} m/s | {paper} | {ours} | `mpcde eval-tracking --measurements pipeline --seeds 10` | not recorded | - |")
+        rows.append(f"| AKF vs KF, {r['filter'].upper()} at {r['speed_mps']:g} m/s | {paper} | {ours} | `mpcde eval-tracking --measurements pipeline --seeds 10` | {commit} | {date} |")
     return rows
 
 

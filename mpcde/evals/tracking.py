@@ -347,7 +347,10 @@ def run_eval_tracking(
         out_dir: output folder (created; written all-or-nothing,
             :func:`mpcde.flight.run_folder.staged_output`); gets ``results.json``
             (``{"rows": [{speed_mps, filter, measurements, pos_rmse_m,
-            vel_rmse_mps, id_switches, nees}]}``), ``results.txt`` and
+            vel_rmse_mps, id_switches, nees}], "run": {seeds, duration_s,
+            version, git_rev}}``; ``git_rev`` is the commit the code ran
+            from, ``+dirty`` with uncommitted changes, None outside git),
+            ``results.txt`` and
             ``tracking_<speed>mps.png`` per speed.
         speeds_mps: nominal target speeds [m/s].
         filters: ``"akf"`` and/or ``"kf"``.
@@ -398,7 +401,11 @@ def run_eval_tracking(
             if plot_scenario is not None:
                 plots.append((float(speed), plot_scenario, plot_estimates))
     bar.close()
-    results = {"rows": rows}
+    from mpcde.sweep.engine import git_revision, package_version
+
+    # what produced the numbers, so a results table can cite its commit (as a sweep store's rows do)
+    run = {"seeds": [int(x) for x in seeds], "duration_s": float(duration_s), "version": package_version(), "git_rev": git_revision()}
+    results = {"rows": rows, "run": run}
     notes = [
         f"  {r['speed_mps']:>5.2f} m/s {r['filter']:<4} {100 * s.count / max(s.truth_samples, 1):6.1f} %   "
         f"{np.sqrt(s.sq_pos_seen / max(s.count_seen, 1)):.3f} m   {np.sqrt(s.sq_vel_seen / max(s.count_seen, 1)):.3f} m/s"

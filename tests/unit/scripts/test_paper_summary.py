@@ -80,3 +80,16 @@ def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
     assert rows[0].startswith("| Fig. 6, MP-CDE at 1 m/s | about 95 % | 90 % (74-97 %) of 30, 0.10 collisions per flight |")
     assert rows[1].startswith("| Fig. 6, baseline at 1 m/s | below MP-CDE | gated (planner.kind=dmpc), view-gated: 3 successes against MP-CDE's 27 on 30")
     assert rows[2].startswith("| Fig. 6, beside at 1 m/s | - | auto (planner.kind=auto), scenario's radio (not view-gated): 3 successes")
+
+
+def test_the_akf_rows_cite_the_revision_eval_tracking_recorded(tmp_path):
+    head = subprocess.run(["git", "-C", str(SCRIPTS), "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+    date = subprocess.run(["git", "-C", str(SCRIPTS), "show", "-s", "--format=%cs", head], capture_output=True, text=True, check=True).stdout.strip()
+    (tmp_path / "akf_pipeline").mkdir()
+    rows = [{"speed_mps": 2.0, "filter": "kf", "pos_rmse_m": 0.1, "vel_rmse_mps": 0.5}]
+    for rev, cited in ((head, f"{head[:7]} | {date}"), (head + "+dirty", f"{head[:7]}+dirty | {date}"), (None, "not recorded | -")):
+        results = {"rows": rows, "run": {"seeds": [0], "duration_s": 30.0, "version": "0", "git_rev": rev}}
+        (tmp_path / "akf_pipeline" / "results.json").write_text(json.dumps(results))
+        assert paper_summary.akf(tmp_path) == [
+            f"| AKF vs KF, KF at 2 m/s | - | position 0.100 m, velocity 0.500 m/s | `mpcde eval-tracking --measurements pipeline --seeds 10` | {cited} |"
+        ]
