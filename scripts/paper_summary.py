@@ -34,11 +34,16 @@ def revisions(*stores: Path) -> tuple[str, str]:
                 revs.append(rev[:7])
     dates = []
     for rev in revs:
-        out = subprocess.run(["git", "show", "-s", "--format=%cs", rev], capture_output=True, text=True)
-        date = out.stdout.strip() if out.returncode == 0 else "?"
+        date = commit_date(rev)
         if date not in dates:
             dates.append(date)
     return ", ".join(revs) or "-", ", ".join(dates) or "-"
+
+
+def commit_date(rev: str) -> str:
+    """The commit date (YYYY-MM-DD) of revision ``rev``, "?" where git does not know it."""
+    out = subprocess.run(["git", "show", "-s", "--format=%cs", rev], capture_output=True, text=True)
+    return out.stdout.strip() if out.returncode == 0 else "?"
 
 
 def pct(x: float) -> str:
@@ -105,9 +110,7 @@ def akf(runs: Path) -> list[str]:
     rows_in, rev = results["rows"], (results.get("run") or {}).get("git_rev")  # results before 2026-11-27 record no revision
     commit, date = "not recorded", "-"
     if rev:
-        commit = rev[:7] + ("+dirty" if rev.endswith("+dirty") else "")
-        out = subprocess.run(["git", "show", "-s", "--format=%cs", rev[:40]], capture_output=True, text=True)
-        date = out.stdout.strip() if out.returncode == 0 else "?"
+        commit, date = rev[:7] + ("+dirty" if rev.endswith("+dirty") else ""), commit_date(rev[:40])
     rows = []
     for r in rows_in:
         band = {0.5: "low", 2.0: "high"}.get(r["speed_mps"])
