@@ -77,12 +77,17 @@ def fig6(runs: Path) -> list[str]:
                 f"{c['collisions_per_flight']:.2f} collisions per flight")  # fmt: skip
         rows.append(f"| Fig. 6, MP-CDE at {v:g} m/s | about {pct(FIG6_PAPER[v])} | {ours} | {command} | {' | '.join(revs[first])} |")
     gated = {st["name"]: bool(st["overrides"].get("radio.view_gated")) for st in report["stores"]}
+    # what sets a store apart from MP-CDE's: its cell's axis values and the store-wide overrides MP-CDE's store lacks
+    # (e.g. denied.flight_level_spacing_m of the levels store, which no axis names)
+    ours_overrides = report["stores"][0]["overrides"]
+    differs = {st["name"]: {k: val for k, val in st["overrides"].items() if ours_overrides.get(k, object()) != val} for st in report["stores"]}
     for p in report["pairs"]:
         a, b = report["cells"][p["a"]], report["cells"][p["b"]]
         if a["store"] != first:
             continue
         v = a["settings"]["planner.cruise_speed_mps"]
-        what = ", ".join(f"{k}={val}" for k, val in b["values"].items() if k not in ("planner.cruise_speed_mps", "radio.view_gated"))
+        apart = {**differs[b["store"]], **b["values"]}
+        what = ", ".join(f"{k}={val}" for k, val in apart.items() if k not in ("planner.cruise_speed_mps", "radio.view_gated"))
         # the paper ranks MP-CDE against view-gated baselines; another store (auto over the scenario's radio) sits beside it
         role, paper, radio = ("baseline", "below MP-CDE", "view-gated") if gated[b["store"]] else ("beside", "-", "scenario's radio (not view-gated)")
         ours = (f"{b['store']} ({what}), {radio}: {p['b_success_paired']} successes against MP-CDE's "

@@ -63,7 +63,8 @@ def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
     """The paper's Fig. 6 comparison is MP-CDE against view-gated baselines; a store flown over the scenario's
     own radio (auto) is listed beside MP-CDE, not as a baseline it must beat."""
     stores = []
-    for name, overrides in (("denied", {}), ("gated", {"radio.view_gated": True}), ("auto", {})):
+    base = {"duration_s": 100}
+    for name, overrides in (("denied", base), ("gated", {**base, "radio.view_gated": True}), ("auto", base), ("levels", {**base, "denied.flight_level_spacing_m": 0.4})):
         (tmp_path / name).mkdir()
         (tmp_path / name / "results.jsonl").write_text(json.dumps({"git_rev": "0" * 40}) + "\n")
         stores.append({"name": name, "folder": str(tmp_path / name), "overrides": overrides})
@@ -71,15 +72,18 @@ def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
     cell = {"settings": settings, "flights": 30, "success_rate": 0.9, "success_low": 0.74, "success_high": 0.97, "collisions_per_flight": 0.1}
     cells = [{**cell, "store": "denied", "values": {}},
              {**cell, "store": "gated", "values": {"planner.kind": "dmpc", "radio.view_gated": True}},
-             {**cell, "store": "auto", "values": {"planner.kind": "auto"}}]  # fmt: skip
+             {**cell, "store": "auto", "values": {"planner.kind": "auto"}},
+             {**cell, "store": "levels", "values": {"planner.kind": "mpcde"}}]  # fmt: skip
     pair = {"a_success_paired": 27, "b_success_paired": 3, "paired_seeds": 30, "mcnemar_p": 1e-6}
-    report = {"stores": stores, "cells": cells, "pairs": [{**pair, "a": 0, "b": 1}, {**pair, "a": 0, "b": 2}]}
+    report = {"stores": stores, "cells": cells, "pairs": [{**pair, "a": 0, "b": 1}, {**pair, "a": 0, "b": 2}, {**pair, "a": 0, "b": 3}]}
     (tmp_path / "fig6").mkdir()
     (tmp_path / "fig6" / "report.json").write_text(json.dumps(report))
     rows = paper_summary.fig6(tmp_path)
     assert rows[0].startswith("| Fig. 6, MP-CDE at 1 m/s | about 95 % | 90 % (74-97 %) of 30, 0.10 collisions per flight |")
     assert rows[1].startswith("| Fig. 6, baseline at 1 m/s | below MP-CDE | gated (planner.kind=dmpc), view-gated: 3 successes against MP-CDE's 27 on 30")
     assert rows[2].startswith("| Fig. 6, beside at 1 m/s | - | auto (planner.kind=auto), scenario's radio (not view-gated): 3 successes")
+    # a store set apart by a store-wide override, not an axis (flight levels), says so in its row
+    assert rows[3].startswith("| Fig. 6, beside at 1 m/s | - | levels (denied.flight_level_spacing_m=0.4, planner.kind=mpcde), scenario's radio")
 
 
 def test_the_akf_rows_cite_the_revision_eval_tracking_recorded(tmp_path):
