@@ -73,7 +73,7 @@ def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
     cells = [{**cell, "store": "denied", "values": {}},
              {**cell, "store": "gated", "values": {"planner.kind": "dmpc", "radio.view_gated": True}},
              {**cell, "store": "auto", "values": {"planner.kind": "auto"}},
-             {**cell, "store": "levels", "values": {"planner.kind": "mpcde"}}]  # fmt: skip
+             {**cell, "store": "levels", "values": {"planner.kind": "mpcde"}, "settings": {**settings, "planner.kind": "mpcde"}}]  # fmt: skip
     pair = {"a_success_paired": 27, "b_success_paired": 3, "paired_seeds": 30, "mcnemar_p": 1e-6}
     report = {"stores": stores, "cells": cells, "pairs": [{**pair, "a": 0, "b": 1}, {**pair, "a": 0, "b": 2}, {**pair, "a": 0, "b": 3}]}
     (tmp_path / "fig6").mkdir()
@@ -83,7 +83,7 @@ def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
     assert rows[1].startswith("| Fig. 6, baseline at 1 m/s | below MP-CDE | gated (planner.kind=dmpc), view-gated: 3 successes against MP-CDE's 27 on 30")
     assert rows[2].startswith("| Fig. 6, beside at 1 m/s | - | auto (planner.kind=auto), scenario's radio (not view-gated): 3 successes")
     # a store set apart by a store-wide override, not an axis (flight levels), says so in its row
-    assert rows[3].startswith("| Fig. 6, beside at 1 m/s | - | levels (denied.flight_level_spacing_m=0.4, planner.kind=mpcde), scenario's radio")
+    assert rows[3].startswith("| Fig. 6, beside at 1 m/s | - | levels (denied.flight_level_spacing_m=0.4, planner.kind=mpcde), the denied stack (no radio)")
 
 
 def test_the_akf_rows_cite_the_revision_eval_tracking_recorded(tmp_path):
