@@ -77,17 +77,16 @@ def fig6(runs: Path) -> list[str]:
                 f"{c['collisions_per_flight']:.2f} collisions per flight")  # fmt: skip
         rows.append(f"| Fig. 6, MP-CDE at {v:g} m/s | about {pct(FIG6_PAPER[v])} | {ours} | {command} | {' | '.join(revs[first])} |")
     gated = {st["name"]: bool(st["overrides"].get("radio.view_gated")) for st in report["stores"]}
-    # what sets a store apart from MP-CDE's: its cell's axis values and the store-wide overrides MP-CDE's store lacks
-    # (e.g. denied.flight_level_spacing_m of the levels store, which no axis names)
-    ours_overrides = report["stores"][0]["overrides"]
-    differs = {st["name"]: {k: val for k, val in st["overrides"].items() if ours_overrides.get(k, object()) != val} for st in report["stores"]}
+    # what sets a store apart: its cell's settings less the overrides every store shares, as `mpcde report` labels it
+    # (so a store-wide override no axis names, e.g. the levels store's denied.flight_level_spacing_m, is shown)
+    shared = report["shared_overrides"]
     for p in report["pairs"]:
         a, b = report["cells"][p["a"]], report["cells"][p["b"]]
         if a["store"] != first:
             continue
         v = a["settings"]["planner.cruise_speed_mps"]
-        apart = {**differs[b["store"]], **b["values"]}
-        what = ", ".join(f"{k}={val}" for k, val in apart.items() if k not in ("planner.cruise_speed_mps", "radio.view_gated"))
+        skip = ("planner.cruise_speed_mps", "radio.view_gated", *shared)
+        what = ", ".join(f"{k}={val}" for k, val in b["settings"].items() if k not in skip)
         # the paper ranks MP-CDE against view-gated baselines; another store (auto over the scenario's radio) sits beside it
         role, paper, radio = ("baseline", "below MP-CDE", "view-gated") if gated[b["store"]] else ("beside", "-", "scenario's radio (not view-gated)")
         if b["settings"].get("planner.kind") == "mpcde":

@@ -68,14 +68,13 @@ def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
         (tmp_path / name).mkdir()
         (tmp_path / name / "results.jsonl").write_text(json.dumps({"git_rev": "0" * 40}) + "\n")
         stores.append({"name": name, "folder": str(tmp_path / name), "overrides": overrides})
-    settings = {"planner.cruise_speed_mps": 1.0}
-    cell = {"settings": settings, "flights": 30, "success_rate": 0.9, "success_low": 0.74, "success_high": 0.97, "collisions_per_flight": 0.1}
-    cells = [{**cell, "store": "denied", "values": {}},
-             {**cell, "store": "gated", "values": {"planner.kind": "dmpc", "radio.view_gated": True}},
-             {**cell, "store": "auto", "values": {"planner.kind": "auto"}},
-             {**cell, "store": "levels", "values": {"planner.kind": "mpcde"}, "settings": {**settings, "planner.kind": "mpcde"}}]  # fmt: skip
+    cell = {"flights": 30, "success_rate": 0.9, "success_low": 0.74, "success_high": 0.97, "collisions_per_flight": 0.1}
+    cells = []
+    for store, values in (("denied", {"planner.kind": "mpcde"}), ("gated", {"planner.kind": "dmpc"}), ("auto", {"planner.kind": "auto"}), ("levels", {"planner.kind": "mpcde"})):
+        values = {**values, "planner.cruise_speed_mps": 1.0}  # as `mpcde report` writes a cell: settings = store overrides + axis values
+        cells.append({**cell, "store": store, "values": values, "settings": {**next(s["overrides"] for s in stores if s["name"] == store), **values}})
     pair = {"a_success_paired": 27, "b_success_paired": 3, "paired_seeds": 30, "mcnemar_p": 1e-6}
-    report = {"stores": stores, "cells": cells, "pairs": [{**pair, "a": 0, "b": 1}, {**pair, "a": 0, "b": 2}, {**pair, "a": 0, "b": 3}]}
+    report = {"stores": stores, "shared_overrides": base, "cells": cells, "pairs": [{**pair, "a": 0, "b": 1}, {**pair, "a": 0, "b": 2}, {**pair, "a": 0, "b": 3}]}
     (tmp_path / "fig6").mkdir()
     (tmp_path / "fig6" / "report.json").write_text(json.dumps(report))
     rows = paper_summary.fig6(tmp_path)
