@@ -91,7 +91,8 @@ def fig6(runs: Path) -> list[str]:
         role, paper, radio = ("baseline", "below MP-CDE", "view-gated") if gated[b["store"]] else ("beside", "-", "scenario's radio (not view-gated)")
         if b["settings"].get("planner.kind") == "mpcde":
             radio = "the denied stack (no radio)"  # a variant of MP-CDE itself (flight levels): the radio plays no part
-        ours = (f"{b['store']} ({what}), {radio}: {p['b_success_paired']} successes against MP-CDE's "
+        n = p["b_success_paired"]
+        ours = (f"{b['store']} ({what}), {radio}: {n} success{'' if n == 1 else 'es'} against MP-CDE's "
                 f"{p['a_success_paired']} on {p['paired_seeds']} paired seeds, McNemar p = {p['mcnemar_p']:.2g}")  # fmt: skip
         rows.append(f"| Fig. 6, {role} at {v:g} m/s | {paper} | {ours} | (same) | {' | '.join(revs[b['store']])} |")
     return rows

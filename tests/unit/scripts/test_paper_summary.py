@@ -74,7 +74,7 @@ def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
         values = {**values, "planner.cruise_speed_mps": 1.0}  # as `mpcde report` writes a cell: settings = store overrides + axis values
         cells.append({**cell, "store": store, "values": values, "settings": {**next(s["overrides"] for s in stores if s["name"] == store), **values}})
     pair = {"a_success_paired": 27, "b_success_paired": 3, "paired_seeds": 30, "mcnemar_p": 1e-6}
-    report = {"stores": stores, "shared_overrides": base, "cells": cells, "pairs": [{**pair, "a": 0, "b": 1}, {**pair, "a": 0, "b": 2}, {**pair, "a": 0, "b": 3}]}
+    report = {"stores": stores, "shared_overrides": base, "cells": cells, "pairs": [{**pair, "a": 0, "b": 1}, {**pair, "a": 0, "b": 2}, {**pair, "a": 0, "b": 3, "b_success_paired": 1}]}
     (tmp_path / "fig6").mkdir()
     (tmp_path / "fig6" / "report.json").write_text(json.dumps(report))
     rows = paper_summary.fig6(tmp_path)
@@ -82,7 +82,7 @@ def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
     assert rows[1].startswith("| Fig. 6, baseline at 1 m/s | below MP-CDE | gated (planner.kind=dmpc), view-gated: 3 successes against MP-CDE's 27 on 30")
     assert rows[2].startswith("| Fig. 6, beside at 1 m/s | - | auto (planner.kind=auto), scenario's radio (not view-gated): 3 successes")
     # a store set apart by a store-wide override, not an axis (flight levels), says so in its row
-    assert rows[3].startswith("| Fig. 6, beside at 1 m/s | - | levels (denied.flight_level_spacing_m=0.4, planner.kind=mpcde), the denied stack (no radio)")
+    assert rows[3].startswith("| Fig. 6, beside at 1 m/s | - | levels (denied.flight_level_spacing_m=0.4, planner.kind=mpcde), the denied stack (no radio): 1 success against")
 
 
 def test_the_akf_rows_cite_the_revision_eval_tracking_recorded(tmp_path):
