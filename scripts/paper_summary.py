@@ -79,13 +79,12 @@ def fig6(runs: Path) -> list[str]:
     gated = {st["name"]: bool(st["overrides"].get("radio.view_gated")) for st in report["stores"]}
     # what sets a store apart: its cell's settings less the overrides every store shares, as `mpcde report` labels it
     # (so a store-wide override no axis names, e.g. the levels store's denied.flight_level_spacing_m, is shown)
-    shared = report["shared_overrides"]
+    skip = ("planner.cruise_speed_mps", "radio.view_gated", *report["shared_overrides"])
     for p in report["pairs"]:
         a, b = report["cells"][p["a"]], report["cells"][p["b"]]
         if a["store"] != first:
             continue
         v = a["settings"]["planner.cruise_speed_mps"]
-        skip = ("planner.cruise_speed_mps", "radio.view_gated", *shared)
         what = ", ".join(f"{k}={val}" for k, val in b["settings"].items() if k not in skip)
         # the paper ranks MP-CDE against view-gated baselines; another store (auto over the scenario's radio) sits beside it
         role, paper, radio = ("baseline", "below MP-CDE", "view-gated") if gated[b["store"]] else ("beside", "-", "scenario's radio (not view-gated)")
