@@ -2,13 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
+from dmpc_crossing_agent import crossing_dmpc_agent  # tests/unit/mpcde/onboard/dmpc_crossing_agent.py
 
-from mpcde.config.scenario import load_scenario
 from mpcde.onboard.dmpc import HALT_TOLERANCE_MPS, DmpcAgent
-from mpcde.onboard.factory import make_agent
 from sim.types import PlanMessage, PoseEstimate, RadioMessage
 
 ROUND = 0.2
@@ -16,11 +13,7 @@ START, GOAL = np.array([-4.0, 0.0, 1.5]), np.array([4.0, 0.0, 1.5])
 
 
 def _agent(**dmpc) -> DmpcAgent:
-    cfg = load_scenario("crossing")
-    cfg = replace(cfg, planner=replace(cfg.planner, kind="dmpc", start_delay_s=0.0), dmpc=replace(cfg.dmpc, perceive_neighbours=False, **dmpc))
-    agent = make_agent(cfg, 0, np.stack([GOAL, np.array([0.0, 4.0, 1.5])]), ())
-    assert isinstance(agent, DmpcAgent)
-    return agent
+    return crossing_dmpc_agent(np.stack([GOAL, np.array([0.0, 4.0, 1.5])]), **dmpc)
 
 
 def _message(t: float, pos: np.ndarray, sender: int = 1) -> RadioMessage:

@@ -11,13 +11,10 @@ the truth plus a constant drift of 0.15 m down, the size traced there.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
+from dmpc_crossing_agent import crossing_dmpc_agent  # tests/unit/mpcde/onboard/dmpc_crossing_agent.py
 
-from mpcde.config.scenario import load_scenario
 from mpcde.onboard.dmpc import DmpcAgent
-from mpcde.onboard.factory import make_agent
 from sim.types import PoseEstimate
 
 ROUND = 0.2
@@ -26,11 +23,7 @@ DRIFT = np.array([0.0, 0.0, -0.15])
 
 
 def _agent(**dmpc) -> DmpcAgent:
-    cfg = load_scenario("crossing")
-    cfg = replace(cfg, planner=replace(cfg.planner, kind="dmpc", start_delay_s=0.0), dmpc=replace(cfg.dmpc, perceive_neighbours=False, **dmpc))
-    agent = make_agent(cfg, 0, np.stack([GOAL, np.array([0.0, 40.0, 1.5])]), ())
-    assert isinstance(agent, DmpcAgent)
-    return agent
+    return crossing_dmpc_agent(np.stack([GOAL, np.array([0.0, 40.0, 1.5])]), **dmpc)
 
 
 def _fly(agent: DmpcAgent, rounds: int) -> np.ndarray:
