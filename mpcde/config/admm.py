@@ -19,6 +19,7 @@ import numpy as np
 from mpcde.errors import ConfigError
 from planners.dmpc.admm.config import AdmmFormationConfig
 from planners.dmpc.formation_graph import FormationGraph, complete_edges, ring_edges
+from planners.dmpc.start_state import TOLERANCE_M, TOLERANCE_MPS
 from sim.checks import is_finite_at_least, require_non_negative, require_positive
 
 __all__ = ["EXCHANGES_PER_ITERATION", "AdmmAgentConfig", "GraphKind"]
@@ -76,8 +77,10 @@ class AdmmAgentConfig:
             keeps the drones apart.
         state_tolerance_m: a step starts from the own plan's state when the
             pose estimate is within this of it [m], else from the estimate
-            (as the DMPC agent; 0 = always the estimate).
-        state_tolerance_mps: the same bound on the velocity [m/s].
+            (0 = always the estimate). The DMPC agent's rule and default,
+            :mod:`planners.dmpc.start_state`: 0.3 m, above the pose estimate's
+            drift (the former 0.1 m lets a drift past it ratchet the drone).
+        state_tolerance_mps: the same bound on the velocity [m/s] (0.3).
     """
 
     horizon_steps: int = _PLANNER.horizon_steps
@@ -98,8 +101,8 @@ class AdmmAgentConfig:
     warm_start: bool = _PLANNER.warm_start
     radio_rate_from_step: bool = True
     max_start_offset_m: float = 0.5
-    state_tolerance_m: float = 0.1
-    state_tolerance_mps: float = 0.3
+    state_tolerance_m: float = TOLERANCE_M
+    state_tolerance_mps: float = TOLERANCE_MPS
 
     def __post_init__(self) -> None:
         for name, low in (("horizon_steps", 2), ("l_max", 1)):

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 from mpcde.errors import ConfigError
 from planners.dmpc.config import DmpcConfig
+from planners.dmpc.start_state import TOLERANCE_M, TOLERANCE_MPS
 
 __all__ = ["DmpcAgentConfig"]
 
@@ -39,21 +40,9 @@ class DmpcAgentConfig:
             docs/results/dmpc_agent.md).
         state_tolerance_m: x0 is the own plan's state when the estimated
             position is within this of it [m], else the estimate (0 = always
-            the estimate; see the module docstring). Chosen: 0.3 m, above the
-            pose estimate's drift. The SE(3) controller tracks the plan with
-            the true state, so the estimate differs from a well-tracked plan
-            by the estimate's error, whose drift is a random walk of
-            ``pos_drift_m_per_sqrt_s`` = 5 mm/sqrt(s) per axis
-            (:mod:`sim.pose_estimate`): by 100 s its norm passes 0.1 m with
-            probability 0.26 per drone, 0.3 m with under 1e-6 (chi, 3 degrees
-            of freedom, sigma 0.05 m). Past the tolerance every round restarts
-            from the estimate, the controller moves the drone by the drift to
-            follow it, and the estimate moves with the drone: a ratchet that
-            held drones 0.3-0.7 m short of their goals and then sank them
-            (the former 0.1 m, a few times the tracking error; traced on the
-            forest, docs/results/mp-cde.md, "`auto` at the current code").
-            Limit: flights much longer than 100 s drift further (past 0.3 m
-            with probability 0.007 per drone by 300 s).
+            the estimate). Chosen: 0.3 m, above the pose estimate's drift; the
+            rule, shared with ADMM, and the drift argument:
+            :mod:`planners.dmpc.start_state`.
         state_tolerance_mps: the same bound on the velocity [m/s] (chosen: 0.3).
         commit_when_unheard: keep DMPC-Swarm's promise under message loss. Every
             plan ends in a halt (the QP's terminal constraint v[K] = 0, Eq. 13e,
@@ -95,8 +84,8 @@ class DmpcAgentConfig:
     obstacle_margin_m: float = 0.25
     obstacle_range_m: float = 3.0
     goal_lookahead_m: float = 4.0
-    state_tolerance_m: float = 0.3
-    state_tolerance_mps: float = 0.3
+    state_tolerance_m: float = TOLERANCE_M
+    state_tolerance_mps: float = TOLERANCE_MPS
     perceive_neighbours: bool = True
     commit_when_unheard: bool = True
     commit_range_m: float = 12.0

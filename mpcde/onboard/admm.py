@@ -36,8 +36,9 @@ over :mod:`sim.radio`. Choices:
 * **State.** A step starts from the pose estimate extrapolated to s h, or
   from the reference's state at s h (the own plan's, or the start hover
   before the first) while the estimate agrees with it within
-  ``state_tolerance_m`` / ``state_tolerance_mps`` (as the DMPC agent, so that
-  estimate noise does not jolt every plan).
+  ``state_tolerance_m`` / ``state_tolerance_mps``: the DMPC agent's rule,
+  :mod:`planners.dmpc.start_state` (so that estimate noise does not jolt every
+  plan, and a drifted estimate does not ratchet the drone off its goal).
 * **Own reference r_i.** A straight line from the start (the first pose
   estimate) to the goal at ``planner.cruise_speed_mps``, leaving at the first
   step at or after ``planner.start_delay_s``; before that the start itself,
@@ -106,6 +107,7 @@ from planners.dmpc.admm.local_qp import AdmmLocalQpError
 from planners.dmpc.admm.ocp import shift_trajectory
 from planners.dmpc.admm.types import AdmmBundle, AdmmStepResult, CopyMessage, MeanMessage, MeanRecord
 from planners.dmpc.plan_sampler import PlanSampler
+from planners.dmpc.start_state import plan_start_state
 from sim.types import PoseEstimate, RadioMessage, RgbdFrame
 
 __all__ = ["AdmmAgent", "AdmmRoundStats"]
@@ -323,10 +325,9 @@ class AdmmAgent(SampledPlanAgent):
         else:
             plan_pos, plan_vel, _ = self._sampler.sample(t0_s)
         cfg = self.config
-        agree = np.linalg.norm(plan_pos - pos) <= cfg.state_tolerance_m
-        if agree and np.linalg.norm(plan_vel - vel) <= cfg.state_tolerance_mps:
-            return np.r_[plan_pos, plan_vel]
-        self.stats.state_resets += 1
+        pos, vel, from_plan = plan_start_state(pos, vel, plan_pos, plan_vel, cfg.state_tolerance_m, cfg.state_tolerance_mps)
+        if not from_plan:
+            self.stats.state_resets += 1
         return np.r_[pos, vel]
 
     def _input_at(self, t0_s: float) -> np.ndarray:

@@ -10,12 +10,9 @@ DESIGN.md section 3) the loop first hands the agent its inbox
    triple integrator the acceleration of its own previous plan at t). When
    the estimate agrees with the own previous plan's state at t within
    ``state_tolerance_m`` and ``state_tolerance_mps`` (the controller is
-   tracking the plan), x0 is the plan's state instead. Why: the goal cost
-   acts on the last ``goal_steps`` only, so each plan moves slowly in its
-   first steps; replanning every round from the estimate then feeds the
-   estimate's noise and the controller's lag into every first step, and the
-   drones drift off their goals (measured: docs/results/dmpc_agent.md).
-   Setting both tolerances to 0 always replans from the estimate.
+   tracking the plan), x0 is the plan's state instead: the rule shared with
+   the ADMM agent, and why, in :mod:`planners.dmpc.start_state`. Setting both
+   tolerances to 0 always replans from the estimate.
 2. turns the neighbours' latest received plans into
    :class:`perception.types.NeighborPrediction` (source ``"radio"``, stamped
    with the send time, so ``age_s`` is the plan's age). A neighbour with no new
@@ -65,6 +62,7 @@ from perception.types import NeighborPrediction
 from planners.dmpc import DmpcPlan, DmpcProblem, DmpcSolveError
 from planners.dmpc.half_spaces import obstacle_half_spaces
 from planners.dmpc.plan_sampler import PlanSampler
+from planners.dmpc.start_state import plan_start_state
 from sim.types import ObstacleSpec, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
 
 __all__ = ["DmpcAgent", "DmpcRoundStats", "plan_prediction"]
@@ -215,14 +213,12 @@ class DmpcAgent(SampledPlanAgent):
         dt = time_s - est.time_s
         pos = np.asarray(est.pos_world, float) + np.asarray(est.vel_world, float) * dt
         vel = np.asarray(est.vel_world, float)
+        from_plan = False
         if self.plan is not None:
-            plan_pos, plan_vel = self.plan.position(time_s), self.plan.velocity(time_s)
             cfg = self.config
-            if np.linalg.norm(plan_pos - pos) <= cfg.state_tolerance_m and np.linalg.norm(plan_vel - vel) <= cfg.state_tolerance_mps:
-                pos, vel = plan_pos, plan_vel
-            else:
-                self.stats.state_resets += 1
-        else:
+            plan_pos, plan_vel = self.plan.position(time_s), self.plan.velocity(time_s)
+            pos, vel, from_plan = plan_start_state(pos, vel, plan_pos, plan_vel, cfg.state_tolerance_m, cfg.state_tolerance_mps)
+        if not from_plan:
             self.stats.state_resets += 1
         if self.qp_config.model == "double":
             return np.r_[pos, vel]

@@ -56,8 +56,9 @@ def _swarm(config: AdmmAgentConfig = CONFIG, start_delay_s: float = 0.0) -> list
 class _Radio:
     """Delivers each sub-round's bundles in the next, except those ``drop`` says are lost."""
 
-    def __init__(self, agents: list[AdmmAgent]) -> None:
+    def __init__(self, agents: list[AdmmAgent], drift: np.ndarray = np.zeros(3)) -> None:
         self.agents = agents
+        self.drift = drift  # the pose estimate's error [m]: each drone flies its reference, its estimate is off by this
         self.inbox: list[list[RadioMessage]] = [[] for _ in agents]
 
     def fly(self, rounds: range, drop: Drop = lambda n, s, r: False, silent: Silent = lambda n, i: False) -> list:
@@ -67,7 +68,7 @@ class _Radio:
             t = n * ROUND_S
             for a in self.agents:
                 pos, vel, _ = a.reference_state(t)
-                a.on_pose_estimate(_estimate(t, pos, vel))
+                a.on_pose_estimate(_estimate(t, pos + self.drift, vel))
                 a.on_radio(self.inbox[a.drone_id])
             sent = [(a.drone_id, None if silent(n, a.drone_id) else _round(a, t)) for a in self.agents]
             log.append(sent)
@@ -296,3 +297,25 @@ def test_formation_metrics_are_zero_for_the_goals_shape_anywhere_and_match_a_han
     m = formation_metrics(bent[None], GOALS)
     assert m["formation_error_final_m"] == pytest.approx(np.sqrt(3 * 0.09 / 6))
     assert formation_metrics(np.zeros((0, 4, 3)), GOALS)["formation_error_mean_m"] is None
+
+
+# ---------------------------------------------------------------------- a drifted pose estimate
+
+DRIFT = np.array([0.0, 0.0, -0.15])  # the drift traced on the forest for DMPC (docs/results/mp-cde.md)
+
+
+def test_a_drifted_estimate_starts_every_step_on_the_plan_at_the_default_tolerance() -> None:
+    agents = _swarm()
+    assert CONFIG.state_tolerance_m > np.linalg.norm(DRIFT)
+    _Radio(agents, DRIFT).fly(range(75 * R))
+    pos = np.array([a.reference_state(75 * R * ROUND_S)[0] for a in agents])
+    assert np.linalg.norm(pos - GOALS, axis=1).max() < 0.01  # the drones fly their plans to the goals
+    assert all(a.stats.state_resets == 0 for a in agents)
+
+
+def test_a_tolerance_below_the_drift_ratchets_the_formation_below_its_goals() -> None:
+    agents = _swarm(replace(CONFIG, state_tolerance_m=0.1))
+    _Radio(agents, DRIFT).fly(range(75 * R))
+    pos = np.array([a.reference_state(75 * R * ROUND_S)[0] for a in agents])
+    assert np.all(pos[:, 2] < GOALS[:, 2] - 0.2)  # more than the drift itself: taken again step after step
+    assert all(a.stats.state_resets > 30 for a in agents)
