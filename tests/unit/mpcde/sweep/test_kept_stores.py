@@ -1,0 +1,57 @@
+"""The sweep stores kept in the repository (docs/results/stores/README.md) against the docs that report them.
+
+For every row of that README's table: the store holds the stated number of
+flights, every one flown at the stated revision, with the axes and seeds its
+sweep file still names (a sweep file is fixed before its first flight), and
+the cell table of its ``mpcde report`` stands verbatim in the results file the
+row names: the numbers in the docs are the report's, not typed.
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from mpcde.sweep.report import build_report, format_report
+from mpcde.sweep.spec import load_sweep
+from mpcde.sweep.store import RESULTS, ResultsStore
+
+ROOT = Path(__file__).resolve().parents[4]
+STORES = ROOT / "docs" / "results" / "stores"
+ROW = re.compile(r"^\| `(?P<folder>[^`]+)` \| `(?P<sweep>[^`]+)` \| (?P<flights>\d+) \| (?P<rev>[0-9a-f]{7}), [0-9-]+ \| `(?P<doc>[^`]+)`")
+
+
+def _kept() -> list[dict[str, str]]:
+    rows = [m.groupdict() for line in (STORES / "README.md").read_text().splitlines() if (m := ROW.match(line))]
+    assert rows, "the README's table lists no store"
+    return rows
+
+
+def test_every_kept_folder_is_listed_in_the_readme() -> None:
+    listed = {r["folder"] for r in _kept()}
+    assert listed == {p.name for p in STORES.iterdir() if p.is_dir()}
+
+
+@pytest.mark.parametrize("row", _kept(), ids=lambda r: r["folder"])
+def test_a_kept_store_is_complete_unchanged_in_its_sweep_and_reported_verbatim(row: dict[str, str], tmp_path: Path) -> None:
+    folder = tmp_path / row["folder"]
+    folder.mkdir()
+    shutil.copy(STORES / row["folder"] / "sweep.json", folder / "sweep.json")
+    with gzip.open(STORES / row["folder"] / f"{RESULTS}.gz", "rb") as packed, open(folder / RESULTS, "wb") as out:
+        shutil.copyfileobj(packed, out)
+    store = ResultsStore.read(folder)
+    rows = store.rows()
+    assert len(rows) == int(row["flights"]) and all(r["status"] == "ok" for r in rows)
+    assert {r["git_rev"][:7] for r in rows} == {row["rev"]}
+    spec = load_sweep(ROOT / row["sweep"]).to_dict()
+    kept = json.loads((folder / "sweep.json").read_text())["sweep"]
+    assert (kept["axes"], kept["seeds"], kept["overrides"], kept["base_name"]) == (
+        json.loads(json.dumps(spec["axes"])), spec["seeds"], spec["overrides"], spec["base_name"])  # fmt: skip
+    table = format_report(build_report(folder)).split("\n\n")[1]  # the cell table, after the header line
+    doc = (ROOT / "docs" / "results" / row["doc"]).read_text()
+    assert table in doc, f"{row['doc']} does not hold the report's cell table of {row['folder']}"
