@@ -90,6 +90,17 @@ class PoseEstimate:
     quat_xyzw: np.ndarray
     ang_vel_body: np.ndarray
 
+    def extrapolated(self, time_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(position (3,) [m], velocity (3,) [m/s]) at ``time_s`` [s], at constant velocity from this estimate.
+
+        p(t) = p + v (t - t_est), v(t) = v: what a planner that starts its round
+        at ``time_s`` takes for its own state when it trusts the estimate. Used by
+        the DMPC, ADMM and MLR agents; ``time_s`` before the estimate extrapolates
+        backwards.
+        """
+        vel = np.asarray(self.vel_world, float)
+        return np.asarray(self.pos_world, float) + vel * (time_s - self.time_s), vel.copy()
+
 
 @dataclass(frozen=True)
 class FlatOutputReference:

@@ -314,9 +314,7 @@ class AdmmAgent(SampledPlanAgent):
 
         Before the first plan the reference is the hover at the start.
         """
-        est = self.latest_estimate
-        pos = np.asarray(est.pos_world, float) + np.asarray(est.vel_world, float) * (t0_s - est.time_s)
-        vel = np.asarray(est.vel_world, float)
+        pos, vel = self.latest_estimate.extrapolated(t0_s)
         k = self._plan_knot(t0_s)
         if self.plan is None:
             plan_pos, plan_vel = self.start_world, np.zeros(3)

@@ -209,10 +209,7 @@ class DmpcAgent(SampledPlanAgent):
     # ------------------------------------------------------------------ round
     def _state(self, time_s: float) -> np.ndarray:
         """x0 at ``time_s``: (6,) [p, v] or (9,) [p, v, a], from the estimate or the plan (module docstring)."""
-        est = self.latest_estimate
-        dt = time_s - est.time_s
-        pos = np.asarray(est.pos_world, float) + np.asarray(est.vel_world, float) * dt
-        vel = np.asarray(est.vel_world, float)
+        pos, vel = self.latest_estimate.extrapolated(time_s)
         from_plan = False
         if self.plan is not None:
             cfg = self.config

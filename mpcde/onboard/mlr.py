@@ -178,9 +178,8 @@ class MlrAgent(PlanFollowingAgent):
         own_uav = [own.state, *own.replies] if own is not None else []
 
         old = self.uav.reference
-        est = self.latest_estimate
-        pos = np.asarray(est.pos_world, float) + np.asarray(est.vel_world, float) * (time_s - est.time_s)
-        out, switched = self.uav.step(k, heard + own_cu, pos, est.vel_world)
+        pos, vel = self.latest_estimate.extrapolated(time_s)
+        out, switched = self.uav.step(k, heard + own_cu, pos, vel)
         if switched:
             self.stats.switches += 1
             t0 = max(float(time_s), self.uav.reference.t_start_s)

@@ -39,3 +39,17 @@ def test_same_seed_same_estimates_and_noise_free_config_is_exact():
 def test_negative_noise_is_rejected_with_the_field_named():
     with pytest.raises(ValueError, match="pos_noise_m"):
         PoseEstimateConfig(pos_noise_m=-1.0)
+
+
+def test_extrapolated_moves_the_estimate_at_its_constant_velocity_and_copies_it():
+    from sim.types import PoseEstimate
+
+    est = PoseEstimate(2.0, np.array([1.0, -2.0, 1.5]), np.array([0.5, 0.0, -0.2]), np.array([0, 0, 0, 1.0]), np.zeros(3))
+    pos, vel = est.extrapolated(2.4)
+    np.testing.assert_allclose(pos, [1.2, -2.0, 1.42])
+    np.testing.assert_allclose(vel, [0.5, 0.0, -0.2])
+    back, _ = est.extrapolated(1.0)  # before the estimate: backwards along the same line
+    np.testing.assert_allclose(back, [0.5, -2.0, 1.7])
+    vel[0] = 9.0  # the returned velocity is the caller's, not the frozen estimate's
+    assert est.vel_world[0] == 0.5
+    np.testing.assert_array_equal(est.extrapolated(2.0)[0], est.pos_world)
