@@ -16,7 +16,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from sim.kernel_cache import use_versioned_cache
+from mpcde.numerics import apply as _apply_numerics
+
+_apply_numerics()  # before numpy, OpenBLAS, torch or numba load here or in a child (mpcde/numerics.py)
+
+from sim.kernel_cache import use_versioned_cache  # noqa: E402
 
 use_versioned_cache()  # before any kernel of this package is compiled (sim/kernel_cache.py)
 

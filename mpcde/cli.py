@@ -25,6 +25,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from mpcde.config.modes import MODES
+from mpcde import numerics
 from mpcde.errors import ConfigError, MpcdeError, Terminated
 from mpcde.onboard.budget import ComputeBudget
 
@@ -399,6 +400,7 @@ def _run(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     with _sigterm_raises():
         try:
+            numerics.requested()  # MPCDE_NUMERICS: refused here with one line, before any flight
             return _COMMANDS[args.command](args)
         except (MpcdeError, ValueError) as e:
             msg = str(e).splitlines()[0] if str(e) else type(e).__name__

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import mpcde  # noqa: F401  (its numerics profile is set before numpy loads: mpcde/numerics.py)
 import numpy as np
 import pytest
 

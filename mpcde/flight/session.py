@@ -39,6 +39,7 @@ from mpcde.flight.metrics import MetricsAccumulator, formation_metrics, pose_err
 from mpcde.flight.observed_area import ObservedArea
 from mpcde.flight.run_types import RunLog, RunResult
 from mpcde.flight.tracking_score import TrackingScore
+from mpcde.numerics import describe as describe_numerics
 from mpcde.onboard.base import OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
 from mpcde.onboard.detection import BatchedDetector, frame_detector
@@ -308,6 +309,7 @@ class FlightSession:
             "render_workers": self.workers if self.pool is not None else None,
             "frames_received": int(sum(a.counters.frames for a in agents)),
             "detector_precision": self.detector.detector.precision if self.detector is not None else None,
+            "numerics": describe_numerics(),
         }
         extra["compute_time"] = self.budget.result(self.world.time_s, self._wall_s)
         extra["faults"] = {

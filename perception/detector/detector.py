@@ -19,6 +19,7 @@ layout, with BatchNorms), ``score_threshold`` (chosen on the validation split).
 
 from __future__ import annotations
 
+import os
 import warnings
 from pathlib import Path
 from typing import Sequence
@@ -40,18 +41,27 @@ DEFAULT_WEIGHTS = Path(__file__).resolve().parents[2] / "data" / "detector" / "d
 PRECISIONS = ("auto", "float32", "bfloat16")
 """Arithmetic of the network's forward pass; "auto" resolves by :func:`resolve_precision`."""
 _BF16_CPU_FLAGS = ("avx512_bf16", "amx_bf16")
+_ONEDNN_BF16_ISAS = ("AVX512_CORE_BF16", "AVX512_CORE_FP16", "AVX512_CORE_AMX", "AVX512_CORE_AMX_FP16", "AVX10_1_512_AMX", "AVX10_1_512_AMX_FP16", "AVX10_2_512", "AVX10_2_512_AMX_2", "ALL")
+"""``ONEDNN_MAX_CPU_ISA`` values at or above oneDNN's first ISA with bfloat16 dot products; a lower cap emulates it."""
 
 
-def native_bfloat16(cpuinfo: str | None = None) -> bool:
-    """Whether this CPU has bfloat16 dot-product instructions (``avx512_bf16`` or ``amx_bf16``; Linux only).
+def native_bfloat16(cpuinfo: str | None = None, max_isa: str | None = None) -> bool:
+    """Whether oneDNN computes bfloat16 natively here: the CPU has ``avx512_bf16`` or ``amx_bf16`` (Linux only)
+    and oneDNN is not capped below them.
 
     oneDNN computes a bfloat16 convolution natively on such a CPU (what it saves
     the detector: docs/results/detector.md); elsewhere it would emulate
-    bfloat16 or refuse it, so "auto" keeps float32 there.
+    bfloat16 or refuse it, so "auto" keeps float32 there. The cap is
+    ``ONEDNN_MAX_CPU_ISA``, which the portable numerics profile sets to AVX2
+    (mpcde/numerics.py): "auto" then keeps float32 as on a CPU without bfloat16.
 
     Args:
         cpuinfo: text of ``/proc/cpuinfo`` (read when None; absent: False).
+        max_isa: oneDNN's ISA cap (``ONEDNN_MAX_CPU_ISA`` when None; unset: no cap).
     """
+    cap = (os.environ.get("ONEDNN_MAX_CPU_ISA") if max_isa is None else max_isa) or ""
+    if cap and cap.strip().upper() not in _ONEDNN_BF16_ISAS:
+        return False
     if cpuinfo is None:
         try:
             cpuinfo = Path("/proc/cpuinfo").read_text()

@@ -157,6 +157,8 @@ def test_fly_writes_metrics_plots_log_and_an_h264_video(tmp_path):
     for key in ("success", "collisions", "min_inter_drone_distance_m", "min_obstacle_distance_m", "mission_time_s", "real_time_factor"):
         assert key in m
     assert m["frames_received"] > 0 and m["radio"]["sent"] > 0
+    assert set(m["numerics"]) == {"profile", "effective", "machine", "numpy_v4", "openblas_core", "pins"}
+    assert m["numerics"]["profile"] in ("portable", "native")
     import imageio_ffmpeg
 
     reader = imageio_ffmpeg.read_frames(str(out / "video.mp4"))

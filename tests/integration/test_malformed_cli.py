@@ -58,8 +58,8 @@ CASES: dict[str, tuple[str | bytes, str]] = {
 }
 
 
-def _fly(path: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"}
+def _fly(path: Path, out: Path, *extra: str, environ: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"} | (environ or {})
     return subprocess.run([sys.executable, "-m", "mpcde", "fly", str(path), "--out", str(out), "--quiet", *extra],
                           capture_output=True, text=True, timeout=120, env=env)  # fmt: skip
 
@@ -89,6 +89,11 @@ def test_special_files_are_refused_without_blocking(tmp_path):
 
 def test_a_tiny_duration_option_is_refused(tmp_path):
     _assert_one_line(_fly(Path("crossing"), tmp_path / "run", "--duration", "1e-12"), "duration", tmp_path / "run")
+
+
+def test_an_unknown_numerics_profile_is_refused_before_the_flight(tmp_path):
+    r = _fly(Path("crossing"), tmp_path / "run", environ={"MPCDE_NUMERICS": "avx512"})
+    _assert_one_line(r, "MPCDE_NUMERICS='avx512'", tmp_path / "run")
 
 
 def _fly_generated(raw: bytes, tmp: Path) -> None:

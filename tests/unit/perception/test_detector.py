@@ -256,8 +256,11 @@ def test_bfloat16_detector_finds_the_same_drones_as_float32(rendered):
 def test_precision_auto_follows_the_cpu_flags():
     from perception.detector.detector import native_bfloat16, resolve_precision
 
-    assert native_bfloat16("processor\t: 0\nflags\t\t: fpu sse2 avx2 avx512f avx512_bf16\n") == torch.backends.mkldnn.is_available()
-    assert not native_bfloat16("flags\t\t: fpu sse2 avx2 avx512f\n")
+    bf16_cpu = "processor\t: 0\nflags\t\t: fpu sse2 avx2 avx512f avx512_bf16\n"
+    assert native_bfloat16(bf16_cpu, max_isa="") == torch.backends.mkldnn.is_available()
+    assert native_bfloat16(bf16_cpu, max_isa="avx512_core_bf16") == torch.backends.mkldnn.is_available()
+    assert not native_bfloat16(bf16_cpu, max_isa="AVX2")  # the portable profile's cap (mpcde/numerics.py)
+    assert not native_bfloat16("flags\t\t: fpu sse2 avx2 avx512f\n", max_isa="")
     assert resolve_precision("auto") in ("float32", "bfloat16")
     assert resolve_precision("float32") == "float32"
     with pytest.raises(ValueError, match="precision='half'"):
