@@ -23,7 +23,7 @@ from mpcde.sweep.store import RESULTS, ResultsStore
 
 ROOT = Path(__file__).resolve().parents[4]
 STORES = ROOT / "docs" / "results" / "stores"
-ROW = re.compile(r"^\| `(?P<folder>[^`]+)` \| `(?P<sweep>[^`]+)` \| (?P<flights>\d+) \| (?P<rev>[0-9a-f]{7}), [0-9-]+ \| `(?P<doc>[^`]+)`")
+ROW = re.compile(r"^\| `(?P<folder>[^`]+)` \| `(?P<sweep>[^`]+)` \| (?P<flights>\d+) \| (?P<rev>[0-9a-f]{7}), [0-9-]+ \| `(?P<doc>[^`]+)`.* \| (?P<numerics>portable|native, bfloat16|native, float32) \|$")
 
 
 def _kept() -> list[dict[str, str]]:
@@ -48,6 +48,12 @@ def test_a_kept_store_is_complete_unchanged_in_its_sweep_and_reported_verbatim(r
     rows = store.rows()
     assert len(rows) == int(row["flights"]) and all(r["status"] == "ok" for r in rows)
     assert {r["git_rev"][:7] for r in rows} == {row["rev"]}
+    profile, _, precision = row["numerics"].partition(", ")
+    if profile == "portable":  # recorded by every flight since the profile exists (mpcde/numerics.py)
+        assert {r["metrics"]["numerics"]["effective"] for r in rows} == {"portable"}
+    else:  # flown before it: the CPU's own kernels, the detector's precision as "auto" resolved there
+        assert all("numerics" not in r["metrics"] or r["metrics"]["numerics"]["effective"] == "native" for r in rows)
+        assert {r["metrics"]["detector_precision"] for r in rows} <= {precision, None}
     spec = load_sweep(ROOT / row["sweep"]).to_dict()
     kept = json.loads((folder / "sweep.json").read_text())["sweep"]
     assert (kept["axes"], kept["seeds"], kept["overrides"], kept["base_name"]) == (
