@@ -41,7 +41,7 @@ import os
 import platform
 import sys
 
-__all__ = ["DEFAULT", "PROFILES", "VARIABLE", "X86_V3", "apply", "describe", "requested"]
+__all__ = ["DEFAULT", "PROFILES", "VARIABLE", "X86_V3", "apply", "describe", "mismatch", "requested"]
 
 VARIABLE = "MPCDE_NUMERICS"
 PROFILES = ("portable", "native")
@@ -118,6 +118,19 @@ def describe() -> dict[str, str | bool | dict[str, str | None] | None]:
     effective = "portable" if known and all(known) else "native" if not any(known) else "mixed"
     return {"profile": os.environ.get(VARIABLE, DEFAULT), "effective": effective, "machine": platform.machine(),
             "numpy_v4": numpy_v4, "openblas_core": openblas_core, "pins": pins}  # fmt: skip
+
+
+def mismatch(described: dict | None = None) -> str | None:
+    """One line saying why this process is not at the portable profile it asks for, or None.
+
+    None also where nothing was asked (``native``) or nothing can be (not x86-64).
+    """
+    d = describe() if described is None else described
+    if d["profile"] != "portable" or d["machine"].lower() not in ("x86_64", "amd64") or d["effective"] == "portable":
+        return None
+    return (f"{VARIABLE}=portable, but this process computes with numerics {d['effective']!r} (numpy v4 {d['numpy_v4']}, "
+            f"OpenBLAS {d['openblas_core']}): numpy loaded before `import mpcde`, or a pin was overridden; "
+            "its flights will not repeat on another machine (docs/design.md section 15)")  # fmt: skip
 
 
 def _openblas_core() -> str | None:

@@ -30,6 +30,7 @@ from __future__ import annotations
 import contextlib
 import os
 import time
+import warnings
 from collections import deque
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
@@ -40,6 +41,7 @@ from mpcde.flight.observed_area import ObservedArea
 from mpcde.flight.run_types import RunLog, RunResult
 from mpcde.flight.tracking_score import TrackingScore
 from mpcde.numerics import describe as describe_numerics
+from mpcde.numerics import mismatch as numerics_mismatch
 from mpcde.onboard.base import OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
 from mpcde.onboard.detection import BatchedDetector, frame_detector
@@ -311,6 +313,8 @@ class FlightSession:
             "detector_precision": self.detector.detector.precision if self.detector is not None else None,
             "numerics": describe_numerics(),
         }
+        if (why := numerics_mismatch(extra["numerics"])) is not None:
+            warnings.warn(why, RuntimeWarning, stacklevel=2)
         extra["compute_time"] = self.budget.result(self.world.time_s, self._wall_s)
         extra["faults"] = {
             **self.faults.report(),

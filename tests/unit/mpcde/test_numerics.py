@@ -74,3 +74,22 @@ def test_this_test_process_is_portable_because_conftest_imports_mpcde_first():
     if numerics.requested() != "portable" or os.uname().machine != "x86_64":
         pytest.skip("run under MPCDE_NUMERICS=native or off x86-64")
     assert numerics.describe()["numpy_v4"] in (False, None)
+
+
+def test_a_mismatch_is_named_only_where_portable_was_asked_on_x86_64_and_did_not_hold():
+    base = {"profile": "portable", "machine": "x86_64", "effective": "mixed", "numpy_v4": True, "openblas_core": "SkylakeX", "pins": {}}
+    why = numerics.mismatch(base)
+    assert why is not None and "numpy loaded before `import mpcde`" in why and "\n" not in why
+    assert numerics.mismatch({**base, "effective": "portable"}) is None
+    assert numerics.mismatch({**base, "profile": "native"}) is None
+    assert numerics.mismatch({**base, "machine": "aarch64"}) is None
+
+
+def test_a_process_that_loaded_numpy_first_says_so():
+    code = "import numpy, mpcde, json; from mpcde.numerics import describe, mismatch; print(json.dumps([describe()['effective'], mismatch()]))"
+    clean = {k: v for k, v in os.environ.items() if k not in numerics.X86_V3 and k != numerics.VARIABLE}
+    out = subprocess.run([sys.executable, "-c", code], env={**clean, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True, check=True)
+    effective, why = json.loads(out.stdout.strip().splitlines()[-1])
+    if not _has_avx512():
+        pytest.skip("numpy's own kernels are x86-64-v3 on this CPU: nothing to tell apart")
+    assert effective == "mixed" and why is not None
