@@ -32,7 +32,7 @@ applies them on import, before anything imports numpy, and why child processes
 loaded numpy before ``import mpcde`` (a notebook, pytest) keeps its native
 kernels for itself; :func:`describe` reports what is in effect, not what was
 asked, and every flight records it (``metrics.json``, ``numerics``). On a CPU
-that is not x86-64 the profile sets nothing and reports ``native``.
+that is not x86-64, or lacks AVX2 / FMA / BMI2, the profile sets nothing.
 """
 
 from __future__ import annotations
@@ -72,18 +72,42 @@ def requested(environ: os._Environ[str] | dict[str, str] | None = None) -> str:
     return value
 
 
-def apply(environ: os._Environ[str] | dict[str, str] | None = None, machine: str | None = None) -> bool:
-    """Set :data:`X86_V3` where unset if the profile is ``portable`` on x86-64; True if it did.
+def apply(environ: os._Environ[str] | dict[str, str] | None = None, machine: str | None = None, cpuinfo: str | None = None) -> bool:
+    """Set :data:`X86_V3` where unset if the profile is ``portable`` on an x86-64-v3 CPU; True if it did.
 
     An invalid ``MPCDE_NUMERICS`` sets nothing here (importing must not fail);
-    the command line refuses it with one line (:func:`requested`).
+    the command line refuses it with one line (:func:`requested`). Nor does a
+    CPU without AVX2, FMA and BMI2 (or whose flags cannot be read): numba and
+    OpenBLAS told "Haswell" would run instructions it does not have.
+
+    Args:
+        machine: ``platform.machine()`` when None.
+        cpuinfo: text of ``/proc/cpuinfo`` (read when None).
     """
     env = os.environ if environ is None else environ
     if env.get(VARIABLE, DEFAULT) != "portable" or (machine or platform.machine()).lower() not in ("x86_64", "amd64"):
         return False
+    if not _has_x86_64_v3(cpuinfo):
+        return False
     for key, value in X86_V3.items():
         env.setdefault(key, value)
     return True
+
+
+def _has_x86_64_v3(cpuinfo: str | None = None) -> bool:
+    """Whether the CPU flags (Linux ``/proc/cpuinfo``) include AVX2, FMA and BMI2, the core of x86-64-v3."""
+    if cpuinfo is None:
+        try:
+            with open("/proc/cpuinfo") as f:
+                cpuinfo = f.read()
+        except OSError:
+            return False
+    flags: set[str] = set()
+    for line in cpuinfo.splitlines():
+        if line.startswith("flags"):
+            flags.update(line.split(":", 1)[-1].split())
+            break
+    return {"avx2", "fma", "bmi2"} <= flags
 
 
 def describe() -> dict[str, str | bool | dict[str, str | None] | None]:
@@ -123,10 +147,12 @@ def describe() -> dict[str, str | bool | dict[str, str | None] | None]:
 def mismatch(described: dict | None = None) -> str | None:
     """One line saying why this process is not at the portable profile it asks for, or None.
 
-    None also where nothing was asked (``native``) or nothing can be (not x86-64).
+    None also where nothing was asked (``native``) or nothing can be (not x86-64, or not x86-64-v3).
     """
     d = describe() if described is None else described
     if d["profile"] != "portable" or d["machine"].lower() not in ("x86_64", "amd64") or d["effective"] == "portable":
+        return None
+    if described is None and not _has_x86_64_v3():  # nothing was set: the CPU cannot run the profile
         return None
     return (f"{VARIABLE}=portable, but this process computes with numerics {d['effective']!r} (numpy v4 {d['numpy_v4']}, "
             f"OpenBLAS {d['openblas_core']}): numpy loaded before `import mpcde`, or a pin was overridden; "

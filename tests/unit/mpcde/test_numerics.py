@@ -16,19 +16,24 @@ from mpcde.errors import ConfigError
 ROOT = Path(__file__).resolve().parents[3]
 
 
-def test_portable_sets_every_pin_only_where_unset_and_only_on_x86_64():
+V3_CPU = "processor\t: 0\nflags\t\t: fpu sse4_2 avx avx2 fma bmi1 bmi2 f16c movbe\n"
+
+
+def test_portable_sets_every_pin_only_where_unset_and_only_on_an_x86_64_v3_cpu():
     env = {"ATEN_CPU_CAPABILITY": "default"}  # a pin the user chose stays theirs
-    assert numerics.apply(env, machine="x86_64")
+    assert numerics.apply(env, machine="x86_64", cpuinfo=V3_CPU)
     assert env["ATEN_CPU_CAPABILITY"] == "default"
     assert {k: env[k] for k in numerics.X86_V3 if k != "ATEN_CPU_CAPABILITY"} == {k: v for k, v in numerics.X86_V3.items() if k != "ATEN_CPU_CAPABILITY"}
     arm: dict[str, str] = {}
-    assert not numerics.apply(arm, machine="aarch64") and arm == {}
+    assert not numerics.apply(arm, machine="aarch64", cpuinfo=V3_CPU) and arm == {}
+    old: dict[str, str] = {}  # an AVX-only CPU would fault on numba's and OpenBLAS's Haswell code
+    assert not numerics.apply(old, machine="x86_64", cpuinfo="flags\t\t: fpu sse4_2 avx\n") and old == {}
 
 
 @pytest.mark.parametrize("value", ["native", "fast", ""])
 def test_native_or_an_invalid_value_sets_nothing(value):
     env = {numerics.VARIABLE: value}
-    assert not numerics.apply(env, machine="x86_64")
+    assert not numerics.apply(env, machine="x86_64", cpuinfo=V3_CPU)
     assert env == {numerics.VARIABLE: value}
 
 
