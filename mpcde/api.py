@@ -18,6 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from mpcde import numerics
 from mpcde.config.modes import MODES
 from mpcde.config.scenario import ScenarioConfig
 from mpcde.config.scenario import load_scenario as _load_file
@@ -88,8 +89,10 @@ def fly(
         ``obstacles``, ``starts`` and ``goals``.
 
     Raises:
-        ConfigError: any invalid input, before anything is flown or written.
+        ConfigError: any invalid input, before anything is flown or written
+            (``MPCDE_NUMERICS`` included: mpcde/numerics.py).
     """
+    numerics.requested()
     if isinstance(scenario, ScenarioConfig):
         if mode is not None or seed is not None or duration_s is not None:
             raise ConfigError("mode/seed/duration_s", (mode, seed, duration_s), "only with a scenario path or name; use dataclasses.replace on a ScenarioConfig")

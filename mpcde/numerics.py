@@ -52,7 +52,8 @@ X86_V3: dict[str, str] = {
     "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR",  # numpy's dispatch stops at x86-64-v3
     "ATEN_CPU_CAPABILITY": "avx2",  # torch's vectorised elementwise kernels (the detector's activations)
     "ONEDNN_MAX_CPU_ISA": "AVX2",  # torch's convolutions; no native bfloat16 below AVX512_CORE_BF16
-    "NUMBA_CPU_NAME": "haswell",  # the map's and the controller's compiled kernels
+    "NUMBA_CPU_NAME": "haswell",  # the map's and the controller's compiled kernels ...
+    "NUMBA_CPU_FEATURES": "+avx2,+fma,+bmi2",  # ... with Haswell's features, not the host's (numba's default)
 }
 """The variables of the ``portable`` profile, each the library's own (its documentation names it)."""
 
@@ -115,9 +116,11 @@ def describe() -> dict[str, str | bool | dict[str, str | None] | None]:
 
     Returns:
         ``profile`` (asked for), ``effective`` (``portable`` when numpy and
-        OpenBLAS run at x86-64-v3 and every variable of :data:`X86_V3` holds its
-        value, ``native`` when none of that holds, ``mixed`` otherwise, e.g.
-        numpy loaded before ``import mpcde``), ``machine``, ``numpy_v4`` (numpy
+        OpenBLAS run at x86-64-v3 and torch's and numba's variables, where set,
+        hold the profile's values; ``native`` when none of that holds;
+        ``mixed`` otherwise, e.g. numpy loaded before ``import mpcde``; a CPU
+        without AVX-512 may read ``portable`` under ``native``: its own
+        choices are the profile's), ``machine``, ``numpy_v4`` (numpy
         dispatches to x86-64-v4; None off x86-64 or before numpy loads),
         ``openblas_core`` (numpy's OpenBLAS kernel family; None if unknown) and
         ``pins`` (each variable of :data:`X86_V3` as this process's environment
@@ -135,24 +138,29 @@ def describe() -> dict[str, str | bool | dict[str, str | None] | None]:
             numpy_v4 = None
         openblas_core = _openblas_core()
     pins = {key: os.environ.get(key) for key in X86_V3}
+    # numpy and OpenBLAS as read; torch and numba by their variables where set (unset: unknown, for a CPU
+    # without AVX-512 chooses AVX2 itself)
     checks = [numpy_v4 is False if numpy_v4 is not None else None,
               openblas_core == X86_V3["OPENBLAS_CORETYPE"] if openblas_core is not None else None,
-              *(pins[key] == value for key, value in X86_V3.items())]  # fmt: skip
+              *(pins[key] == value if pins[key] is not None else None for key, value in X86_V3.items()
+                if key not in ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES"))]  # fmt: skip
     known = [c for c in checks if c is not None]
     effective = "portable" if known and all(known) else "native" if not any(known) else "mixed"
     return {"profile": os.environ.get(VARIABLE, DEFAULT), "effective": effective, "machine": platform.machine(),
             "numpy_v4": numpy_v4, "openblas_core": openblas_core, "pins": pins}  # fmt: skip
 
 
-def mismatch(described: dict | None = None) -> str | None:
+def mismatch(described: dict | None = None, cpuinfo: str | None = None) -> str | None:
     """One line saying why this process is not at the portable profile it asks for, or None.
 
-    None also where nothing was asked (``native``) or nothing can be (not x86-64, or not x86-64-v3).
+    None also where nothing was asked (``native``) or nothing can be (not
+    x86-64, or a CPU without x86-64-v3, whose flags ``cpuinfo`` gives; read
+    from ``/proc/cpuinfo`` when None).
     """
     d = describe() if described is None else described
     if d["profile"] != "portable" or d["machine"].lower() not in ("x86_64", "amd64") or d["effective"] == "portable":
         return None
-    if described is None and not _has_x86_64_v3():  # nothing was set: the CPU cannot run the profile
+    if not _has_x86_64_v3(cpuinfo):  # nothing was set: the CPU cannot run the profile
         return None
     return (f"{VARIABLE}=portable, but this process computes with numerics {d['effective']!r} (numpy v4 {d['numpy_v4']}, "
             f"OpenBLAS {d['openblas_core']}): numpy loaded before `import mpcde`, or a pin was overridden; "
@@ -164,10 +172,11 @@ def _openblas_core() -> str | None:
     import ctypes
 
     try:
-        with open("/proc/self/maps") as maps:
-            paths = sorted({ln.split()[-1] for ln in maps if "openblas" in ln.lower() and "numpy" in ln})
+        with open("/proc/self/maps") as maps:  # address perms offset dev inode [path, which may hold spaces]
+            fields = [ln.rstrip("\n").split(maxsplit=5) for ln in maps if "openblas" in ln.lower() and "numpy" in ln]
     except OSError:
         return None
+    paths = sorted({f[5] for f in fields if len(f) == 6 and not f[5].endswith("(deleted)")})
     for path in paths:
         try:
             lib = ctypes.CDLL(path)
@@ -177,5 +186,6 @@ def _openblas_core() -> str | None:
             fn = getattr(lib, name, None)
             if fn is not None:
                 fn.restype = ctypes.c_char_p
-                return fn().decode()
+                name = fn()
+                return name.decode() if name else None
     return None

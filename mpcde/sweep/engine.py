@@ -30,6 +30,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from mpcde import numerics
 from mpcde.errors import ConfigError
 from sim.spawn import main_module_hidden, sigint_ignored
 
@@ -274,8 +275,11 @@ def _run_ray(
     refs: dict = {}
     try:
         remote = ray.remote(fly_task)
+        # The driver's numerics profile, not the environment a `ray start` gave the cluster's workers; each
+        # worker's `import mpcde` then sets its pins for its own CPU (mpcde/numerics.py).
+        runtime_env = {"env_vars": {numerics.VARIABLE: numerics.requested()}}
         for t in tasks() if callable(tasks) else tasks:  # a sweep opens its store only once the cluster answered
-            refs[remote.options(num_cpus=t.cpus or cpus_of(t.prepared.config.run)).remote(t)] = t.key
+            refs[remote.options(num_cpus=t.cpus or cpus_of(t.prepared.config.run), runtime_env=runtime_env).remote(t)] = t.key
         pending = list(refs)
         while pending:
             done, pending = ray.wait(pending, num_returns=1)

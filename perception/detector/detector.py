@@ -41,7 +41,7 @@ DEFAULT_WEIGHTS = Path(__file__).resolve().parents[2] / "data" / "detector" / "d
 PRECISIONS = ("auto", "float32", "bfloat16")
 """Arithmetic of the network's forward pass; "auto" resolves by :func:`resolve_precision`."""
 _BF16_CPU_FLAGS = ("avx512_bf16", "amx_bf16")
-_ONEDNN_BF16_ISAS = ("AVX512_CORE_BF16", "AVX512_CORE_FP16", "AVX512_CORE_AMX", "AVX512_CORE_AMX_FP16", "AVX10_1_512_AMX", "AVX10_1_512_AMX_FP16", "AVX10_2_512", "AVX10_2_512_AMX_2", "ALL")
+_ONEDNN_BF16_ISAS = ("AVX512_CORE_BF16", "AVX512_CORE_FP16", "AVX10_1_512", "AVX512_CORE_AMX", "AVX512_CORE_AMX_FP16", "AVX10_1_512_AMX", "AVX10_1_512_AMX_FP16", "AVX10_2_512", "AVX10_2_512_AMX_2", "ALL")
 """``ONEDNN_MAX_CPU_ISA`` values at or above oneDNN's first ISA with bfloat16 dot products; a lower cap emulates it."""
 
 

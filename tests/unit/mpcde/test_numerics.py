@@ -52,11 +52,11 @@ def _describe_in_child(**env: str) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-@pytest.mark.skipif(os.uname().machine != "x86_64", reason="the profile is defined for x86-64")
+@pytest.mark.skipif(os.uname().machine != "x86_64" or not numerics._has_x86_64_v3(), reason="the profile is defined for x86-64-v3")
 def test_a_process_that_imports_mpcde_first_computes_at_x86_64_v3():
     got = _describe_in_child()
     assert got["profile"] == "portable" and got["effective"] == "portable"
-    assert got["numpy_v4"] is False and got["openblas_core"] in ("Haswell", None)
+    assert got["numpy_v4"] is False and got["openblas_core"] == "Haswell"  # the locked numpy wheel's OpenBLAS
     assert got["pins"] == numerics.X86_V3 and got["torch_cpu"] in ("AVX2", "DEFAULT")
 
 
@@ -83,18 +83,26 @@ def test_this_test_process_is_portable_because_conftest_imports_mpcde_first():
 
 def test_a_mismatch_is_named_only_where_portable_was_asked_on_x86_64_and_did_not_hold():
     base = {"profile": "portable", "machine": "x86_64", "effective": "mixed", "numpy_v4": True, "openblas_core": "SkylakeX", "pins": {}}
-    why = numerics.mismatch(base)
+    why = numerics.mismatch(base, cpuinfo=V3_CPU)
     assert why is not None and "numpy loaded before `import mpcde`" in why and "\n" not in why
-    assert numerics.mismatch({**base, "effective": "portable"}) is None
-    assert numerics.mismatch({**base, "profile": "native"}) is None
-    assert numerics.mismatch({**base, "machine": "aarch64"}) is None
+    assert numerics.mismatch({**base, "effective": "portable"}, cpuinfo=V3_CPU) is None
+    assert numerics.mismatch({**base, "profile": "native"}, cpuinfo=V3_CPU) is None
+    assert numerics.mismatch({**base, "machine": "aarch64"}, cpuinfo=V3_CPU) is None
+    assert numerics.mismatch(base, cpuinfo="flags\t\t: fpu sse4_2 avx\n") is None  # nothing could be set there
 
 
+@pytest.mark.skipif(not _has_avx512(), reason="numpy's own kernels are x86-64-v3 on this CPU: nothing to tell apart")
 def test_a_process_that_loaded_numpy_first_says_so():
     code = "import numpy, mpcde, json; from mpcde.numerics import describe, mismatch; print(json.dumps([describe()['effective'], mismatch()]))"
     clean = {k: v for k, v in os.environ.items() if k not in numerics.X86_V3 and k != numerics.VARIABLE}
     out = subprocess.run([sys.executable, "-c", code], env={**clean, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True, check=True)
     effective, why = json.loads(out.stdout.strip().splitlines()[-1])
-    if not _has_avx512():
-        pytest.skip("numpy's own kernels are x86-64-v3 on this CPU: nothing to tell apart")
     assert effective == "mixed" and why is not None
+
+
+def test_the_python_api_refuses_an_unknown_profile_before_flying(monkeypatch):
+    import mpcde as api
+
+    monkeypatch.setenv(numerics.VARIABLE, "turbo")
+    with pytest.raises(ConfigError, match="^MPCDE_NUMERICS='turbo'"):
+        api.fly("crossing", duration_s=0.1)

@@ -52,7 +52,7 @@ def test_a_kept_store_is_complete_unchanged_in_its_sweep_and_reported_verbatim(r
     if profile == "portable":  # recorded by every flight since the profile exists (mpcde/numerics.py)
         assert {r["metrics"]["numerics"]["effective"] for r in rows} == {"portable"}
     else:  # flown before it: the CPU's own kernels, the detector's precision as "auto" resolved there
-        assert all("numerics" not in r["metrics"] or r["metrics"]["numerics"]["effective"] == "native" for r in rows)
+        assert all("numerics" not in r["metrics"] or r["metrics"]["numerics"]["profile"] == "native" for r in rows)
         assert {r["metrics"]["detector_precision"] for r in rows} <= {precision, None}
     spec = load_sweep(ROOT / row["sweep"]).to_dict()
     kept = json.loads((folder / "sweep.json").read_text())["sweep"]
