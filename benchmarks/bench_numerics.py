@@ -26,8 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
+from mpcde.numerics import VARIABLE, X86_V3
+
 ROOT = Path(__file__).resolve().parents[1]
-PINS = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES", "ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA", "NUMBA_CPU_NAME")
 
 CHILD = """
 import json, sys, time
@@ -43,8 +44,8 @@ print(json.dumps({"wall_s": wall, "sim_s": duration, "precision": m.get("detecto
 
 
 def _flight(profile: str, args: argparse.Namespace) -> dict:
-    env = {k: v for k, v in os.environ.items() if k not in PINS}
-    env.update(MPCDE_NUMERICS=profile, PYTHONPATH=str(ROOT), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    env = {k: v for k, v in os.environ.items() if k not in X86_V3}  # each child sets its own, or none (native)
+    env.update({VARIABLE: profile}, PYTHONPATH=str(ROOT), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     out = subprocess.run([sys.executable, "-c", CHILD, args.scenario, args.mode, str(args.duration)], env=env, capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 

@@ -24,8 +24,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from mpcde.config.modes import MODES
 from mpcde import numerics
+from mpcde.config.modes import MODES
 from mpcde.errors import ConfigError, MpcdeError, Terminated
 from mpcde.onboard.budget import ComputeBudget
 

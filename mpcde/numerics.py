@@ -41,7 +41,7 @@ import os
 import platform
 import sys
 
-__all__ = ["DEFAULT", "PROFILES", "VARIABLE", "X86_V3", "apply", "describe", "mismatch", "requested"]
+__all__ = ["DEFAULT", "PROFILES", "VARIABLE", "X86_V3", "apply", "cpu_flags", "describe", "mismatch", "requested"]
 
 VARIABLE = "MPCDE_NUMERICS"
 PROFILES = ("portable", "native")
@@ -95,20 +95,27 @@ def apply(environ: os._Environ[str] | dict[str, str] | None = None, machine: str
     return True
 
 
-def _has_x86_64_v3(cpuinfo: str | None = None) -> bool:
-    """Whether the CPU flags (Linux ``/proc/cpuinfo``) include AVX2, FMA and BMI2, the core of x86-64-v3."""
+def cpu_flags(cpuinfo: str | None = None) -> frozenset[str]:
+    """The flags of every ``flags`` line of ``cpuinfo`` (Linux ``/proc/cpuinfo`` when None; empty where unreadable).
+
+    The detector's ``native_bfloat16`` parses the same lines itself: ``perception`` may not import ``mpcde``.
+    """
     if cpuinfo is None:
         try:
             with open("/proc/cpuinfo") as f:
                 cpuinfo = f.read()
         except OSError:
-            return False
+            return frozenset()
     flags: set[str] = set()
     for line in cpuinfo.splitlines():
         if line.startswith("flags"):
             flags.update(line.split(":", 1)[-1].split())
-            break
-    return {"avx2", "fma", "bmi2"} <= flags
+    return frozenset(flags)
+
+
+def _has_x86_64_v3(cpuinfo: str | None = None) -> bool:
+    """Whether the CPU flags include AVX2, FMA and BMI2, the core of x86-64-v3."""
+    return {"avx2", "fma", "bmi2"} <= cpu_flags(cpuinfo)
 
 
 def describe() -> dict[str, str | bool | dict[str, str | None] | None]:
