@@ -348,8 +348,10 @@ def run_eval_tracking(
             :func:`mpcde.flight.run_folder.staged_output`); gets ``results.json``
             (``{"rows": [{speed_mps, filter, measurements, pos_rmse_m,
             vel_rmse_mps, id_switches, nees}], "run": {seeds, duration_s,
-            version, git_rev}}``; ``git_rev`` is the commit the code ran
-            from, ``+dirty`` with uncommitted changes, None outside git),
+            version, git_rev, numerics}}``; ``git_rev`` is the commit the code ran
+            from, ``+dirty`` with uncommitted changes, None outside git;
+            ``numerics`` is :func:`mpcde.numerics.describe`, the kernels it ran
+            with; the pipeline's detector runs in float32),
             ``results.txt`` and
             ``tracking_<speed>mps.png`` per speed.
         speeds_mps: nominal target speeds [m/s].
@@ -401,10 +403,12 @@ def run_eval_tracking(
             if plot_scenario is not None:
                 plots.append((float(speed), plot_scenario, plot_estimates))
     bar.close()
+    from mpcde.numerics import describe
     from mpcde.sweep.engine import git_revision, package_version
 
-    # what produced the numbers, so a results table can cite its commit (as a sweep store's rows do)
-    run = {"seeds": [int(x) for x in seeds], "duration_s": float(duration_s), "version": package_version(), "git_rev": git_revision()}
+    # what produced the numbers, so a results table can cite its commit and kernels (as a flight's metrics do)
+    run = {"seeds": [int(x) for x in seeds], "duration_s": float(duration_s), "version": package_version(), "git_rev": git_revision(),
+           "numerics": describe()}  # fmt: skip
     results = {"rows": rows, "run": run}
     notes = [
         f"  {r['speed_mps']:>5.2f} m/s {r['filter']:<4} {100 * s.count / max(s.truth_samples, 1):6.1f} %   "

@@ -33,9 +33,11 @@ def test_results_json_has_exactly_the_schema(tiny_run):
     on_disk = json.loads((out / "results.json").read_text())
     assert on_disk == results
     assert set(on_disk) == {"rows", "run"}
+    from mpcde.numerics import describe
     from mpcde.sweep.engine import git_revision
 
-    assert on_disk["run"] == {"seeds": [2], "duration_s": 8.0, "version": on_disk["run"]["version"], "git_rev": git_revision()}
+    run = {"seeds": [2], "duration_s": 8.0, "version": on_disk["run"]["version"], "git_rev": git_revision(), "numerics": describe()}
+    assert on_disk["run"] == run
     assert len(on_disk["rows"]) == 4
     for row in on_disk["rows"]:
         assert set(row) == ROW_KEYS
