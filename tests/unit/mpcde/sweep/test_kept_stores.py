@@ -26,15 +26,37 @@ STORES = ROOT / "docs" / "results" / "stores"
 ROW = re.compile(r"^\| `(?P<folder>[^`]+)` \| `(?P<sweep>[^`]+)` \| (?P<flights>\d+) \| (?P<rev>[0-9a-f]{7}), [0-9-]+ \| `(?P<doc>[^`]+)`.* \| (?P<numerics>portable|native, bfloat16|native, float32) \|$")
 
 
+# the README's second table: results kept beside the stores that are not sweeps (`mpcde eval-tracking`'s results.json)
+EVAL_ROW = re.compile(r"^\| `(?P<folder>[^`]+)` \| `(?P<command>mpcde eval-tracking[^`]*)` \| (?P<rev>[0-9a-f]{7}), [0-9-]+ \| `(?P<doc>[^`]+)`.* \| (?P<numerics>portable|native) \|$")
+
+
 def _kept() -> list[dict[str, str]]:
     rows = [m.groupdict() for line in (STORES / "README.md").read_text().splitlines() if (m := ROW.match(line))]
     assert rows, "the README's table lists no store"
     return rows
 
 
+def _kept_evals() -> list[dict[str, str]]:
+    return [m.groupdict() for line in (STORES / "README.md").read_text().splitlines() if (m := EVAL_ROW.match(line))]
+
+
 def test_every_kept_folder_is_listed_in_the_readme() -> None:
-    listed = {r["folder"] for r in _kept()}
-    assert listed == {p.name for p in STORES.iterdir() if p.is_dir()}
+    listed = [r["folder"] for r in _kept() + _kept_evals()]
+    assert sorted(listed) == sorted(p.name for p in STORES.iterdir() if p.is_dir())
+
+
+@pytest.mark.parametrize("row", _kept_evals(), ids=lambda r: r["folder"])
+def test_a_kept_eval_is_at_its_revision_and_profile_and_its_table_stands_in_the_doc(row: dict[str, str]) -> None:
+    results = json.loads((STORES / row["folder"] / "results.json").read_text())
+    run = results["run"]
+    assert run["git_rev"][:7] == row["rev"] and not run["git_rev"].endswith("+dirty")
+    assert run["numerics"]["effective"] == row["numerics"]
+    from mpcde.evals.tracking import format_table
+
+    table = format_table(results)  # the table `mpcde eval-tracking` prints and writes first in results.txt
+    assert (STORES / row["folder"] / "results.txt").read_text().startswith(table)
+    doc = (ROOT / "docs" / "results" / row["doc"]).read_text()
+    assert table in doc, f"{row['doc']} does not hold the table of {row['folder']}"
 
 
 @pytest.mark.parametrize("row", _kept(), ids=lambda r: r["folder"])
