@@ -4,7 +4,8 @@ read from the stores and reports the README's experiment commands write (issue 2
 Usage: .venv/bin/python scripts/paper_summary.py [RUNS_DIR]   (default runs/)
 
 Reads RUNS_DIR/fig10/report.json (`mpcde report`), RUNS_DIR/fig6/report.json (the cross-store report of the denied
-sweep, the view-gated baselines and whatever else it pairs, e.g. auto), RUNS_DIR/table3 (a sweep store; scripts/table3_report.py's cells) and
+sweep, the view-gated baselines and whatever else it pairs, e.g. auto; or the denied sweep's store itself, reported
+alone, which gives MP-CDE's rows only), RUNS_DIR/table3 (a sweep store; scripts/table3_report.py's cells) and
 RUNS_DIR/akf_pipeline/results.json (`mpcde eval-tracking`). The commit column lists the code revisions the
 stores' flights recorded, the date their commit dates; for `eval-tracking`, the revision its results.json
 records (results written before 2026-11-27 record none: "not recorded"). A missing input leaves its rows out.
@@ -20,6 +21,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from table3_report import METHODS, PAPER, cells, margins  # noqa: E402
 
+REPO = Path(__file__).resolve().parents[1]  # commit dates are the repository's, wherever the script runs from
 FIG6_PAPER = {0.5: 0.98, 1.0: 0.95, 2.0: 0.90}  # issue 28's reading of Fig. 6 for MP-CDE (its goals)
 AKF_PAPER = {"low": (0.06, 0.25), "high": (0.23, 0.34)}  # Sec. V-B2, AKF position [m], velocity [m/s]
 
@@ -42,7 +44,7 @@ def revisions(*stores: Path) -> tuple[str, str]:
 
 def commit_date(rev: str) -> str:
     """The commit date (YYYY-MM-DD) of revision ``rev``, "?" where git does not know it."""
-    out = subprocess.run(["git", "show", "-s", "--format=%cs", rev], capture_output=True, text=True)
+    out = subprocess.run(["git", "-C", str(REPO), "show", "-s", "--format=%cs", rev], capture_output=True, text=True)
     return out.stdout.strip() if out.returncode == 0 else "?"
 
 
@@ -62,20 +64,27 @@ def fig10(runs: Path) -> list[str]:
     return rows
 
 
+def fig6_row(c: dict, command: str, commit: str, date: str) -> str:
+    """The row of one of MP-CDE's Fig. 6 cells ``c`` (a cell of `mpcde report`)."""
+    v = c["values"]["planner.cruise_speed_mps"]
+    ours = (f"{pct(c['success_rate'])} ({100 * c['success_low']:.0f}-{pct(c['success_high'])}) of {c['flights']}, "
+            f"{c['collisions_per_flight']:.2f} collisions per flight")  # fmt: skip
+    return f"| Fig. 6, MP-CDE at {v:g} m/s | about {pct(FIG6_PAPER[v])} | {ours} | {command} | {commit} | {date} |"
+
+
 def fig6(runs: Path) -> list[str]:
     report = json.loads((runs / "fig6" / "report.json").read_text())
+    if "stores" not in report:  # the denied sweep's own store, reported alone: MP-CDE's rows, nothing to pair
+        commit, date = revisions(runs / "fig6")
+        return [fig6_row(c, "`mpcde sweep data/sweeps/forest_swarm_denied.yaml`", commit, date) for c in report["cells"] if c["flights"]]
     folders = {st["name"]: Path(st["folder"]) for st in report["stores"]}
     revs = {name: revisions(folder) for name, folder in folders.items()}
     command = f"`mpcde report {' '.join(str(f) for f in folders.values())} --out runs/fig6`"
     first = report["stores"][0]["name"]
     rows = []
     for c in report["cells"]:
-        if c["store"] != first:
-            continue
-        v = c["settings"]["planner.cruise_speed_mps"]
-        ours = (f"{pct(c['success_rate'])} ({100 * c['success_low']:.0f}-{pct(c['success_high'])}) of {c['flights']}, "
-                f"{c['collisions_per_flight']:.2f} collisions per flight")  # fmt: skip
-        rows.append(f"| Fig. 6, MP-CDE at {v:g} m/s | about {pct(FIG6_PAPER[v])} | {ours} | {command} | {' | '.join(revs[first])} |")
+        if c["store"] == first and c["flights"]:  # a cell not flown yet has no row
+            rows.append(fig6_row(c, command, *revs[first]))
     gated = {st["name"]: bool(st["overrides"].get("radio.view_gated")) for st in report["stores"]}
     # what sets a store apart: its cell's settings less the overrides every store shares, as `mpcde report` labels it
     # (so a store-wide override no axis names, e.g. the levels store's denied.flight_level_spacing_m, is shown)

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import gzip
 import json
 import math
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -96,3 +98,57 @@ def test_the_akf_rows_cite_the_revision_eval_tracking_recorded(tmp_path):
         assert paper_summary.akf(tmp_path) == [
             f"| AKF vs KF, KF at 2 m/s | - | position 0.100 m, velocity 0.500 m/s | `mpcde eval-tracking --measurements pipeline --seeds 10` | {cited} |"
         ]
+
+
+def test_a_single_store_report_gives_mp_cde_rows_only_and_skips_unflown_cells(tmp_path):
+    """The denied sweep's store reported alone (no baselines kept beside it) still gives MP-CDE's rows."""
+    (tmp_path / "fig6").mkdir()
+    (tmp_path / "fig6" / "results.jsonl").write_text(json.dumps({"git_rev": "0" * 40}) + "\n")
+    flown = {"flights": 100, "success_rate": 0.94, "success_low": 0.875, "success_high": 0.97, "collisions_per_flight": 0.06}
+    empty = {"flights": 0, "success_rate": None, "success_low": None, "success_high": None, "collisions_per_flight": None}
+    cells = [{**empty, "values": {"planner.kind": "mpcde", "planner.cruise_speed_mps": 0.5}},
+             {**flown, "values": {"planner.kind": "mpcde", "planner.cruise_speed_mps": 1.0}}]  # fmt: skip
+    (tmp_path / "fig6" / "report.json").write_text(json.dumps({"cells": cells, "pairs": []}))
+    assert paper_summary.fig6(tmp_path) == [
+        "| Fig. 6, MP-CDE at 1 m/s | about 95 % | 94 % (88-97 %) of 100, 0.06 collisions per flight "
+        "| `mpcde sweep data/sweeps/forest_swarm_denied.yaml` | 0000000 | ? |"
+    ]
+
+
+KEPT = SCRIPTS.parent / "docs" / "results" / "stores"
+FIG10_KEPT = "fig10_portable"
+FIG6_KEPT = ["fig6_denied_portable", "fig6_auto_portable"]  # MP-CDE's row first, then what is paired with it
+AKF_KEPT = "akf_pipeline_portable"
+
+
+def _unpack(kept: str, folder: Path) -> None:
+    folder.mkdir(parents=True)
+    shutil.copy(KEPT / kept / "sweep.json", folder / "sweep.json")
+    with gzip.open(KEPT / kept / "results.jsonl.gz", "rb") as packed, open(folder / "results.jsonl", "wb") as out:
+        shutil.copyfileobj(packed, out)
+
+
+def test_the_summary_rows_of_the_kept_stores_stand_verbatim_in_mp_cde_md(tmp_path, monkeypatch):
+    """docs/results/mp-cde.md's summary rows for Fig. 10, Fig. 6 (MP-CDE and the stores kept beside it) and AKF vs
+    KF are this script's output on the stores and results kept in the repository, not typed (issue 28,
+    deliverable 4). The Fig. 6 report is built as its command in the rows names it, from runs/."""
+    from mpcde.sweep.cross_report import build_cross_report
+    from mpcde.sweep.report import build_report
+    from mpcde.sweep.store import json_safe
+
+    monkeypatch.chdir(tmp_path)  # the cross-store report records its folders as given: runs/NAME, as in the doc
+    runs = Path("runs")
+    _unpack(FIG10_KEPT, runs / "fig10")
+    (runs / "fig10" / "report.json").write_text(json.dumps(json_safe(build_report(runs / "fig10"))))
+    for name in FIG6_KEPT:
+        _unpack(name, runs / name)
+    (runs / "fig6").mkdir()
+    report = build_cross_report([f"runs/{name}" for name in FIG6_KEPT])  # as `mpcde report runs/A runs/B --out runs/fig6`
+    (runs / "fig6" / "report.json").write_text(json.dumps(json_safe(report)))
+    (runs / "akf_pipeline").mkdir()
+    shutil.copy(KEPT / AKF_KEPT / "results.json", runs / "akf_pipeline" / "results.json")
+    doc = (SCRIPTS.parent / "docs" / "results" / "mp-cde.md").read_text()
+    rows = paper_summary.fig10(runs) + paper_summary.fig6(runs) + paper_summary.akf(runs)
+    assert len(rows) == 2 + 3 * len(FIG6_KEPT) + 6
+    missing = [row for row in rows if row not in doc]
+    assert not missing, f"mp-cde.md lacks the kept stores' summary rows: {missing}"
