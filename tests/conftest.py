@@ -2,12 +2,35 @@
 
 from __future__ import annotations
 
+import gzip
+import shutil
+from pathlib import Path
+from typing import Callable
+
 import mpcde  # noqa: F401  (its numerics profile is set before numpy loads: mpcde/numerics.py)
 import numpy as np
 import pytest
+
+KEPT_STORES = Path(__file__).resolve().parents[1] / "docs" / "results" / "stores"
+"""The sweep stores kept in the repository (docs/results/stores/README.md)."""
 
 
 @pytest.fixture
 def rng() -> np.random.Generator:
     """A generator with a fixed seed."""
     return np.random.default_rng(12345)
+
+
+@pytest.fixture
+def unpack_kept_store() -> Callable[[str, Path], Path]:
+    """``unpack(name, folder)``: the kept store ``name`` as a sweep folder at ``folder`` (created): its sweep.json,
+    and results.jsonl unpacked from results.jsonl.gz, as docs/results/stores/README.md says to. Returns ``folder``."""
+
+    def unpack(name: str, folder: Path) -> Path:
+        folder.mkdir(parents=True)
+        shutil.copy(KEPT_STORES / name / "sweep.json", folder / "sweep.json")
+        with gzip.open(KEPT_STORES / name / "results.jsonl.gz", "rb") as packed, open(folder / "results.jsonl", "wb") as out:
+            shutil.copyfileobj(packed, out)
+        return folder
+
+    return unpack

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import gzip
 import json
 import math
 import shutil
@@ -121,14 +120,7 @@ FIG6_KEPT = ["fig6_denied_portable", "fig6_auto_portable"]  # MP-CDE's row first
 AKF_KEPT = "akf_pipeline_portable"
 
 
-def _unpack(kept: str, folder: Path) -> None:
-    folder.mkdir(parents=True)
-    shutil.copy(KEPT / kept / "sweep.json", folder / "sweep.json")
-    with gzip.open(KEPT / kept / "results.jsonl.gz", "rb") as packed, open(folder / "results.jsonl", "wb") as out:
-        shutil.copyfileobj(packed, out)
-
-
-def test_the_summary_rows_of_the_kept_stores_stand_verbatim_in_mp_cde_md(tmp_path, monkeypatch):
+def test_the_summary_rows_of_the_kept_stores_stand_verbatim_in_mp_cde_md(tmp_path, monkeypatch, unpack_kept_store):
     """docs/results/mp-cde.md's summary rows for Fig. 10, Fig. 6 (MP-CDE and the stores kept beside it) and AKF vs
     KF are this script's output on the stores and results kept in the repository, not typed (issue 28,
     deliverable 4). The Fig. 6 report is built as its command in the rows names it, from runs/."""
@@ -138,10 +130,10 @@ def test_the_summary_rows_of_the_kept_stores_stand_verbatim_in_mp_cde_md(tmp_pat
 
     monkeypatch.chdir(tmp_path)  # the cross-store report records its folders as given: runs/NAME, as in the doc
     runs = Path("runs")
-    _unpack(FIG10_KEPT, runs / "fig10")
+    unpack_kept_store(FIG10_KEPT, runs / "fig10")
     (runs / "fig10" / "report.json").write_text(json.dumps(json_safe(build_report(runs / "fig10"))))
     for name in FIG6_KEPT:
-        _unpack(name, runs / name)
+        unpack_kept_store(name, runs / name)
     (runs / "fig6").mkdir()
     report = build_cross_report([f"runs/{name}" for name in FIG6_KEPT])  # as `mpcde report runs/A runs/B --out runs/fig6`
     (runs / "fig6" / "report.json").write_text(json.dumps(json_safe(report)))

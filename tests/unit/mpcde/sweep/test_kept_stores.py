@@ -9,17 +9,15 @@ row names: the numbers in the docs are the report's, not typed.
 
 from __future__ import annotations
 
-import gzip
 import json
 import re
-import shutil
 from pathlib import Path
 
 import pytest
 
 from mpcde.sweep.report import build_report, format_report
 from mpcde.sweep.spec import load_sweep
-from mpcde.sweep.store import RESULTS, ResultsStore
+from mpcde.sweep.store import ResultsStore
 
 ROOT = Path(__file__).resolve().parents[4]
 STORES = ROOT / "docs" / "results" / "stores"
@@ -30,14 +28,18 @@ ROW = re.compile(r"^\| `(?P<folder>[^`]+)` \| `(?P<sweep>[^`]+)` \| (?P<flights>
 EVAL_ROW = re.compile(r"^\| `(?P<folder>[^`]+)` \| `(?P<command>mpcde eval-tracking[^`]*)` \| (?P<rev>[0-9a-f]{7}), [0-9-]+ \| `(?P<doc>[^`]+)`.* \| (?P<numerics>portable|native) \|$")
 
 
+def _readme_rows(pattern: re.Pattern[str]) -> list[dict[str, str]]:
+    return [m.groupdict() for line in (STORES / "README.md").read_text().splitlines() if (m := pattern.match(line))]
+
+
 def _kept() -> list[dict[str, str]]:
-    rows = [m.groupdict() for line in (STORES / "README.md").read_text().splitlines() if (m := ROW.match(line))]
+    rows = _readme_rows(ROW)
     assert rows, "the README's table lists no store"
     return rows
 
 
 def _kept_evals() -> list[dict[str, str]]:
-    return [m.groupdict() for line in (STORES / "README.md").read_text().splitlines() if (m := EVAL_ROW.match(line))]
+    return _readme_rows(EVAL_ROW)
 
 
 def test_every_kept_folder_is_listed_in_the_readme() -> None:
@@ -60,12 +62,10 @@ def test_a_kept_eval_is_at_its_revision_and_profile_and_its_table_stands_in_the_
 
 
 @pytest.mark.parametrize("row", _kept(), ids=lambda r: r["folder"])
-def test_a_kept_store_is_complete_unchanged_in_its_sweep_and_reported_verbatim(row: dict[str, str], tmp_path: Path) -> None:
-    folder = tmp_path / row["folder"]
-    folder.mkdir()
-    shutil.copy(STORES / row["folder"] / "sweep.json", folder / "sweep.json")
-    with gzip.open(STORES / row["folder"] / f"{RESULTS}.gz", "rb") as packed, open(folder / RESULTS, "wb") as out:
-        shutil.copyfileobj(packed, out)
+def test_a_kept_store_is_complete_unchanged_in_its_sweep_and_reported_verbatim(
+    row: dict[str, str], tmp_path: Path, unpack_kept_store
+) -> None:
+    folder = unpack_kept_store(row["folder"], tmp_path / row["folder"])
     store = ResultsStore.read(folder)
     rows = store.rows()
     assert len(rows) == int(row["flights"]) and all(r["status"] == "ok" for r in rows)
