@@ -61,6 +61,29 @@ class DeniedAgentConfig:
             ``altitude_band_m``.
         flight_level_release_m: horizontal distance [m] from the goal at which a drone on flight
             levels leaves its level for the goal's altitude.
+        fresh_path_age_s: look before moving: free space of the corridor ahead last seen by the camera
+            longer than this ago [s] is stale (:mod:`mpcde.onboard.fresh_path`). Every t_y the drone checks
+            the corridor (half width ``fresh_path_half_width_m``) of its trajectory from
+            ``fresh_path_near_m`` to its stopping distance plus ``fresh_path_distance_m`` ahead; at a stale
+            point it brakes to a stop, turns the camera to that point at the yaw-rate limit, holds until the
+            commanded yaw has been on it for two t_y (frames mapped with the camera there; a hold lasts at
+            most pi / yaw_rate_max + 2 t_y), then replans and flies on. A point still stale at the next
+            check lies where the camera cannot refresh it (a trunk's shadow): the check then rests for
+            ``fresh_path_rest_s``, so the drone is never held for good. Not in MP-CDE. Why: every drone-drone contact left in the
+            forest sweep is between drones that closed outside each other's view (docs/results/safety.md);
+            a drone that only moves into space it looked at within this time sees a neighbour in its way
+            unless the neighbour moved there since. inf (default): off, the paper's stack.
+        fresh_path_half_width_m: half width [m] of that corridor.
+        fresh_path_near_m: the corridor starts this far ahead along the path [m] (the space the drone
+            is already in is never seen again: the camera's minimum range).
+        fresh_path_distance_m: the corridor ends this far beyond the stopping distance v^2 / a_max [m].
+        fresh_path_rest_s: how long [s] the check rests after a look that did not refresh its point.
+        fresh_path_glance_age_s: the same check's early stage [s]: where no point is stale, the first
+            corridor point older than this within the stopping distance plus
+            ``fresh_path_glance_distance_m`` turns the camera to it while the drone flies on (the yaw
+            plan resumes two t_y after the camera is on it), so that the corridor is refreshed before a
+            stop is needed. inf: no glances, holds only.
+        fresh_path_glance_distance_m: where the glances' corridor ends beyond the stopping distance [m].
         map: occupancy map settings.
         yaw: active yaw planner settings; its speed limit, yaw-rate limit, t_hold
             and field of view are taken from ``v_max_mps``, ``yaw_rate_max_radps``,
@@ -83,6 +106,13 @@ class DeniedAgentConfig:
     altitude_band_m: float = float("inf")
     flight_level_spacing_m: float = float("inf")
     flight_level_release_m: float = 1.0
+    fresh_path_age_s: float = float("inf")
+    fresh_path_half_width_m: float = 0.25
+    fresh_path_near_m: float = 0.3
+    fresh_path_distance_m: float = 1.0
+    fresh_path_rest_s: float = 2.0
+    fresh_path_glance_age_s: float = 0.5
+    fresh_path_glance_distance_m: float = 2.0
     map: MapConfig = field(default_factory=MapConfig)
     yaw: YawPlannerConfig = field(default_factory=YawPlannerConfig)
 
@@ -98,6 +128,12 @@ class DeniedAgentConfig:
         require_positive("altitude_band_m", self.altitude_band_m, "m", inf_means="no altitude band")
         require_positive("flight_level_spacing_m", self.flight_level_spacing_m, "m", inf_means="no flight levels")
         require_non_negative("flight_level_release_m", self.flight_level_release_m, "m")
+        require_positive("fresh_path_age_s", self.fresh_path_age_s, "s", inf_means="no look before moving")
+        for name in ("fresh_path_half_width_m", "fresh_path_near_m", "fresh_path_distance_m"):
+            require_non_negative(name, getattr(self, name), "m")
+        require_positive("fresh_path_rest_s", self.fresh_path_rest_s, "s")
+        require_positive("fresh_path_glance_age_s", self.fresh_path_glance_age_s, "s", inf_means="no glances")
+        require_non_negative("fresh_path_glance_distance_m", self.fresh_path_glance_distance_m, "m")
         if np.isfinite(self.altitude_band_m) and np.isfinite(self.flight_level_spacing_m):
             raise ConfigError(
                 "flight_level_spacing_m", self.flight_level_spacing_m, "allowed only with altitude_band_m unset (inf): both set the layer"

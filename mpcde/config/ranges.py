@@ -89,6 +89,9 @@ RANGES: dict[type, dict[str, B]] = {
         "start_delay_s": B(0, 60, "s"), "swarm_clearance_m": B(0, 10, "m"), "swarm_z_scale": B(0.1, 10),
         "conflict_horizon_s": B(0, 30, "s"), "altitude_band_m": B(0.05, 20, "m", inf="no altitude band"),
         "flight_level_spacing_m": B(0.05, 5, "m", inf="no flight levels"), "flight_level_release_m": B(0, 50, "m"),
+        "fresh_path_age_s": B(0.01, 60, "s", inf="no look before moving"), "fresh_path_half_width_m": B(0, 5, "m"),
+        "fresh_path_near_m": B(0, 10, "m"), "fresh_path_distance_m": B(0, 20, "m"), "fresh_path_rest_s": B(0.01, 60, "s"),
+        "fresh_path_glance_age_s": B(0.01, 60, "s", inf="no glances"), "fresh_path_glance_distance_m": B(0, 20, "m"),
     },
     MapConfig: {
         "voxel_m": B(0.02, 2, "m"), "window_size_m": B(1, 100, "m"), "min_range_m": B(0, 10, "m"),

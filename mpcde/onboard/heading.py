@@ -78,12 +78,38 @@ class ActiveYaw:
         self.swarm_clearance_m, self.swarm_z_scale = swarm_clearance_m, swarm_z_scale
         self.modes: Counter = Counter()
         self.plan_ms: list[float] = []
+        self._look: tuple[float, float, float] | None = None  # (start [s], start yaw, target yaw [rad]) of look_toward
 
     def restart(self, yaw: float, time_s: float) -> None:
         """Continue from heading ``yaw`` [rad] at ``time_s`` [s], dropping the yaw plan (a stack hand-over)."""
         self.yaw, self.yaw_time_s = float(yaw), float(time_s)
         self.plan = None
         self.next_plan_s = -np.inf
+        self._look = None
+
+    def look_toward(self, time_s: float, target_yaw: float) -> None:
+        """From ``time_s`` [s], turn from the commanded yaw to ``target_yaw`` [rad] at the yaw-rate limit and hold it.
+
+        The override of the denied agent's look before moving (``denied.fresh_path_age_s``); it lasts
+        until :meth:`restart`, and no yaw plan is made meanwhile (the caller stops calling :meth:`update`).
+        """
+        self._look = (float(time_s), self._commanded(time_s), float(target_yaw))
+        self.plan = None
+
+    def looked_since(self, time_s: float) -> float:
+        """How long [s] before ``time_s`` the turn of :meth:`look_toward` reached its target (negative: not yet)."""
+        t0, yaw0, target = self._look
+        err = abs((target - yaw0 + np.pi) % (2 * np.pi) - np.pi)
+        return time_s - (t0 + err / self.config.yaw_rate_max_radps)
+
+    def _looking(self, time_s: float) -> tuple[float, float]:
+        """(yaw [rad], yaw rate [rad/s]) of the :meth:`look_toward` turn at ``time_s``."""
+        t0, yaw0, target = self._look
+        err = (target - yaw0 + np.pi) % (2 * np.pi) - np.pi
+        reach = self.config.yaw_rate_max_radps * max(time_s - t0, 0.0)
+        if abs(err) <= reach:
+            return yaw0 + err, 0.0
+        return yaw0 + np.sign(err) * reach, float(np.sign(err)) * self.config.yaw_rate_max_radps
 
     def due(self, time_s: float) -> bool:
         """Whether a yaw plan is due at ``time_s`` [s] (every ``period_s``)."""
@@ -108,12 +134,18 @@ class ActiveYaw:
 
     def _commanded(self, time_s: float) -> float:
         """The yaw the reference commands at ``time_s`` under the current plan [rad]."""
+        if self._look is not None:
+            return float(self._looking(time_s)[0])
         if self.plan is None:
             return self.yaw
         return float(self.plan.yaw_at(time_s)[0])
 
     def reference(self, time_s: float, vel_world: np.ndarray | None) -> tuple[float, float]:
         """Commanded (yaw [rad], yaw rate [rad/s]) at ``time_s``; ``vel_world`` (3,) is the reference velocity."""
+        if self._look is not None:
+            yaw, rate = self._looking(time_s)
+            self.yaw, self.yaw_time_s = float(yaw), time_s
+            return self.yaw, rate
         if self.active:
             if self.plan is None:
                 return self.yaw, 0.0

@@ -224,3 +224,44 @@ def test_flight_level_settings_are_checked(fields):
 
     with pytest.raises(ConfigError):
         DeniedAgentConfig(**fields)
+
+
+def test_look_before_moving_stops_turns_the_camera_to_the_stale_point_then_replans_and_rests_if_it_stays_stale(monkeypatch):
+    """denied.fresh_path_age_s: a stale point in the corridor ahead holds the drone, the camera turns to it at the rate
+    limit, two t_y after it is on the point the drone replans; a point still stale after that look rests the check."""
+    from perception.types import OccupancySnapshot
+
+    cfg = DeniedAgentConfig(fresh_path_age_s=1.0, start_delay_s=0.0)
+    agent = DeniedAgent(0, np.array([0.0, 6.0, 1.5]), cfg)
+    _first_estimate(agent, np.array([0.0, 0.0, 1.5]))  # yaw 0: facing +x
+    agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([0.0, 0.5, 0.0]), 6.0)  # along +y at 0.5 m/s
+    shape, origin, voxel = (40, 60, 30), np.array([-2.0, -1.0, 0.0]), 0.1
+    seen = np.full(shape, 0.95, np.float32)
+    stale = tuple(np.floor((np.array([0.0, 0.8, 1.5]) - origin) / voxel).astype(int))
+    seen[stale] = -1.0  # 0.8 m ahead, seen 2 s before the frame at 1.0 s
+    snap = lambda: OccupancySnapshot(1.0, origin, voxel, np.zeros(shape, np.int8), np.full(shape, 3.0), np.full(shape, 3.0), seen)  # noqa: E731
+    monkeypatch.setattr(agent.map, "snapshot", snap)
+    monkeypatch.setattr(agent.map, "clearance", lambda p: np.full(len(np.reshape(p, (-1, 3))), 3.0))  # no obstacles
+    replans = []
+    monkeypatch.setattr(agent, "_replan", lambda s, n, t: replans.append(t) or False)
+
+    agent.plan_step(0.2)
+    assert agent.stats.fresh_path_holds == 1 and agent.braking
+    turn_s = (np.pi / 2) / cfg.yaw_rate_max_radps  # from yaw 0 to +y
+    yaw, rate = agent.reference(0.2 + 0.5 * turn_s).yaw, agent.reference(0.2 + 0.5 * turn_s).yaw_rate
+    assert yaw == pytest.approx(np.pi / 4, abs=1e-6) and rate == pytest.approx(cfg.yaw_rate_max_radps)
+    n_before = len(replans)
+    agent.plan_step(0.2 + turn_s + 0.1)  # on the point for one t_y: still held, no replan
+    assert len(replans) == n_before and agent._hold_since_s is not None
+    agent.plan_step(0.2 + turn_s + 0.2 + 1e-6)  # two t_y: released, replans at once
+    assert agent._hold_since_s is None and replans[-1] == pytest.approx(0.2 + turn_s + 0.2 + 1e-6)
+    assert agent.reference(0.2 + turn_s + 0.3).yaw == pytest.approx(np.pi / 2, abs=0.25)
+
+    agent.trajectory, agent.braking = _line(np.array([0.0, 0.0, 1.5]), np.array([0.0, 0.5, 0.0]), 6.0, t0_s=1.3), False
+    agent.plan_step(1.4)  # the same point still stale after the look: the check rests instead of holding again
+    assert agent.stats.fresh_path_holds == 1 and agent.stats.fresh_path_unrefreshed == 1 and not agent.braking
+    agent.plan_step(1.5)
+    assert agent.stats.fresh_path_holds == 1  # resting for fresh_path_rest_s
+    m = agent.extra_metrics()
+    assert m["fresh_path_holds"] == 1 and m["fresh_path_unrefreshed"] == 1
+    assert "fresh_path_holds" not in DeniedAgent(0, GOAL, DeniedAgentConfig()).extra_metrics()
