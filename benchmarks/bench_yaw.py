@@ -232,6 +232,28 @@ def main() -> None:
     same = safety_margin(snapshot, climb, time_s, config, profile=False).margin_now_s == safety_margin(snapshot, climb, time_s, config).margin_now_s
     print(f"  safety metric: S(0) alone {now_ms:6.2f} ms   baseline, whole S(tau) profile {profile_ms:6.2f} ms   "
           f"ratio x{profile_ms / now_ms:.1f}   same S(0): {same}")
+    # the denied agent's look before moving (denied.fresh_path_age_s), checked at the same t_y beside plan(): its
+    # corridor over the default 1.3 m at 1 m/s, every voxel fresh, so no early exit (the most it costs)
+    from mpcde.config.denied import DeniedAgentConfig
+    from mpcde.onboard.fresh_path import first_stale_point
+    from planners.minco import minco_s3
+
+    agent_cfg = DeniedAgentConfig(fresh_path_age_s=1.0)
+    seen_snap = OccupancySnapshot(time_s, snapshot.origin_world, VOXEL_M, snapshot.state, snapshot.distance_m,
+                                  snapshot.free_distance_m, np.zeros(snapshot.shape, np.float32))
+    start, vel = np.array([0.0, 0.0, ALTITUDE_M]), np.array([SPEED_MPS, 0.0, 0.0])
+    line = minco_s3(np.stack([start, vel, np.zeros(3)]), np.stack([start + 3.0 * vel, vel, np.zeros(3)]),
+                    np.zeros((0, 3)), np.array([3.0]), t0_s=time_s)
+
+    def check():
+        return first_stale_point(seen_snap, line, time_s, max_age_s=agent_cfg.fresh_path_age_s,
+                                 half_width_m=agent_cfg.fresh_path_half_width_m, near_m=agent_cfg.fresh_path_near_m,
+                                 far_m=SPEED_MPS**2 / agent_cfg.a_max_mps2 + agent_cfg.fresh_path_distance_m)
+
+    assert check() is None
+    fresh_ms = median_ms(check, args.repeats)
+    print(f"  look before moving, corridor check: {fresh_ms:6.3f} ms   against plan() {fast:6.2f} ms   "
+          f"ratio x{fresh_ms / fast:.3f}")
     # baseline: per-ray loop, measured in this run
     naive_cast_ms = median_ms(
         lambda: [naive_ray_gains(snapshot, p, fan.azimuths(yaw), fan.ranges_m, covered, fan.areas_m2)

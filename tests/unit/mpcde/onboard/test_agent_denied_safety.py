@@ -265,3 +265,41 @@ def test_look_before_moving_stops_turns_the_camera_to_the_stale_point_then_repla
     m = agent.extra_metrics()
     assert m["fresh_path_holds"] == 1 and m["fresh_path_unrefreshed"] == 1
     assert "fresh_path_holds" not in DeniedAgent(0, GOAL, DeniedAgentConfig()).extra_metrics()
+
+
+def test_an_ageing_point_ahead_turns_the_camera_to_it_while_the_drone_flies_on(monkeypatch):
+    """denied.fresh_path_glance_age_s: space older than the glance age (not yet stale) is glanced at without a stop;
+    the yaw plan is suspended until the camera has been on it for two t_y; replanning goes on meanwhile."""
+    from perception.types import OccupancySnapshot
+
+    cfg = DeniedAgentConfig(fresh_path_age_s=1.0, start_delay_s=0.0)
+    agent = DeniedAgent(0, np.array([0.0, 6.0, 1.5]), cfg)
+    _first_estimate(agent, np.array([0.0, 0.0, 1.5]))
+    agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([0.0, 0.5, 0.0]), 6.0)  # along +y
+    shape, origin, voxel = (40, 60, 30), np.array([-2.0, -1.0, 0.0]), 0.1
+    seen = np.full(shape, 0.95, np.float32)
+    seen[tuple(np.floor((np.array([0.0, 1.8, 1.5]) - origin) / voxel).astype(int))] = 0.3  # 0.7 s old, 1.8 m ahead
+    snap = lambda: OccupancySnapshot(1.0, origin, voxel, np.zeros(shape, np.int8), np.full(shape, 3.0), np.full(shape, 3.0), seen)  # noqa: E731
+    monkeypatch.setattr(agent.map, "snapshot", snap)
+    monkeypatch.setattr(agent.map, "clearance", lambda p: np.full(len(np.reshape(p, (-1, 3))), 3.0))
+    replans = []
+    monkeypatch.setattr(agent, "_replan", lambda s, n, t: replans.append(t) or False)
+    yaw_plans = []
+    monkeypatch.setattr(agent.heading, "update", lambda *a: yaw_plans.append(a[0]) or False)
+
+    agent.plan_step(0.2)
+    assert agent.stats.fresh_path_glances == 1 and agent.stats.fresh_path_holds == 0 and not agent.braking
+    assert agent.reference(0.2 + np.pi / 4).yaw == pytest.approx(np.pi / 2)  # on +y after a quarter turn at 2 rad/s
+    n_yaw = len(yaw_plans)
+    agent.plan_step(0.8)  # glancing: no yaw plan, but the periodic replan still runs (due every 0.5 s)
+    assert len(yaw_plans) == n_yaw and replans and replans[-1] == 0.8
+    agent.plan_step(0.2 + np.pi / 4 + 0.2 + 1e-6)  # two t_y on the point: the yaw plan resumes
+    assert len(yaw_plans) == n_yaw + 1 and agent._hold_since_s is None
+    off = DeniedAgent(0, np.array([0.0, 6.0, 1.5]), DeniedAgentConfig(fresh_path_age_s=1.0, start_delay_s=0.0, fresh_path_glance_age_s=float("inf")))
+    _first_estimate(off, np.array([0.0, 0.0, 1.5]))
+    off.trajectory = agent.trajectory
+    monkeypatch.setattr(off.map, "snapshot", snap)
+    monkeypatch.setattr(off.map, "clearance", lambda p: np.full(len(np.reshape(p, (-1, 3))), 3.0))
+    monkeypatch.setattr(off, "_replan", lambda s, n, t: False)
+    off.plan_step(0.2)  # without glances an ageing point does nothing until it is stale
+    assert off.stats.fresh_path_glances == 0 and off.stats.fresh_path_holds == 0 and off._hold_since_s is None
