@@ -97,7 +97,13 @@ class ActiveYaw:
         self.plan = None
 
     def looked_since(self, time_s: float) -> float:
-        """How long [s] before ``time_s`` the turn of :meth:`look_toward` reached its target (negative: not yet)."""
+        """How long [s] before ``time_s`` the turn of :meth:`look_toward` reached its target (negative: not yet).
+
+        ``inf`` when no such turn is under way: :meth:`restart` ended it (the denied agent's turn once round, for a
+        stop that ended inside the obstacle band, has looked everywhere since).
+        """
+        if self._look is None:
+            return np.inf
         t0, yaw0, target = self._look
         err = abs((target - yaw0 + np.pi) % (2 * np.pi) - np.pi)
         return time_s - (t0 + err / self.config.yaw_rate_max_radps)

@@ -303,3 +303,16 @@ def test_an_ageing_point_ahead_turns_the_camera_to_it_while_the_drone_flies_on(m
     monkeypatch.setattr(off, "_replan", lambda s, n, t: False)
     off.plan_step(0.2)  # without glances an ageing point does nothing until it is stale
     assert off.stats.fresh_path_glances == 0 and off.stats.fresh_path_holds == 0 and off._hold_since_s is None
+
+
+def test_a_hold_ends_when_another_turn_has_replaced_its_look():
+    """A hold's stop that ends inside the obstacle band begins the turn once round, which restarts the heading; the hold
+    then ends rather than wait on a look that no longer exists (2 m/s seed 76 of the look-before-moving sweep)."""
+    cfg = DeniedAgentConfig(fresh_path_age_s=1.0, start_delay_s=0.0)
+    agent = DeniedAgent(0, np.array([0.0, 6.0, 1.5]), cfg)
+    _first_estimate(agent, np.array([0.0, 0.0, 1.5]))
+    agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([0.0, 0.5, 0.0]), 6.0)
+    agent._begin_hold(0.2, np.array([0.0, 1.0, 1.5]), stop=True)
+    assert not agent._end_hold(0.3)  # still turning to the point
+    agent.heading.restart(0.0, 0.4)  # what the end of the turn once round does
+    assert agent._end_hold(0.5) and agent._hold_since_s is None
