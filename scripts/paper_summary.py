@@ -4,8 +4,9 @@ read from the stores and reports the README's experiment commands write (issue 2
 Usage: .venv/bin/python scripts/paper_summary.py [RUNS_DIR]   (default runs/)
 
 Reads RUNS_DIR/fig10/report.json (`mpcde report`), RUNS_DIR/fig6/report.json (the cross-store report of the denied
-sweep, the view-gated baselines and whatever else it pairs, e.g. auto; or the denied sweep's store itself, reported
-alone, which gives MP-CDE's rows only), RUNS_DIR/table3 (a sweep store; scripts/table3_report.py's cells) and
+sweep, the view-gated baselines and whatever else it pairs, e.g. auto; a store of the denied stack with other
+settings, e.g. look before moving, gets MP-CDE's rows of its own besides its pairs; or the denied sweep's store
+itself, reported alone, which gives MP-CDE's rows only), RUNS_DIR/table3 (a sweep store; scripts/table3_report.py's cells) and
 RUNS_DIR/akf_pipeline/results.json (`mpcde eval-tracking`). The commit column lists the code revisions the
 stores' flights recorded, the date their commit dates; for `eval-tracking`, the revision its results.json
 records (results written before 2026-11-27 record none: "not recorded"). A missing input leaves its rows out.
@@ -64,12 +65,14 @@ def fig10(runs: Path) -> list[str]:
     return rows
 
 
-def fig6_row(c: dict, command: str, commit: str, date: str) -> str:
-    """The row of one of MP-CDE's Fig. 6 cells ``c`` (a cell of `mpcde report`)."""
+def fig6_row(c: dict, command: str, commit: str, date: str, variant: str = "") -> str:
+    """The row of one of MP-CDE's Fig. 6 cells ``c`` (a cell of `mpcde report`); ``variant``: the settings that set
+    a store of the denied stack apart from MP-CDE's (e.g. ``denied.fresh_path_age_s=1.0``), empty for MP-CDE's own."""
     v = c["values"]["planner.cruise_speed_mps"]
     ours = (f"{pct(c['success_rate'])} ({100 * c['success_low']:.0f}-{pct(c['success_high'])}) of {c['flights']}, "
             f"{c['collisions_per_flight']:.2f} collisions per flight")  # fmt: skip
-    return f"| Fig. 6, MP-CDE at {v:g} m/s | about {pct(FIG6_PAPER[v])} | {ours} | {command} | {commit} | {date} |"
+    name = f"MP-CDE with {variant}" if variant else "MP-CDE"
+    return f"| Fig. 6, {name} at {v:g} m/s | about {pct(FIG6_PAPER[v])} | {ours} | {command} | {commit} | {date} |"
 
 
 def fig6(runs: Path) -> list[str]:
@@ -89,9 +92,14 @@ def fig6(runs: Path) -> list[str]:
     # what sets a store apart: its cell's settings less the overrides every store shares, as `mpcde report` labels it
     # (so a store-wide override no axis names, e.g. the levels store's denied.flight_level_spacing_m, is shown)
     skip = ("planner.cruise_speed_mps", "radio.view_gated", *report["shared_overrides"])
+    # a variant of the denied stack (another store of planner.kind mpcde) gets MP-CDE's rows of its own too
+    for c in report["cells"]:
+        if c["store"] != first and c["flights"] and c["settings"].get("planner.kind") == "mpcde":
+            variant = ", ".join(f"{k}={val}" for k, val in c["settings"].items() if k not in skip and k != "planner.kind")
+            rows.append(fig6_row(c, "(same)", *revs[c["store"]], variant=variant))
     for p in report["pairs"]:
         a, b = report["cells"][p["a"]], report["cells"][p["b"]]
-        if a["store"] != first:
+        if a["store"] != first or not p["paired_seeds"]:  # a cell not flown yet pairs no seed
             continue
         v = a["settings"]["planner.cruise_speed_mps"]
         what = ", ".join(f"{k}={val}" for k, val in b["settings"].items() if k not in skip)
