@@ -37,7 +37,7 @@ import numpy as np
 from perception.types import NeighborPrediction, OccupancySnapshot
 from planners.dmpc.collision import ellipsoidal_distance
 from planners.minco import MincoTrajectory
-from planners.yaw import TrajectoryView, YawPlan, YawPlanner, YawPlannerConfig, needs_replan
+from planners.yaw import TrajectoryView, YawPlan, YawPlanner, YawPlannerConfig, needs_replan, wrap_angle
 
 __all__ = ["ActiveYaw"]
 
@@ -104,14 +104,17 @@ class ActiveYaw:
         """
         if self._look is None:
             return np.inf
+        t0, _, err = self._look_turn()
+        return time_s - (t0 + abs(err) / self.config.yaw_rate_max_radps)
+
+    def _look_turn(self) -> tuple[float, float, float]:
+        """(start [s], start yaw [rad], signed turn to the target [rad], the shorter way) of :meth:`look_toward`."""
         t0, yaw0, target = self._look
-        err = abs((target - yaw0 + np.pi) % (2 * np.pi) - np.pi)
-        return time_s - (t0 + err / self.config.yaw_rate_max_radps)
+        return t0, yaw0, float(wrap_angle(target - yaw0))
 
     def _looking(self, time_s: float) -> tuple[float, float]:
         """(yaw [rad], yaw rate [rad/s]) of the :meth:`look_toward` turn at ``time_s``."""
-        t0, yaw0, target = self._look
-        err = (target - yaw0 + np.pi) % (2 * np.pi) - np.pi
+        t0, yaw0, err = self._look_turn()
         reach = self.config.yaw_rate_max_radps * max(time_s - t0, 0.0)
         if abs(err) <= reach:
             return yaw0 + err, 0.0
@@ -162,7 +165,7 @@ class ActiveYaw:
         self.yaw_time_s = time_s
         if vel_world is None or np.hypot(vel_world[0], vel_world[1]) <= 0.2:
             return self.yaw, 0.0
-        err = (np.arctan2(vel_world[1], vel_world[0]) - self.yaw + np.pi) % (2 * np.pi) - np.pi
+        err = float(wrap_angle(np.arctan2(vel_world[1], vel_world[0]) - self.yaw))
         limit = self.config.yaw_rate_max_radps * dt
         step = float(np.clip(err, -limit, limit))
         self.yaw += step
