@@ -60,7 +60,7 @@ from mpcde.config.level_rules import flight_level_m
 from mpcde.config.perception import PerceptionConfig
 from mpcde.onboard.base import AgentCounters, OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
-from mpcde.onboard.fresh_path import first_stale_point
+from mpcde.onboard.fresh_path import FreshPathWatch, Look
 from mpcde.onboard.heading import ActiveYaw
 from mpcde.onboard.perception import NeighbourPerception, onboard_perception
 from perception.occupancy_map import OccupancyMap
@@ -88,9 +88,6 @@ class PlanningStats:
     rest_escapes: int = 0  # stops that ended inside the obstacle band and began an escape (_escape_floor)
     front_end_failures: dict = field(default_factory=dict)  # refused front-end searches by status ("goal_blocked", "no_path", ...)
     goal_fallbacks: int = 0  # found paths to the window's voxel nearest the goal (clipped goal blocked, no plan or stopping)
-    fresh_path_holds: int = 0  # stops to look at a stale point of the corridor ahead (denied.fresh_path_age_s)
-    fresh_path_glances: int = 0  # turns of the camera to an ageing point ahead while flying on
-    fresh_path_unrefreshed: int = 0  # stale points still stale after a look at them (the check then rests)
     solve_ms: list = field(default_factory=list)
     map_ms: list = field(default_factory=list)
 
@@ -150,11 +147,8 @@ class DeniedAgent(OnboardAgent):
         # where plan_step reads the neighbours from (None: this drone's tracks); the auto agent adds its radio memory
         # (t, count) -> predictions; count: whether the call is a planning use the source may tally
         self.neighbour_source: Callable[[float, bool], list[NeighborPrediction]] | None = None
-        self._hold_since_s: float | None = None  # look before moving: when the current look began (None: none)
-        self._hold_stops = False  # whether that look is a hold (a stop) or a glance (flying on)
-        self._fresh_next_s = -np.inf  # the corridor is checked every t_y from here
-        self._fresh_rest_until_s = -np.inf  # after a look that did not refresh its point, the check rests until here
-        self._last_stale: np.ndarray | None = None  # the point the last hold looked at, until a check finds none
+        # look before moving (denied.fresh_path_age_s): the corridor check's state, every t_y
+        self.fresh_path = FreshPathWatch(c, c.yaw.period_s, 2.0 * c.map.voxel_m)
 
     # inputs ---------------------------------------------------------------
     def on_pose_estimate(self, estimate: PoseEstimate) -> None:
@@ -222,10 +216,10 @@ class DeniedAgent(OnboardAgent):
         if t < self.config.start_delay_s or self.latest_estimate is None or self._scanning(t) or self._escape_from_rest(t):
             return
         released = glancing = False
-        if self._hold_since_s is not None:  # the camera turning to a stale point (a hold stops for it, a glance flies on)
-            if self._end_hold(t):
-                released = self._hold_stops
-            elif self._hold_stops:
+        if self.fresh_path.looking:  # the camera turning to a stale point (a hold stops for it, a glance flies on)
+            if self._end_look(t):
+                released = self.fresh_path.stops
+            elif self.fresh_path.stops:
                 return  # stopping: no yaw plan, no replan
             else:
                 glancing = True
@@ -513,67 +507,28 @@ class DeniedAgent(OnboardAgent):
 
     def _fresh_path_due(self, t: float) -> bool:
         """Whether the corridor ahead is checked at ``t`` [s] (``denied.fresh_path_age_s`` finite, a plan being flown, every t_y)."""
-        if not np.isfinite(self.config.fresh_path_age_s) or self.trajectory is None or self.braking:
-            return False
-        if t < self._fresh_next_s - 1e-9 or t < self._fresh_rest_until_s:
-            return False
-        self._fresh_next_s = t + self.yaw_config.period_s
-        return True
+        return self.fresh_path.enabled and self.trajectory is not None and not self.braking and self.fresh_path.due(t)
 
     def _look_before_moving(self, t: float, glancing: bool) -> bool:
-        """Check the corridor ahead at ``t`` [s]; whether a hold (a stop) began (``denied.fresh_path_age_s``).
+        """Check the corridor ahead at ``t`` [s] and act on the look it begins; whether a hold (a stop) began."""
+        d_stop = float(np.linalg.norm(self.state_at(t)[1])) ** 2 / self.config.a_max_mps2
+        look = self.fresh_path.check(self.map.snapshot(), self.trajectory, t, d_stop, glancing)
+        if look is not None:
+            self._begin_look(t, look)
+        return look is not None and look.stop
 
-        A stale point within the stopping distance plus ``fresh_path_distance_m`` holds the drone; else,
-        unless already glancing, a point older than ``fresh_path_glance_age_s`` within the stopping
-        distance plus ``fresh_path_glance_distance_m`` turns the camera to it while the drone flies on.
-        """
-        c = self.config
-        snap = self.map.snapshot()
-        d_stop = float(np.linalg.norm(self.state_at(t)[1])) ** 2 / c.a_max_mps2
-        kw = dict(half_width_m=c.fresh_path_half_width_m, near_m=c.fresh_path_near_m)
-        stale = first_stale_point(snap, self.trajectory, t, max_age_s=c.fresh_path_age_s, far_m=d_stop + c.fresh_path_distance_m, **kw)
-        if stale is not None:
-            self._begin_hold(t, stale, stop=True)
-            return self._hold_since_s is not None
-        if glancing or not np.isfinite(c.fresh_path_glance_age_s):
-            return False
-        ageing = first_stale_point(
-            snap, self.trajectory, t, max_age_s=c.fresh_path_glance_age_s, far_m=d_stop + c.fresh_path_glance_distance_m, **kw
-        )
-        if ageing is None:
-            self._last_stale = None
-        else:
-            self._begin_hold(t, ageing, stop=False)
-        return False
-
-    def _begin_hold(self, t: float, stale_world: np.ndarray, stop: bool) -> None:
-        """Turn the camera to ``stale_world`` (3,) [m], stopping first if ``stop`` (look before moving).
-
-        A point still stale at the first check after a hold that looked at it (within two voxels of it)
-        lies where the camera cannot refresh it (in a trunk's shadow): the check then rests for
-        ``fresh_path_rest_s`` instead of holding again.
-        """
-        last, self._last_stale = self._last_stale, np.asarray(stale_world, float).copy()
-        if last is not None and np.linalg.norm(last - stale_world) <= 2.0 * self.config.map.voxel_m:
-            self.stats.fresh_path_unrefreshed += 1
-            self._fresh_rest_until_s = t + self.config.fresh_path_rest_s
-            self._last_stale = None
-            return
-        if stop:
+    def _begin_look(self, t: float, look: Look) -> None:
+        """Stop first if the look is a hold, then turn the camera to its point at the rate limit (``ActiveYaw.look_toward``)."""
+        if look.stop:
             self._brake(t)
         pos = self.state_at(t)[0]
-        self.heading.look_toward(t, float(np.arctan2(stale_world[1] - pos[1], stale_world[0] - pos[0])))
-        self._hold_since_s, self._hold_stops = t, stop
-        if stop:
-            self.stats.fresh_path_holds += 1
-        else:
-            self.stats.fresh_path_glances += 1
+        self.heading.look_toward(t, float(np.arctan2(look.point_world[1] - pos[1], look.point_world[0] - pos[0])))
 
-    def _end_hold(self, t: float) -> bool:
-        """Whether the hold ends at ``t`` [s]: the commanded yaw has been on the point for two t_y (at most pi / rate + 2 t_y)."""
+    def _end_look(self, t: float) -> bool:
+        """Whether the look ends at ``t`` [s]: the commanded yaw has been on the point for two t_y (at most pi / rate + 2 t_y)."""
         if self.heading.looked_since(t) < 2.0 * self.yaw_config.period_s - 1e-9:
             return False
-        self._hold_since_s = None
+        self.fresh_path.end()
         self.heading.restart(self.heading.reference(t, None)[0], t)
         return True
 
@@ -630,9 +585,7 @@ class DeniedAgent(OnboardAgent):
             "rest_escapes": s.rest_escapes,
             "front_end_failures": dict(sorted(s.front_end_failures.items())),
             "goal_fallbacks": s.goal_fallbacks,
-            **({"fresh_path_holds": s.fresh_path_holds, "fresh_path_glances": s.fresh_path_glances,
-                "fresh_path_unrefreshed": s.fresh_path_unrefreshed}
-               if np.isfinite(self.config.fresh_path_age_s) else {}),
+            **self.fresh_path.metrics(),
             "replan_ms_median": float(np.median(s.solve_ms)) if s.solve_ms else None,
             "map_ms_median": float(np.median(s.map_ms)) if s.map_ms else None,
         }

@@ -26,18 +26,25 @@ Why it exists: every drone-drone contact left in the forest sweep at 0.5 and
 before contact, usually a follower closing on a neighbour ahead of it or
 beside its path while its camera looked elsewhere (observing, exploring, or
 the tracking mode's swing): docs/results/safety.md.
+
+The rule's state lives in :class:`FreshPathWatch` (when the corridor is
+checked next, the look under way, the rest after a point the camera could not
+refresh, the counts for metrics.json); the agent acts on the looks it returns
+(a stop, the heading's turn to the point, the release).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
+from mpcde.config.denied import DeniedAgentConfig
 from perception.types import OccupancySnapshot
 from planners.minco import MincoTrajectory
 
-__all__ = ["first_stale_point"]
+__all__ = ["FreshPathWatch", "Look", "first_stale_point"]
 
 
 def first_stale_point(
@@ -88,3 +95,110 @@ def first_stale_point(
     if not np.any(aged):
         return None
     return points[free][int(np.argmax(aged))].copy()
+
+
+@dataclass(frozen=True)
+class Look:
+    """A look the watch began: turn the camera to ``point_world`` (3,) [m]; ``stop``: brake first (a hold), else fly on (a glance)."""
+
+    point_world: np.ndarray
+    stop: bool
+
+
+class FreshPathWatch:
+    """The look-before-moving rule's state for one drone (``denied.fresh_path_*``; module docstring).
+
+    Every ``period_s`` (t_y) while a plan is flown, :meth:`check` looks along the
+    corridor ahead: a stale point (older than ``fresh_path_age_s``) within the
+    stopping distance plus ``fresh_path_distance_m`` begins a hold; else, unless
+    a glance is under way, a point older than ``fresh_path_glance_age_s`` within
+    the stopping distance plus ``fresh_path_glance_distance_m`` begins a glance.
+    A point found again within ``same_point_m`` of the last look's point at the
+    next check was not refreshed by that look (it lies in a trunk's shadow): the
+    check then rests for ``fresh_path_rest_s`` instead of looking again, so the
+    drone is never held for good.
+
+    Args:
+        config: the scenario's ``denied:`` settings (the ``fresh_path_*`` fields).
+        period_s: how often the corridor is checked [s] (the yaw period t_y).
+        same_point_m: how near a point must be to the last look's to count as the same [m] (two voxels).
+    """
+
+    def __init__(self, config: DeniedAgentConfig, period_s: float, same_point_m: float):
+        self.config = config
+        self.period_s = float(period_s)
+        self.same_point_m = float(same_point_m)
+        self.since_s: float | None = None  # when the look under way began (None: none)
+        self.stops = False  # whether that look is a hold (a stop) or a glance
+        self.holds = 0  # stops to look at a stale point of the corridor ahead
+        self.glances = 0  # turns of the camera to an ageing point while flying on
+        self.unrefreshed = 0  # points still stale after a look at them (the check then rested)
+        self._next_s = -np.inf  # the corridor is checked every period_s from here
+        self._rest_until_s = -np.inf  # after a look that did not refresh its point, the check rests until here
+        self._last: np.ndarray | None = None  # the point the last look was at, until a check finds none
+
+    @property
+    def enabled(self) -> bool:
+        """Whether the rule is on (``fresh_path_age_s`` finite)."""
+        return math.isfinite(self.config.fresh_path_age_s)
+
+    @property
+    def looking(self) -> bool:
+        """Whether a look (hold or glance) is under way."""
+        return self.since_s is not None
+
+    def due(self, time_s: float) -> bool:
+        """Whether the corridor is checked at ``time_s`` [s] (every ``period_s``, not while resting); books the next check."""
+        if time_s < self._next_s - 1e-9 or time_s < self._rest_until_s:
+            return False
+        self._next_s = time_s + self.period_s
+        return True
+
+    def check(
+        self, snapshot: OccupancySnapshot, trajectory: MincoTrajectory, time_s: float, stopping_m: float, glancing: bool
+    ) -> Look | None:
+        """The look that the corridor ahead begins at ``time_s`` [s], or None (class docstring).
+
+        ``stopping_m``: the drone's stopping distance v^2 / a_max [m]; ``glancing``: a glance is under way
+        (only a hold may begin).
+        """
+        c = self.config
+        kw = dict(half_width_m=c.fresh_path_half_width_m, near_m=c.fresh_path_near_m)
+        stale = first_stale_point(snapshot, trajectory, time_s, max_age_s=c.fresh_path_age_s, far_m=stopping_m + c.fresh_path_distance_m, **kw)
+        if stale is not None:
+            return self.begin(time_s, stale, stop=True)
+        if glancing or not math.isfinite(c.fresh_path_glance_age_s):
+            return None
+        ageing = first_stale_point(
+            snapshot, trajectory, time_s, max_age_s=c.fresh_path_glance_age_s, far_m=stopping_m + c.fresh_path_glance_distance_m, **kw
+        )
+        if ageing is None:
+            self._last = None
+            return None
+        return self.begin(time_s, ageing, stop=False)
+
+    def begin(self, time_s: float, point_world: np.ndarray, stop: bool) -> Look | None:
+        """Begin a look at ``point_world`` (3,) [m] at ``time_s`` [s], or rest the check if it is the last look's point."""
+        point = np.asarray(point_world, float).copy()
+        last, self._last = self._last, point
+        if last is not None and np.linalg.norm(last - point) <= self.same_point_m:
+            self.unrefreshed += 1
+            self._rest_until_s = time_s + self.config.fresh_path_rest_s
+            self._last = None
+            return None
+        self.since_s, self.stops = time_s, stop
+        if stop:
+            self.holds += 1
+        else:
+            self.glances += 1
+        return Look(point, stop)
+
+    def end(self) -> None:
+        """The look under way is over."""
+        self.since_s = None
+
+    def metrics(self) -> dict:
+        """The counts for metrics.json (empty when the rule is off)."""
+        if not self.enabled:
+            return {}
+        return {"fresh_path_holds": self.holds, "fresh_path_glances": self.glances, "fresh_path_unrefreshed": self.unrefreshed}

@@ -246,22 +246,22 @@ def test_look_before_moving_stops_turns_the_camera_to_the_stale_point_then_repla
     monkeypatch.setattr(agent, "_replan", lambda s, n, t: replans.append(t) or False)
 
     agent.plan_step(0.2)
-    assert agent.stats.fresh_path_holds == 1 and agent.braking
+    assert agent.fresh_path.holds == 1 and agent.braking
     turn_s = (np.pi / 2) / cfg.yaw_rate_max_radps  # from yaw 0 to +y
     yaw, rate = agent.reference(0.2 + 0.5 * turn_s).yaw, agent.reference(0.2 + 0.5 * turn_s).yaw_rate
     assert yaw == pytest.approx(np.pi / 4, abs=1e-6) and rate == pytest.approx(cfg.yaw_rate_max_radps)
     n_before = len(replans)
     agent.plan_step(0.2 + turn_s + 0.1)  # on the point for one t_y: still held, no replan
-    assert len(replans) == n_before and agent._hold_since_s is not None
+    assert len(replans) == n_before and agent.fresh_path.looking
     agent.plan_step(0.2 + turn_s + 0.2 + 1e-6)  # two t_y: released, replans at once
-    assert agent._hold_since_s is None and replans[-1] == pytest.approx(0.2 + turn_s + 0.2 + 1e-6)
+    assert not agent.fresh_path.looking and replans[-1] == pytest.approx(0.2 + turn_s + 0.2 + 1e-6)
     assert agent.reference(0.2 + turn_s + 0.3).yaw == pytest.approx(np.pi / 2, abs=0.25)
 
     agent.trajectory, agent.braking = _line(np.array([0.0, 0.0, 1.5]), np.array([0.0, 0.5, 0.0]), 6.0, t0_s=1.3), False
     agent.plan_step(1.4)  # the same point still stale after the look: the check rests instead of holding again
-    assert agent.stats.fresh_path_holds == 1 and agent.stats.fresh_path_unrefreshed == 1 and not agent.braking
+    assert agent.fresh_path.holds == 1 and agent.fresh_path.unrefreshed == 1 and not agent.braking
     agent.plan_step(1.5)
-    assert agent.stats.fresh_path_holds == 1  # resting for fresh_path_rest_s
+    assert agent.fresh_path.holds == 1  # resting for fresh_path_rest_s
     m = agent.extra_metrics()
     assert m["fresh_path_holds"] == 1 and m["fresh_path_unrefreshed"] == 1
     assert "fresh_path_holds" not in DeniedAgent(0, GOAL, DeniedAgentConfig()).extra_metrics()
@@ -288,13 +288,13 @@ def test_an_ageing_point_ahead_turns_the_camera_to_it_while_the_drone_flies_on(m
     monkeypatch.setattr(agent.heading, "update", lambda *a: yaw_plans.append(a[0]) or False)
 
     agent.plan_step(0.2)
-    assert agent.stats.fresh_path_glances == 1 and agent.stats.fresh_path_holds == 0 and not agent.braking
+    assert agent.fresh_path.glances == 1 and agent.fresh_path.holds == 0 and not agent.braking
     assert agent.reference(0.2 + np.pi / 4).yaw == pytest.approx(np.pi / 2)  # on +y after a quarter turn at 2 rad/s
     n_yaw = len(yaw_plans)
     agent.plan_step(0.8)  # glancing: no yaw plan, but the periodic replan still runs (due every 0.5 s)
     assert len(yaw_plans) == n_yaw and replans and replans[-1] == 0.8
     agent.plan_step(0.2 + np.pi / 4 + 0.2 + 1e-6)  # two t_y on the point: the yaw plan resumes
-    assert len(yaw_plans) == n_yaw + 1 and agent._hold_since_s is None
+    assert len(yaw_plans) == n_yaw + 1 and not agent.fresh_path.looking
     off = DeniedAgent(0, np.array([0.0, 6.0, 1.5]), DeniedAgentConfig(fresh_path_age_s=1.0, start_delay_s=0.0, fresh_path_glance_age_s=float("inf")))
     _first_estimate(off, np.array([0.0, 0.0, 1.5]))
     off.trajectory = agent.trajectory
@@ -302,7 +302,7 @@ def test_an_ageing_point_ahead_turns_the_camera_to_it_while_the_drone_flies_on(m
     monkeypatch.setattr(off.map, "clearance", lambda p: np.full(len(np.reshape(p, (-1, 3))), 3.0))
     monkeypatch.setattr(off, "_replan", lambda s, n, t: False)
     off.plan_step(0.2)  # without glances an ageing point does nothing until it is stale
-    assert off.stats.fresh_path_glances == 0 and off.stats.fresh_path_holds == 0 and off._hold_since_s is None
+    assert off.fresh_path.glances == 0 and off.fresh_path.holds == 0 and not off.fresh_path.looking
 
 
 def test_a_hold_ends_when_another_turn_has_replaced_its_look():
@@ -312,7 +312,34 @@ def test_a_hold_ends_when_another_turn_has_replaced_its_look():
     agent = DeniedAgent(0, np.array([0.0, 6.0, 1.5]), cfg)
     _first_estimate(agent, np.array([0.0, 0.0, 1.5]))
     agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([0.0, 0.5, 0.0]), 6.0)
-    agent._begin_hold(0.2, np.array([0.0, 1.0, 1.5]), stop=True)
-    assert not agent._end_hold(0.3)  # still turning to the point
+    agent._begin_look(0.2, agent.fresh_path.begin(0.2, np.array([0.0, 1.0, 1.5]), stop=True))
+    assert not agent._end_look(0.3)  # still turning to the point
     agent.heading.restart(0.0, 0.4)  # what the end of the turn once round does
-    assert agent._end_hold(0.5) and agent._hold_since_s is None
+    assert agent._end_look(0.5) and not agent.fresh_path.looking
+
+
+def test_a_glances_own_point_found_stale_rests_the_check_and_does_not_skip_the_frames_replan(monkeypatch):
+    """While a glance is under way, a stale point that is the glance's own (not refreshed yet) rests the check and
+    begins no hold, so the frame goes on to its safety check and due replan. The version flown for
+    fig6_fresh_portable (4b48cfa) returned as if a hold had begun, skipping both; that store's 1 m/s seed 5 flies
+    differently since."""
+    from perception.types import OccupancySnapshot
+
+    cfg = DeniedAgentConfig(fresh_path_age_s=1.0, start_delay_s=0.0)
+    agent = DeniedAgent(0, np.array([0.0, 6.0, 1.5]), cfg)
+    _first_estimate(agent, np.array([0.0, 0.0, 1.5]))
+    agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([0.0, 0.5, 0.0]), 6.0)
+    shape, origin, voxel = (40, 60, 30), np.array([-2.0, -1.0, 0.0]), 0.1
+    seen = np.full(shape, 0.95, np.float32)
+    point = np.array([0.0, 0.8, 1.5])
+    seen[tuple(np.floor((point - origin) / voxel).astype(int))] = -1.0  # stale: seen 2 s before the frame at 1.0 s
+    snap = lambda: OccupancySnapshot(1.0, origin, voxel, np.zeros(shape, np.int8), np.full(shape, 3.0), np.full(shape, 3.0), seen)  # noqa: E731
+    monkeypatch.setattr(agent.map, "snapshot", snap)
+    monkeypatch.setattr(agent.map, "clearance", lambda p: np.full(len(np.reshape(p, (-1, 3))), 3.0))
+    replans = []
+    monkeypatch.setattr(agent, "_replan", lambda s, n, t: replans.append(t) or False)
+    agent._begin_look(0.1, agent.fresh_path.begin(0.1, point, stop=False))  # a glance at the point, under way
+    agent.last_plan_time_s = -1.0  # a replan is due
+    agent.plan_step(0.15)  # still glancing; the check finds the same point stale
+    assert agent.fresh_path.unrefreshed == 1 and agent.fresh_path.holds == 0 and not agent.braking
+    assert agent.fresh_path.looking and replans == [0.15]

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from mpcde.onboard.fresh_path import first_stale_point
+from mpcde.config.denied import DeniedAgentConfig
+from mpcde.onboard.fresh_path import FreshPathWatch, first_stale_point
 from perception.types import OccupancySnapshot
 from planners.minco import minco_s3
 
@@ -76,3 +77,42 @@ def test_the_corridor_follows_the_path_from_now_and_its_held_end_adds_nothing():
 
 def test_without_seen_times_nothing_is_stale():
     assert first_stale_point(_snapshot(None), _along_x(), 0.0, **KW) is None
+
+
+def _watch(**fields) -> FreshPathWatch:
+    return FreshPathWatch(DeniedAgentConfig(fresh_path_age_s=1.0, **fields), period_s=0.1, same_point_m=2 * VOXEL)
+
+
+def test_the_watch_checks_every_period_and_is_off_with_an_infinite_age():
+    watch = _watch()
+    assert watch.enabled and watch.due(0.0) and not watch.due(0.05) and watch.due(0.1) and not watch.due(0.15)
+    assert not FreshPathWatch(DeniedAgentConfig(), 0.1, 0.2).enabled
+    assert FreshPathWatch(DeniedAgentConfig(), 0.1, 0.2).metrics() == {}
+
+
+def test_a_stale_point_begins_a_hold_an_ageing_one_a_glance_and_neither_while_glancing_begins_a_glance():
+    watch = _watch()
+    seen = np.full(SHAPE, 9.5, np.float32)
+    seen[_index([0.8, 0.0, 1.5])] = 8.0  # stale (2 s), within stopping distance 0 + 1 m
+    look = watch.check(_snapshot(seen), _along_x(), 0.0, 0.0, glancing=False)
+    assert look is not None and look.stop and _index(look.point_world) == _index([0.8, 0.0, 1.5])
+    assert watch.looking and watch.stops and watch.holds == 1 and watch.glances == 0
+    watch.end()
+    seen = np.full(SHAPE, 9.5, np.float32)
+    seen[_index([1.8, 0.0, 1.5])] = 9.2  # 0.8 s old: ageing, beyond the hold's 1 m but within the glances' 2 m
+    assert watch.check(_snapshot(seen), _along_x(), 0.0, 0.0, glancing=True) is None
+    look = watch.check(_snapshot(seen), _along_x(), 0.0, 0.0, glancing=False)
+    assert look is not None and not look.stop and watch.glances == 1 and not watch.stops
+    assert _watch(fresh_path_glance_age_s=float("inf")).check(_snapshot(seen), _along_x(), 0.0, 0.0, glancing=False) is None
+
+
+def test_a_point_not_refreshed_by_the_look_at_it_rests_the_check_for_the_rest_time():
+    watch = _watch(fresh_path_rest_s=2.0)
+    point = np.array([1.0, 0.0, 1.5])
+    assert watch.begin(0.0, point, stop=True) is not None
+    watch.end()
+    assert watch.begin(0.5, point + 0.1, stop=True) is None  # within two voxels of the last look's point
+    assert watch.unrefreshed == 1 and watch.holds == 1 and not watch.looking
+    assert not watch.due(2.4) and watch.due(2.5)
+    assert watch.begin(2.5, point, stop=True) is not None  # the memory of the last point was cleared by the rest
+    assert watch.metrics() == {"fresh_path_holds": 2, "fresh_path_glances": 0, "fresh_path_unrefreshed": 1}
