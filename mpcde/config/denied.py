@@ -69,7 +69,8 @@ class DeniedAgentConfig:
             commanded yaw has been on it for two t_y (frames mapped with the camera there; a hold lasts at
             most pi / yaw_rate_max + 2 t_y), then replans and flies on. A point still stale at the next
             check lies where the camera cannot refresh it (a trunk's shadow): the check then rests for
-            ``fresh_path_rest_s``, so the drone is never held for good. Not in MP-CDE. Why: every drone-drone contact left in the
+            ``fresh_path_rest_s``, so the drone is never held for good. A hold whose straight stop would cut
+            into the obstacle band is flown as a glance instead (the camera turns, the plan is kept). Not in MP-CDE. Why: every drone-drone contact left in the
             forest sweep is between drones that closed outside each other's view (docs/results/safety.md);
             a drone that only moves into space it looked at within this time sees a neighbour in its way
             unless the neighbour moved there since. inf (default): off, the paper's stack.

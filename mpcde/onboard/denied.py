@@ -512,10 +512,17 @@ class DeniedAgent(OnboardAgent):
     def _look_before_moving(self, t: float, glancing: bool) -> bool:
         """Check the corridor ahead at ``t`` [s] and act on the look it begins; whether a hold (a stop) began."""
         d_stop = float(np.linalg.norm(self.state_at(t)[1])) ** 2 / self.config.a_max_mps2
-        look = self.fresh_path.check(self.map.snapshot(), self.trajectory, t, d_stop, glancing)
+        look = self.fresh_path.check(self.map.snapshot(), self.trajectory, t, d_stop, glancing, lambda: self._can_stop(t))
         if look is not None:
             self._begin_look(t, look)
         return look is not None and look.stop
+
+    def _can_stop(self, t: float) -> bool:
+        """Whether a hold may stop at ``t`` [s]: the straight stopping piece (:meth:`_stopping_piece`, which knows no
+        obstacles) keeps out of the obstacle band, or, for a drone already inside it, no closer than it is now."""
+        p = self.state_at(t)[0]
+        floor = min(self.band_m, float(self.map.clearance(p[None])[0]) - 0.5 * self.config.map.voxel_m)
+        return self._safe(self._stopping_piece(t, self.state_at(t)), self.map.clearance, t, floor)
 
     def _begin_look(self, t: float, look: Look) -> None:
         """Stop first if the look is a hold, then turn the camera to its point at the rate limit (``ActiveYaw.look_toward``)."""

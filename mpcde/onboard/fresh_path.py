@@ -36,6 +36,7 @@ refresh, the counts for metrics.json); the agent acts on the looks it returns
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -116,7 +117,11 @@ class FreshPathWatch:
     A point found again within ``same_point_m`` of the last look's point at the
     next check was not refreshed by that look (it lies in a trunk's shadow): the
     check then rests for ``fresh_path_rest_s`` instead of looking again, so the
-    drone is never held for good.
+    drone is never held for good. A hold whose stop the caller finds unsafe
+    (``can_stop`` false: the agent's straight stopping piece would cut into the
+    obstacle band, as it did at 2 m/s on the forest) is begun as a glance
+    instead: the drone flies on along its obstacle-checked plan while the
+    camera turns to the point (``unsafe_stops`` counts them).
 
     Args:
         config: the scenario's ``denied:`` settings (the ``fresh_path_*`` fields).
@@ -133,6 +138,7 @@ class FreshPathWatch:
         self.holds = 0  # stops to look at a stale point of the corridor ahead
         self.glances = 0  # turns of the camera to an ageing point while flying on
         self.unrefreshed = 0  # points still stale after a look at them (the check then rested)
+        self.unsafe_stops = 0  # holds begun as glances because their stop was unsafe
         self._next_s = -np.inf  # the corridor is checked every period_s from here
         self._rest_until_s = -np.inf  # after a look that did not refresh its point, the check rests until here
         self._last: np.ndarray | None = None  # the point the last look was at, until a check finds none
@@ -155,18 +161,20 @@ class FreshPathWatch:
         return True
 
     def check(
-        self, snapshot: OccupancySnapshot, trajectory: MincoTrajectory, time_s: float, stopping_m: float, glancing: bool
+        self, snapshot: OccupancySnapshot, trajectory: MincoTrajectory, time_s: float, stopping_m: float, glancing: bool,
+        can_stop: Callable[[], bool] | None = None,
     ) -> Look | None:
         """The look that the corridor ahead begins at ``time_s`` [s], or None (class docstring).
 
         ``stopping_m``: the drone's stopping distance v^2 / a_max [m]; ``glancing``: a glance is under way
-        (only a hold may begin).
+        (only a hold may begin); ``can_stop``: asked only when a hold would begin, whether the drone may stop
+        (None: always).
         """
         c = self.config
         kw = dict(half_width_m=c.fresh_path_half_width_m, near_m=c.fresh_path_near_m)
         stale = first_stale_point(snapshot, trajectory, time_s, max_age_s=c.fresh_path_age_s, far_m=stopping_m + c.fresh_path_distance_m, **kw)
         if stale is not None:
-            return self.begin(time_s, stale, stop=True)
+            return self.begin(time_s, stale, stop=True, can_stop=can_stop)
         if glancing or not math.isfinite(c.fresh_path_glance_age_s):
             return None
         ageing = first_stale_point(
@@ -177,8 +185,13 @@ class FreshPathWatch:
             return None
         return self.begin(time_s, ageing, stop=False)
 
-    def begin(self, time_s: float, point_world: np.ndarray, stop: bool) -> Look | None:
-        """Begin a look at ``point_world`` (3,) [m] at ``time_s`` [s], or rest the check if it is the last look's point."""
+    def begin(
+        self, time_s: float, point_world: np.ndarray, stop: bool, can_stop: Callable[[], bool] | None = None
+    ) -> Look | None:
+        """Begin a look at ``point_world`` (3,) [m] at ``time_s`` [s], or rest the check if it is the last look's point.
+
+        A hold (``stop``) that ``can_stop`` refuses is begun as a glance.
+        """
         point = np.asarray(point_world, float).copy()
         last, self._last = self._last, point
         if last is not None and np.linalg.norm(last - point) <= self.same_point_m:
@@ -186,6 +199,9 @@ class FreshPathWatch:
             self._rest_until_s = time_s + self.config.fresh_path_rest_s
             self._last = None
             return None
+        if stop and can_stop is not None and not can_stop():
+            stop = False
+            self.unsafe_stops += 1
         self.since_s, self.stops = time_s, stop
         if stop:
             self.holds += 1
@@ -201,4 +217,7 @@ class FreshPathWatch:
         """The counts for metrics.json (empty when the rule is off)."""
         if not self.enabled:
             return {}
-        return {"fresh_path_holds": self.holds, "fresh_path_glances": self.glances, "fresh_path_unrefreshed": self.unrefreshed}
+        return {
+            "fresh_path_holds": self.holds, "fresh_path_glances": self.glances, "fresh_path_unrefreshed": self.unrefreshed,
+            "fresh_path_unsafe_stops": self.unsafe_stops,
+        }  # fmt: skip

@@ -343,3 +343,42 @@ def test_a_glances_own_point_found_stale_rests_the_check_and_does_not_skip_the_f
     agent.plan_step(0.15)  # still glancing; the check finds the same point stale
     assert agent.fresh_path.unrefreshed == 1 and agent.fresh_path.holds == 0 and not agent.braking
     assert agent.fresh_path.looking and replans == [0.15]
+
+
+def _fast_agent(clearance):
+    """A drone at the origin flying +y at 2 m/s, its map's clearance given by ``clearance`` (n, 3) -> (n,)."""
+    agent = DeniedAgent(0, np.array([0.0, 30.0, 1.5]), DeniedAgentConfig(fresh_path_age_s=1.0, start_delay_s=0.0))
+    _first_estimate(agent, np.array([0.0, 0.0, 1.5]))
+    agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([0.0, 2.0, 0.0]), 6.0)
+    agent.map.clearance = clearance
+    return agent
+
+
+def test_a_hold_may_stop_only_where_the_straight_stop_keeps_out_of_the_obstacle_band():
+    """_can_stop: the stopping piece (straight along the velocity, about v^2 / a_max long) is checked against the map;
+    a drone already inside the band may stop if the stop brings it no closer."""
+    far = _fast_agent(lambda p: np.full(len(np.reshape(p, (-1, 3))), 3.0))
+    assert far._can_stop(0.0)
+    trunk = _fast_agent(lambda p: np.where(np.reshape(p, (-1, 3))[:, 1] > 0.5, 0.05, 3.0))  # a trunk 0.5 m ahead
+    assert not trunk._can_stop(0.0)
+    beside = _fast_agent(lambda p: np.full(len(np.reshape(p, (-1, 3))), 0.1))  # inside the band, the stop no closer
+    assert beside.band_m > 0.1 and beside._can_stop(0.0)
+
+
+def test_look_before_moving_glances_instead_of_stopping_when_the_stop_is_unsafe(monkeypatch):
+    """A stale point ahead whose hold's stop would cut into the band begins a glance: no brake, the plan flown on."""
+    from perception.types import OccupancySnapshot
+
+    agent = _fast_agent(lambda p: np.full(len(np.reshape(p, (-1, 3))), 3.0))
+    shape, origin, voxel = (40, 80, 30), np.array([-2.0, -1.0, 0.0]), 0.1
+    seen = np.full(shape, 0.95, np.float32)
+    seen[tuple(np.floor((np.array([0.0, 0.8, 1.5]) - origin) / voxel).astype(int))] = -1.0
+    snap = lambda: OccupancySnapshot(1.0, origin, voxel, np.zeros(shape, np.int8), np.full(shape, 3.0), np.full(shape, 3.0), seen)  # noqa: E731
+    monkeypatch.setattr(agent.map, "snapshot", snap)
+    monkeypatch.setattr(agent, "_replan", lambda s, n, t: False)
+    monkeypatch.setattr(agent, "_can_stop", lambda t: False)
+    plan = agent.trajectory
+    agent.plan_step(0.0)
+    assert agent.fresh_path.unsafe_stops == 1 and agent.fresh_path.glances == 1 and agent.fresh_path.holds == 0
+    assert not agent.braking and agent.trajectory is plan and agent.fresh_path.looking and not agent.fresh_path.stops
+    assert agent.extra_metrics()["fresh_path_unsafe_stops"] == 1

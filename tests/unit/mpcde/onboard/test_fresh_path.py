@@ -115,4 +115,16 @@ def test_a_point_not_refreshed_by_the_look_at_it_rests_the_check_for_the_rest_ti
     assert watch.unrefreshed == 1 and watch.holds == 1 and not watch.looking
     assert not watch.due(2.4) and watch.due(2.5)
     assert watch.begin(2.5, point, stop=True) is not None  # the memory of the last point was cleared by the rest
-    assert watch.metrics() == {"fresh_path_holds": 2, "fresh_path_glances": 0, "fresh_path_unrefreshed": 1}
+    assert watch.metrics() == {"fresh_path_holds": 2, "fresh_path_glances": 0, "fresh_path_unrefreshed": 1, "fresh_path_unsafe_stops": 0}
+
+
+def test_a_hold_whose_stop_is_refused_begins_as_a_glance_and_can_stop_is_asked_only_for_a_hold():
+    watch = _watch()
+    asked = []
+    look = watch.begin(0.0, np.array([1.0, 0.0, 1.5]), stop=True, can_stop=lambda: asked.append(1) or False)
+    assert look is not None and not look.stop and not watch.stops and watch.looking
+    assert (watch.holds, watch.glances, watch.unsafe_stops) == (0, 1, 1) and asked == [1]
+    watch.end()
+    assert watch.begin(0.5, np.array([2.0, 0.0, 1.5]), stop=False, can_stop=lambda: asked.append(1) or False).stop is False
+    assert asked == [1]  # a glance does not ask
+    assert watch.begin(1.0, np.array([3.0, 0.0, 1.5]), stop=True, can_stop=lambda: True).stop and watch.holds == 1
