@@ -121,8 +121,8 @@ def test_a_single_store_report_gives_mp_cde_rows_only_and_skips_unflown_cells(tm
 
 KEPT = SCRIPTS.parent / "docs" / "results" / "stores"
 FIG10_KEPT = "fig10_portable"
-FIG6_KEPT = ["fig6_denied_portable", "fig6_auto_portable", "fig6_fresh_portable"]  # MP-CDE's row first, then what is paired with it
-FIG6_VARIANTS = 1  # of those, stores of the denied stack itself (look before moving), which get MP-CDE's rows of their own
+FIG6_KEPT = ["fig6_denied_portable", "fig6_auto_portable", "fig6_fresh_portable", "fig6_fresh2_portable"]  # MP-CDE's row first, then what is paired with it
+FIG6_VARIANTS = 2  # of those, stores of the denied stack itself (look before moving, at 4b48cfa and bd495e1), which get MP-CDE's rows of their own
 AKF_KEPT = "akf_pipeline_portable"
 
 
