@@ -520,9 +520,9 @@ class DeniedAgent(OnboardAgent):
     def _can_stop(self, t: float) -> bool:
         """Whether a hold may stop at ``t`` [s]: the straight stopping piece (:meth:`_stopping_piece`, which knows no
         obstacles) keeps out of the obstacle band, or, for a drone already inside it, no closer than it is now."""
-        p = self.state_at(t)[0]
-        floor = min(self.band_m, float(self.map.clearance(p[None])[0]) - 0.5 * self.config.map.voxel_m)
-        return self._safe(self._stopping_piece(t, self.state_at(t)), self.map.clearance, t, floor)
+        pva = self.state_at(t)
+        floor = min(self.band_m, float(self.map.clearance(pva[0][None])[0]) - 0.5 * self.config.map.voxel_m)
+        return self._safe(self._stopping_piece(t, pva), self.map.clearance, t, floor)
 
     def _begin_look(self, t: float, look: Look) -> None:
         """Stop first if the look is a hold, then turn the camera to its point at the rate limit (``ActiveYaw.look_toward``)."""
