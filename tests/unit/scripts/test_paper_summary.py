@@ -77,11 +77,13 @@ def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
     pair = {"a_success_paired": 27, "b_success_paired": 3, "paired_seeds": 30, "mcnemar_p": 1e-6}
     unpaired = {**pair, "a": 0, "b": 1, "paired_seeds": 0, "a_success_paired": 0, "b_success_paired": 0}  # a cell not flown yet
     report = {"stores": stores, "shared_overrides": base, "cells": cells,
-              "pairs": [{**pair, "a": 0, "b": 1}, {**pair, "a": 0, "b": 2}, {**pair, "a": 0, "b": 3, "b_success_paired": 1}, unpaired]}
+              "pairs": [{**pair, "a": 0, "b": 1}, {**pair, "a": 0, "b": 2}, {**pair, "a": 0, "b": 3, "b_success_paired": 1}, unpaired,
+                        {**pair, "a": 2, "b": 3},  # auto x the variant: no row (auto is not a baseline)
+                        {**pair, "a": 1, "b": 3, "a_success_paired": 3, "b_success_paired": 30}]}  # the view-gated baseline x the variant
     (tmp_path / "fig6").mkdir()
     (tmp_path / "fig6" / "report.json").write_text(json.dumps(report))
     rows = paper_summary.fig6(tmp_path)
-    assert len(rows) == 5
+    assert len(rows) == 6
     assert rows[0].startswith("| Fig. 6, MP-CDE at 1 m/s | about 95 % | 90 % (74-97 %) of 30, 0.10 collisions per flight |")
     # a variant of the denied stack (a store of planner.kind mpcde set apart by a store-wide override) has MP-CDE's rows too
     assert rows[1].startswith("| Fig. 6, MP-CDE with denied.flight_level_spacing_m=0.4 at 1 m/s | about 95 % | 90 % (74-97 %) of 30, 0.10 collisions per flight | (same) |")
@@ -89,6 +91,9 @@ def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
     assert rows[3].startswith("| Fig. 6, beside at 1 m/s | - | auto (planner.kind=auto), scenario's radio (not view-gated): 3 successes")
     # a store set apart by a store-wide override, not an axis (flight levels), says so in its row
     assert rows[4].startswith("| Fig. 6, beside at 1 m/s | - | levels (denied.flight_level_spacing_m=0.4, planner.kind=mpcde), the denied stack (no radio): 1 success against")
+    # a variant of the denied stack is ranked against the view-gated baselines too (not against auto)
+    assert rows[5].startswith("| Fig. 6, baseline at 1 m/s | below MP-CDE | gated (planner.kind=dmpc), view-gated: 3 successes against 30 of "
+                              "MP-CDE with denied.flight_level_spacing_m=0.4 (levels) on 30 paired seeds, McNemar p = 1e-06 | (same) |")
 
 
 def test_the_akf_rows_cite_the_revision_eval_tracking_recorded(tmp_path):
@@ -121,8 +126,12 @@ def test_a_single_store_report_gives_mp_cde_rows_only_and_skips_unflown_cells(tm
 
 KEPT = SCRIPTS.parent / "docs" / "results" / "stores"
 FIG10_KEPT = "fig10_portable"
-FIG6_KEPT = ["fig6_denied_portable", "fig6_auto_portable", "fig6_fresh_portable", "fig6_fresh2_portable"]  # MP-CDE's row first, then what is paired with it
-FIG6_VARIANTS = 2  # of those, stores of the denied stack itself (look before moving, at 4b48cfa and bd495e1), which get MP-CDE's rows of their own
+# MP-CDE's row first, then what is paired with it; each store's cells (one per speed, two for the MINCO baseline's delays)
+FIG6_KEPT = {"fig6_denied_portable": 3, "fig6_auto_portable": 3, "fig6_fresh_portable": 3, "fig6_fresh2_portable": 3, "fig6_dmpc_portable": 3}
+# of those, stores of the denied stack itself (look before moving, at 4b48cfa and bd495e1): MP-CDE's rows of their own,
+# and each is ranked against the view-gated baselines too
+FIG6_VARIANTS = 2
+FIG6_BASELINES = ["fig6_dmpc_portable"]  # flown over the view-gated radio
 AKF_KEPT = "akf_pipeline_portable"
 
 
@@ -147,6 +156,7 @@ def test_the_summary_rows_of_the_kept_stores_stand_verbatim_in_mp_cde_md(tmp_pat
     shutil.copy(KEPT / AKF_KEPT / "results.json", runs / "akf_pipeline" / "results.json")
     doc = (SCRIPTS.parent / "docs" / "results" / "mp-cde.md").read_text()
     rows = paper_summary.fig10(runs) + paper_summary.fig6(runs) + paper_summary.akf(runs)
-    assert len(rows) == 2 + 3 * len(FIG6_KEPT) + 3 * FIG6_VARIANTS + 6
+    paired = sum(FIG6_KEPT.values()) - 3  # every cell of every other store, paired with MP-CDE's
+    assert len(rows) == 2 + 3 + 3 * FIG6_VARIANTS + paired + FIG6_VARIANTS * sum(FIG6_KEPT[b] for b in FIG6_BASELINES) + 6
     missing = [row for row in rows if row not in doc]
     assert not missing, f"mp-cde.md lacks the kept stores' summary rows: {missing}"
