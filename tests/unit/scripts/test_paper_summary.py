@@ -127,11 +127,12 @@ def test_a_single_store_report_gives_mp_cde_rows_only_and_skips_unflown_cells(tm
 KEPT = SCRIPTS.parent / "docs" / "results" / "stores"
 FIG10_KEPT = "fig10_portable"
 # MP-CDE's row first, then what is paired with it; each store's cells (one per speed, two for the MINCO baseline's delays)
-FIG6_KEPT = {"fig6_denied_portable": 3, "fig6_auto_portable": 3, "fig6_fresh_portable": 3, "fig6_fresh2_portable": 3, "fig6_dmpc_portable": 3}
+FIG6_KEPT = {"fig6_denied_portable": 3, "fig6_auto_portable": 3, "fig6_fresh_portable": 3, "fig6_fresh2_portable": 3, "fig6_dmpc_portable": 3,
+             "fig6_minco_portable": 6}
 # of those, stores of the denied stack itself (look before moving, at 4b48cfa and bd495e1): MP-CDE's rows of their own,
 # and each is ranked against the view-gated baselines too
 FIG6_VARIANTS = 2
-FIG6_BASELINES = ["fig6_dmpc_portable"]  # flown over the view-gated radio
+FIG6_BASELINES = ["fig6_dmpc_portable", "fig6_minco_portable"]  # flown over the view-gated radio
 AKF_KEPT = "akf_pipeline_portable"
 
 
