@@ -133,12 +133,13 @@ FIG6_KEPT = {"fig6_denied_portable": 3, "fig6_auto_portable": 3, "fig6_fresh_por
 # and each is ranked against the view-gated baselines too
 FIG6_VARIANTS = 2
 FIG6_BASELINES = ["fig6_dmpc_portable", "fig6_minco_portable"]  # flown over the view-gated radio
+TABLE3_KEPT = "table3_portable"
 AKF_KEPT = "akf_pipeline_portable"
 
 
 def test_the_summary_rows_of_the_kept_stores_stand_verbatim_in_mp_cde_md(tmp_path, monkeypatch, unpack_kept_store):
-    """docs/results/mp-cde.md's summary rows for Fig. 10, Fig. 6 (MP-CDE and the stores kept beside it) and AKF vs
-    KF are this script's output on the stores and results kept in the repository, not typed (issue 28,
+    """docs/results/mp-cde.md's summary rows for Fig. 10, Fig. 6 (MP-CDE and the stores kept beside it), Table III
+    and AKF vs KF are this script's output on the stores and results kept in the repository, not typed (issue 28,
     deliverable 4). The Fig. 6 report is built as its command in the rows names it, from runs/."""
     from mpcde.sweep.cross_report import build_cross_report
     from mpcde.sweep.report import build_report
@@ -153,11 +154,12 @@ def test_the_summary_rows_of_the_kept_stores_stand_verbatim_in_mp_cde_md(tmp_pat
     (runs / "fig6").mkdir()
     report = build_cross_report([f"runs/{name}" for name in FIG6_KEPT])  # as `mpcde report runs/A runs/B --out runs/fig6`
     (runs / "fig6" / "report.json").write_text(json.dumps(json_safe(report)))
+    unpack_kept_store(TABLE3_KEPT, runs / "table3")
     (runs / "akf_pipeline").mkdir()
     shutil.copy(KEPT / AKF_KEPT / "results.json", runs / "akf_pipeline" / "results.json")
     doc = (SCRIPTS.parent / "docs" / "results" / "mp-cde.md").read_text()
-    rows = paper_summary.fig10(runs) + paper_summary.fig6(runs) + paper_summary.akf(runs)
+    rows = paper_summary.fig10(runs) + paper_summary.fig6(runs) + paper_summary.table3(runs) + paper_summary.akf(runs)
     paired = sum(FIG6_KEPT.values()) - 3  # every cell of every other store, paired with MP-CDE's
-    assert len(rows) == 2 + 3 + 3 * FIG6_VARIANTS + paired + FIG6_VARIANTS * sum(FIG6_KEPT[b] for b in FIG6_BASELINES) + 6
+    assert len(rows) == 2 + 3 + 3 * FIG6_VARIANTS + paired + FIG6_VARIANTS * sum(FIG6_KEPT[b] for b in FIG6_BASELINES) + 12 + 3 + 6
     missing = [row for row in rows if row not in doc]
     assert not missing, f"mp-cde.md lacks the kept stores' summary rows: {missing}"
