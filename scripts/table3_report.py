@@ -1,7 +1,13 @@
-"""MP-CDE's Table III from a store of data/sweeps/table3_active_perception.yaml: S_obs (mean +- sd) and success per
-density and method, ours against Zhou's, beside the paper's figures.
+"""MP-CDE's Table III from a store of a Table III sweep file (data/sweeps/table3_active_perception.yaml or
+table3_fuel_range.yaml): S_obs (mean +- sd) and success per density and method, ours against Zhou's, beside the
+paper's figures; then the paper's two S_obs orderings tested seed by seed, and the share of yaw plans in each mode.
 
 Usage: .venv/bin/python scripts/table3_report.py STORE_DIR   (the store `mpcde sweep ... --out STORE_DIR` wrote)
+
+The paired lines: for each density, the seeds both methods flew, the mean of (a - b) over them [m^2], on how many
+seeds a saw more, and the two-sided Wilcoxon signed-rank p of the differences (scipy's exact distribution where it
+applies: up to 50 seeds without ties or zero differences). The mode lines: each cell's mean over its flights of the
+drone's ``yaw_mode_fraction`` (the share of yaw plans made in the exploring / observing / tracking mode).
 """
 
 from __future__ import annotations
@@ -11,6 +17,8 @@ import math
 import sys
 from collections import defaultdict
 from pathlib import Path
+
+from scipy.stats import wilcoxon
 
 from mpcde.sweep.stats import wilson_interval
 
@@ -37,11 +45,7 @@ def cells(store: Path) -> list[dict]:
     the Wilson 95 % interval and the paper's S_obs (None where the paper gives none)."""
     spec = json.loads((store / "sweep.json").read_text())["sweep"]
     densities = dict(spec["axes"])["world.obstacle_density_per_100m2"]
-    by_cell = defaultdict(list)
-    for line in (store / "results.jsonl").read_text().splitlines():
-        r = json.loads(line)
-        if r.get("metrics"):
-            by_cell[r["cell"]].append(r)
+    by_cell = _flights(store)
     yaw_values = dict(spec["axes"])["denied.yaw"]
     out = []
     for di, density in enumerate(densities):
@@ -55,23 +59,75 @@ def cells(store: Path) -> list[dict]:
             lo, hi = wilson_interval(ok, n) if n else (float("nan"), float("nan"))
             m = method_of(yaw)
             paper = {"zhou": PAPER[di][0], "no_exploring": PAPER[di][1], "ours": PAPER[di][2]}.get(m)
+            fractions = [r["metrics"]["agents"][0].get("yaw_mode_fraction") for r in rows if r["metrics"].get("agents")]
+            modes = {k: sum(f[k] for f in fractions) / len(fractions) for k in MODES} if fractions and None not in fractions else None
             out.append({"density_index": di, "density": density, "method": m, "flights": n, "s_obs_mean_m2": mean, "s_obs_sd_m2": sd,
-                        "successes": ok, "success_low": lo, "success_high": hi, "paper_s_obs_m2": paper})  # fmt: skip
+                        "successes": ok, "success_low": lo, "success_high": hi, "paper_s_obs_m2": paper,
+                        "area_by_seed": {r["seed"]: r["metrics"]["observed_area_swarm_m2"] for r in rows}, "modes": modes})  # fmt: skip
+    return out
+
+
+MODES = ("exploring", "observing", "tracking")
+PAIRS = (("ours", "zhou"), ("ours", "no_exploring"))  # the paper's two orderings of S_obs: ours above each
+
+
+def _flights(store: Path) -> dict[int, list[dict]]:
+    """The store's flights that recorded metrics, by cell index."""
+    by_cell = defaultdict(list)
+    for line in (store / "results.jsonl").read_text().splitlines():
+        r = json.loads(line)
+        if r.get("metrics"):
+            by_cell[r["cell"]].append(r)
+    return by_cell
+
+
+def paired(table: list[dict], a: str, b: str) -> list[dict]:
+    """Method ``a`` against ``b`` at every density where both flew: the seeds both flew, mean of a - b [m^2], seeds
+    where a saw more, and the two-sided Wilcoxon signed-rank p (None under two seeds or when every difference is 0)."""
+    by = {(c["density_index"], c["method"]): c for c in table}
+    out = []
+    for c in table:
+        di = c["density_index"]
+        if c["method"] != a or (di, b) not in by:
+            continue
+        sa, sb = c["area_by_seed"], by[(di, b)]["area_by_seed"]
+        seeds = sorted(set(sa) & set(sb))
+        if not seeds:
+            continue
+        diff = [sa[s] - sb[s] for s in seeds]
+        p = float(wilcoxon(diff).pvalue) if len(seeds) > 1 and any(diff) else None
+        out.append({"density": c["density"], "seeds": len(seeds), "mean_diff_m2": sum(diff) / len(diff), "a_larger": sum(d > 0 for d in diff), "p": p})
     return out
 
 
 def main() -> None:
-    table = cells(Path(sys.argv[1]))
-    print(f"{'density /100m^2':>15}  {'method':<20} {'flights':>7}  {'S_obs m^2 mean +- sd':>21}  {'success':>7}  {'95% CI':>9}  {'paper S_obs':>11}")
+    print(render(cells(Path(sys.argv[1]))), end="")
+
+
+def render(table: list[dict]) -> str:
+    """The report main() prints, as one string (the cell table, the margins, the paired tests, the modes)."""
+    lines: list[str] = []
+    lines.append(f"{'density /100m^2':>15}  {'method':<20} {'flights':>7}  {'S_obs m^2 mean +- sd':>21}  {'success':>7}  {'95% CI':>9}  {'paper S_obs':>11}")
     for c in table:
         n, paper = c["flights"], c["paper_s_obs_m2"]
-        print(f"{c['density']:>15g}  {METHODS[c['method']]:<20} {n:>7d}  {c['s_obs_mean_m2']:>12.1f} +- {c['s_obs_sd_m2']:>5.1f}  "
+        lines.append(f"{c['density']:>15g}  {METHODS[c['method']]:<20} {n:>7d}  {c['s_obs_mean_m2']:>12.1f} +- {c['s_obs_sd_m2']:>5.1f}  "
               f"{100 * c['successes'] / max(n, 1):>6.0f}%  {100 * c['success_low']:>3.0f}-{100 * c['success_high']:<3.0f}%  "
               f"{'' if paper is None else f'{paper:.1f}':>11}")  # fmt: skip
-    print("\nours against Zhou's, S_obs: measured (paper)")
+    lines.append("\nours against Zhou's, S_obs: measured (paper)")
     for di, density, ours, zhou in margins(table):
         paper = PAPER[di][2] / PAPER[di][0] - 1
-        print(f"  density {density:g}: {100 * (ours / zhou - 1):+.1f} % ({100 * paper:+.0f} %)")
+        lines.append(f"  density {density:g}: {100 * (ours / zhou - 1):+.1f} % ({100 * paper:+.0f} %)")
+    lines.append("\npaired by seed, S_obs (Wilcoxon signed-rank, two-sided)")
+    for a, b in PAIRS:
+        for r in paired(table, a, b):
+            p = "-" if r["p"] is None else f"{r['p']:.2g}"
+            lines.append(f"  density {r['density']:g}: {METHODS[a]} - {METHODS[b]}: mean {r['mean_diff_m2']:+.1f} m^2, "
+                  f"{METHODS[a]} larger on {r['a_larger']} of {r['seeds']}, p = {p}")  # fmt: skip
+    lines.append("\nmean share of yaw plans per mode (exploring / observing / tracking)")
+    for c in table:
+        if c["modes"] is not None:
+            lines.append(f"  density {c['density']:g}, {METHODS[c['method']]}: " + " / ".join(f"{c['modes'][k]:.2f}" for k in MODES))
+    return "\n".join(lines) + "\n"
 
 
 def margins(table: list[dict]) -> list[tuple[int, float, float, float]]:
@@ -83,6 +139,7 @@ def margins(table: list[dict]) -> list[tuple[int, float, float, float]]:
         if c["method"] == "ours" and (di, "ours") in mean and (di, "zhou") in mean:
             out.append((di, c["density"], mean[(di, "ours")], mean[(di, "zhou")]))
     return out
+
 
 if __name__ == "__main__":
     main()

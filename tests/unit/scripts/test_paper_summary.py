@@ -45,6 +45,31 @@ def test_table3_cells_and_margin_come_from_the_store(tmp_path):
     assert table3_report.margins(table) == [(0, 4.0, 450.0, 510.0)]
 
 
+def test_table3_pairs_seeds_and_tests_them_against_the_exact_wilcoxon_distribution(tmp_path):
+    """Ours against Zhou's over five paired seeds, ours larger on every one: the exact two-sided signed-rank p is
+    2 / 2^5 = 0.0625; a seed flown by one method only is left out of the pair; modes are averaged over flights."""
+    store = tmp_path / "t3"
+    store.mkdir()
+    axes = [["world.obstacle_density_per_100m2", [8.0]], ["denied.yaw", YAWS]]
+    (store / "sweep.json").write_text(json.dumps({"sweep": {"axes": axes}}))
+    rows = []
+    for seed, (zhou, ours) in enumerate([(100, 103), (100, 101), (100, 110), (100, 104), (100, 102)]):
+        for cell, area, mode in ((0, zhou, {"exploring": 1.0, "observing": 0.0, "tracking": 0.0}),
+                                 (3, ours, {"exploring": 0.5 if seed else 0.0, "observing": 0.0, "tracking": 0.5 if seed else 1.0})):  # fmt: skip
+            rows.append({"cell": cell, "seed": seed, "metrics": {"observed_area_swarm_m2": float(area), "success": True, "agents": [{"yaw_mode_fraction": mode}]}})
+    rows.append({"cell": 3, "seed": 5, "metrics": {"observed_area_swarm_m2": 1.0, "success": True, "agents": [{"yaw_mode_fraction": mode}]}})
+    (store / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    table = table3_report.cells(store)
+    [pair] = table3_report.paired(table, "ours", "zhou")
+    assert (pair["seeds"], pair["a_larger"], pair["mean_diff_m2"]) == (5, 5, pytest.approx(4.0))
+    assert pair["p"] == pytest.approx(0.0625)
+    assert table3_report.paired(table, "ours", "no_exploring") == []  # not flown
+    assert table[3]["modes"]["tracking"] == pytest.approx((1.0 + 4 * 0.5 + 0.5) / 6)
+    text = table3_report.render(table)
+    assert "  density 8: ours - Zhou's [26]: mean +4.0 m^2, ours larger on 5 of 5, p = 0.062\n" in text
+    assert "  density 8, Zhou's [26]: 1.00 / 0.00 / 0.00\n" in text
+
+
 def test_the_summary_prints_the_stores_numbers_and_names_what_is_missing(tmp_path):
     _table3_store(tmp_path)
     (tmp_path / "akf_pipeline").mkdir()
@@ -134,6 +159,7 @@ FIG6_KEPT = {"fig6_denied_portable": 3, "fig6_auto_portable": 3, "fig6_fresh_por
 FIG6_VARIANTS = 2
 FIG6_BASELINES = ["fig6_dmpc_portable", "fig6_minco_portable"]  # flown over the view-gated radio
 TABLE3_KEPT = "table3_portable"
+TABLE3_REPORTED = ["table3_portable"]  # every kept Table III store whose whole report mp-cde.md pastes
 AKF_KEPT = "akf_pipeline_portable"
 
 
@@ -163,3 +189,12 @@ def test_the_summary_rows_of_the_kept_stores_stand_verbatim_in_mp_cde_md(tmp_pat
     assert len(rows) == 2 + 3 + 3 * FIG6_VARIANTS + paired + FIG6_VARIANTS * sum(FIG6_KEPT[b] for b in FIG6_BASELINES) + 12 + 3 + 6
     missing = [row for row in rows if row not in doc]
     assert not missing, f"mp-cde.md lacks the kept stores' summary rows: {missing}"
+
+
+@pytest.mark.parametrize("name", TABLE3_REPORTED)
+def test_the_table3_report_of_each_kept_store_stands_verbatim_in_mp_cde_md(tmp_path, unpack_kept_store, name):
+    """mp-cde.md pastes scripts/table3_report.py's whole output for each kept Table III store (the cell table, the
+    margins, the paired tests and the modes): pasted from the script, not typed (issue 28, deliverable 4)."""
+    text = table3_report.render(table3_report.cells(unpack_kept_store(name, tmp_path / name)))
+    doc = (SCRIPTS.parent / "docs" / "results" / "mp-cde.md").read_text()
+    assert text in doc, f"mp-cde.md lacks table3_report.py's output for {name}"
