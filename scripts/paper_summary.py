@@ -102,16 +102,12 @@ def fig6(runs: Path) -> list[str]:
         a, b = report["cells"][p["a"]], report["cells"][p["b"]]
         if a["store"] != first or not p["paired_seeds"]:  # a cell not flown yet pairs no seed
             continue
-        v = a["settings"]["planner.cruise_speed_mps"]
-        what = ", ".join(f"{k}={val}" for k, val in b["settings"].items() if k not in skip)
         # the paper ranks MP-CDE against view-gated baselines; another store (auto over the scenario's radio) sits beside it
         role, paper, radio = ("baseline", "below MP-CDE", "view-gated") if gated[b["store"]] else ("beside", "-", "scenario's radio (not view-gated)")
         if b["settings"].get("planner.kind") == "mpcde":
             radio = "the denied stack (no radio)"  # a variant of MP-CDE itself (flight levels): the radio plays no part
-        n = p["b_success_paired"]
-        ours = (f"{b['store']} ({what}), {radio}: {n} success{'' if n == 1 else 'es'} against MP-CDE's "
-                f"{p['a_success_paired']} on {p['paired_seeds']} paired seeds, McNemar p = {p['mcnemar_p']:.2g}")  # fmt: skip
-        rows.append(f"| Fig. 6, {role} at {v:g} m/s | {paper} | {ours} | (same) | {' | '.join(revs[b['store']])} |")
+        against = f"against MP-CDE's {p['a_success_paired']}"
+        rows.append(_pair_row(role, paper, a, b, p, p["b_success_paired"], radio, against, skip, revs))
     # the paired goal holds for a variant of the denied stack too only if it beats the view-gated baselines itself
     for p in report["pairs"]:
         a, b = report["cells"][p["a"]], report["cells"][p["b"]]
@@ -120,12 +116,19 @@ def fig6(runs: Path) -> list[str]:
             a, b, ok_a, ok_b = b, a, ok_b, ok_a
         if a["store"] not in variants or not gated[b["store"]] or not p["paired_seeds"]:
             continue
-        v = a["settings"]["planner.cruise_speed_mps"]
-        what = ", ".join(f"{k}={val}" for k, val in b["settings"].items() if k not in skip)
-        ours = (f"{b['store']} ({what}), view-gated: {ok_b} success{'' if ok_b == 1 else 'es'} against {ok_a} of "
-                f"MP-CDE with {variants[a['store']]} ({a['store']}) on {p['paired_seeds']} paired seeds, McNemar p = {p['mcnemar_p']:.2g}")  # fmt: skip
-        rows.append(f"| Fig. 6, baseline at {v:g} m/s | below MP-CDE | {ours} | (same) | {' | '.join(revs[b['store']])} |")
+        against = f"against {ok_a} of MP-CDE with {variants[a['store']]} ({a['store']})"
+        rows.append(_pair_row("baseline", "below MP-CDE", a, b, p, ok_b, "view-gated", against, skip, revs))
     return rows
+
+
+def _pair_row(role: str, paper: str, a: dict, b: dict, p: dict, ok_b: int, radio: str, against: str, skip: tuple, revs: dict) -> str:
+    """The row of pair ``p`` of the cross-store report: store ``b``'s cell (its settings less ``skip``, flown over
+    ``radio``) with ``ok_b`` successes ``against`` the denied-stack cell ``a``, on their paired seeds."""
+    v = a["settings"]["planner.cruise_speed_mps"]
+    what = ", ".join(f"{k}={val}" for k, val in b["settings"].items() if k not in skip)
+    ours = (f"{b['store']} ({what}), {radio}: {ok_b} success{'' if ok_b == 1 else 'es'} {against} "
+            f"on {p['paired_seeds']} paired seeds, McNemar p = {p['mcnemar_p']:.2g}")  # fmt: skip
+    return f"| Fig. 6, {role} at {v:g} m/s | {paper} | {ours} | (same) | {' | '.join(revs[b['store']])} |"
 
 
 def table3(runs: Path) -> list[str]:
