@@ -5,9 +5,12 @@ paper's figures; then the paper's two S_obs orderings tested seed by seed, and t
 Usage: .venv/bin/python scripts/table3_report.py STORE_DIR   (the store `mpcde sweep ... --out STORE_DIR` wrote)
 
 The paired lines: for each density, the seeds both methods flew, the mean of (a - b) over them [m^2], on how many
-seeds a saw more, and the two-sided Wilcoxon signed-rank p of the differences (scipy's exact distribution where it
-applies: up to 50 seeds without ties or zero differences). The mode lines: each cell's mean over its flights of the
-drone's ``yaw_mode_fraction`` (the share of yaw plans made in the exploring / observing / tracking mode).
+seeds a saw more and on how many the two saw exactly the same, and the two-sided Wilcoxon signed-rank p of the
+differences. Equal seeds are dropped from the test (Wilcoxon's convention); p is from the exact distribution when
+at most 50 differences remain and no two have the same magnitude, else from the normal approximation with the tie
+correction (the method is named explicitly, so the p does not depend on scipy's "auto" rule, which changed in 1.15).
+The mode lines: each cell's mean over the flights that recorded it of the drone's ``yaw_mode_fraction`` (the share
+of yaw plans made in the exploring / observing / tracking mode; a flight that made no yaw plan records none).
 """
 
 from __future__ import annotations
@@ -42,7 +45,8 @@ def method_of(yaw: dict) -> str:
 
 def cells(store: Path) -> list[dict]:
     """One dict per (density, method) cell of the store: density, method, flights, S_obs mean and sd [m^2], successes,
-    the Wilson 95 % interval and the paper's S_obs (None where the paper gives none)."""
+    the Wilson 95 % interval, the paper's S_obs (None where the paper gives none), ``area_by_seed`` ({seed: S_obs})
+    and ``modes`` (the mean yaw mode shares, None when no flight recorded them)."""
     spec = json.loads((store / "sweep.json").read_text())["sweep"]
     densities = dict(spec["axes"])["world.obstacle_density_per_100m2"]
     by_cell = _flights(store)
@@ -59,8 +63,8 @@ def cells(store: Path) -> list[dict]:
             lo, hi = wilson_interval(ok, n) if n else (float("nan"), float("nan"))
             m = method_of(yaw)
             paper = {"zhou": PAPER[di][0], "no_exploring": PAPER[di][1], "ours": PAPER[di][2]}.get(m)
-            fractions = [r["metrics"]["agents"][0].get("yaw_mode_fraction") for r in rows if r["metrics"].get("agents")]
-            modes = {k: sum(f[k] for f in fractions) / len(fractions) for k in MODES} if fractions and None not in fractions else None
+            fractions = [f for r in rows if (f := (r["metrics"].get("agents") or [{}])[0].get("yaw_mode_fraction"))]
+            modes = {k: sum(f[k] for f in fractions) / len(fractions) for k in MODES} if fractions else None
             out.append({"density_index": di, "density": density, "method": m, "flights": n, "s_obs_mean_m2": mean, "s_obs_sd_m2": sd,
                         "successes": ok, "success_low": lo, "success_high": hi, "paper_s_obs_m2": paper,
                         "area_by_seed": {r["seed"]: r["metrics"]["observed_area_swarm_m2"] for r in rows}, "modes": modes})  # fmt: skip
@@ -72,7 +76,7 @@ PAIRS = (("ours", "zhou"), ("ours", "no_exploring"))  # the paper's two ordering
 
 
 def _flights(store: Path) -> dict[int, list[dict]]:
-    """The store's flights that recorded metrics, by cell index."""
+    """The store's flights that recorded metrics, by cell index (a store holds one row per cell and seed)."""
     by_cell = defaultdict(list)
     for line in (store / "results.jsonl").read_text().splitlines():
         r = json.loads(line)
@@ -81,9 +85,20 @@ def _flights(store: Path) -> dict[int, list[dict]]:
     return by_cell
 
 
+def signed_rank_p(diff: list[float]) -> float | None:
+    """Two-sided Wilcoxon signed-rank p of paired differences, zeros dropped (module docstring); None when fewer
+    than two non-zero differences remain."""
+    nonzero = [d for d in diff if d != 0]
+    if len(nonzero) < 2:
+        return None
+    mags = [abs(d) for d in nonzero]
+    method = "exact" if len(nonzero) <= 50 and len(set(mags)) == len(mags) else "asymptotic"
+    return float(wilcoxon(nonzero, method=method).pvalue)
+
+
 def paired(table: list[dict], a: str, b: str) -> list[dict]:
     """Method ``a`` against ``b`` at every density where both flew: the seeds both flew, mean of a - b [m^2], seeds
-    where a saw more, and the two-sided Wilcoxon signed-rank p (None under two seeds or when every difference is 0)."""
+    where a saw more, seeds where both saw the same, and the two-sided Wilcoxon signed-rank p (:func:`signed_rank_p`)."""
     by = {(c["density_index"], c["method"]): c for c in table}
     out = []
     for c in table:
@@ -95,8 +110,8 @@ def paired(table: list[dict], a: str, b: str) -> list[dict]:
         if not seeds:
             continue
         diff = [sa[s] - sb[s] for s in seeds]
-        p = float(wilcoxon(diff).pvalue) if len(seeds) > 1 and any(diff) else None
-        out.append({"density": c["density"], "seeds": len(seeds), "mean_diff_m2": sum(diff) / len(diff), "a_larger": sum(d > 0 for d in diff), "p": p})
+        out.append({"density": c["density"], "seeds": len(seeds), "mean_diff_m2": sum(diff) / len(diff), "a_larger": sum(d > 0 for d in diff),
+                    "equal": sum(d == 0 for d in diff), "p": signed_rank_p(diff)})  # fmt: skip
     return out
 
 
@@ -122,7 +137,7 @@ def render(table: list[dict]) -> str:
         for r in paired(table, a, b):
             p = "-" if r["p"] is None else f"{r['p']:.2g}"
             lines.append(f"  density {r['density']:g}: {METHODS[a]} - {METHODS[b]}: mean {r['mean_diff_m2']:+.1f} m^2, "
-                  f"{METHODS[a]} larger on {r['a_larger']} of {r['seeds']}, p = {p}")  # fmt: skip
+                  f"{METHODS[a]} larger on {r['a_larger']} of {r['seeds']}, equal on {r['equal']}, p = {p}")  # fmt: skip
     lines.append("\nmean share of yaw plans per mode (exploring / observing / tracking)")
     for c in table:
         if c["modes"] is not None:

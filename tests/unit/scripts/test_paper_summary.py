@@ -52,22 +52,38 @@ def test_table3_pairs_seeds_and_tests_them_against_the_exact_wilcoxon_distributi
     store.mkdir()
     axes = [["world.obstacle_density_per_100m2", [8.0]], ["denied.yaw", YAWS]]
     (store / "sweep.json").write_text(json.dumps({"sweep": {"axes": axes}}))
-    rows = []
-    for seed, (zhou, ours) in enumerate([(100, 103), (100, 101), (100, 110), (100, 104), (100, 102)]):
-        for cell, area, mode in ((0, zhou, {"exploring": 1.0, "observing": 0.0, "tracking": 0.0}),
-                                 (3, ours, {"exploring": 0.5 if seed else 0.0, "observing": 0.0, "tracking": 0.5 if seed else 1.0})):  # fmt: skip
-            rows.append({"cell": cell, "seed": seed, "metrics": {"observed_area_swarm_m2": float(area), "success": True, "agents": [{"yaw_mode_fraction": mode}]}})
-    rows.append({"cell": 3, "seed": 5, "metrics": {"observed_area_swarm_m2": 1.0, "success": True, "agents": [{"yaw_mode_fraction": mode}]}})
+    half = {"exploring": 0.5, "observing": 0.0, "tracking": 0.5}
+
+    def row(cell, seed, area, mode):  # noqa: ANN001, ANN202
+        return {"cell": cell, "seed": seed, "metrics": {"observed_area_swarm_m2": float(area), "success": True, "agents": [{"yaw_mode_fraction": mode}]}}
+
+    # ours flew seed 0, which Zhou's did not: pairing by position instead of by seed would shift every pair
+    rows = [row(3, 0, 1.0, half)]
+    for seed, (zhou, ours) in enumerate([(100, 103), (100, 101), (100, 110), (100, 104), (100, 102)], start=1):
+        rows.append(row(0, seed, zhou, {"exploring": 1.0, "observing": 0.0, "tracking": 0.0}))
+        rows.append(row(3, seed, ours, {"exploring": 0.0, "observing": 0.0, "tracking": 1.0} if seed == 1 else half))
+    rows.append(row(3, 6, 1.0, None))  # a flight that made no yaw plan records no shares: left out of the mean
     (store / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
     table = table3_report.cells(store)
     [pair] = table3_report.paired(table, "ours", "zhou")
     assert (pair["seeds"], pair["a_larger"], pair["mean_diff_m2"]) == (5, 5, pytest.approx(4.0))
     assert pair["p"] == pytest.approx(0.0625)
     assert table3_report.paired(table, "ours", "no_exploring") == []  # not flown
-    assert table[3]["modes"]["tracking"] == pytest.approx((1.0 + 4 * 0.5 + 0.5) / 6)
+    assert table[3]["modes"]["tracking"] == pytest.approx((0.5 + 1.0 + 4 * 0.5) / 6)
     text = table3_report.render(table)
-    assert "  density 8: ours - Zhou's [26]: mean +4.0 m^2, ours larger on 5 of 5, p = 0.062\n" in text
+    assert "  density 8: ours - Zhou's [26]: mean +4.0 m^2, ours larger on 5 of 5, equal on 0, p = 0.062\n" in text
     assert "  density 8, Zhou's [26]: 1.00 / 0.00 / 0.00\n" in text
+
+
+def test_signed_rank_p_drops_equal_seeds_and_corrects_for_ties_in_closed_form():
+    """Zeros are dropped (the five positive differences left give the exact 2 / 2^5); six equal positive differences
+    (all tied, ranks 3.5) give the normal approximation with the tie correction: T+ = 21 against a mean of 10.5 and a
+    variance of 6 * 7 * 13 / 24 - (6^3 - 6) / 48 = 18.375; under two non-zero differences there is no test."""
+    from scipy.stats import norm
+
+    assert table3_report.signed_rank_p([0.0, 3.0, 1.0, 10.0, 4.0, 2.0]) == pytest.approx(0.0625)
+    assert table3_report.signed_rank_p([1.0] * 6) == pytest.approx(2 * norm.sf(10.5 / math.sqrt(18.375)))
+    assert table3_report.signed_rank_p([0.0, 0.0, 1.0]) is None and table3_report.signed_rank_p([0.0, 0.0]) is None
 
 
 def test_the_summary_prints_the_stores_numbers_and_names_what_is_missing(tmp_path):
