@@ -121,13 +121,12 @@ def main() -> None:
 
 def render(table: list[dict]) -> str:
     """The report main() prints, as one string (the cell table, the margins, the paired tests, the modes)."""
-    lines: list[str] = []
-    lines.append(f"{'density /100m^2':>15}  {'method':<20} {'flights':>7}  {'S_obs m^2 mean +- sd':>21}  {'success':>7}  {'95% CI':>9}  {'paper S_obs':>11}")
+    lines = [f"{'density /100m^2':>15}  {'method':<20} {'flights':>7}  {'S_obs m^2 mean +- sd':>21}  {'success':>7}  {'95% CI':>9}  {'paper S_obs':>11}"]
     for c in table:
         n, paper = c["flights"], c["paper_s_obs_m2"]
         lines.append(f"{c['density']:>15g}  {METHODS[c['method']]:<20} {n:>7d}  {c['s_obs_mean_m2']:>12.1f} +- {c['s_obs_sd_m2']:>5.1f}  "
-              f"{100 * c['successes'] / max(n, 1):>6.0f}%  {100 * c['success_low']:>3.0f}-{100 * c['success_high']:<3.0f}%  "
-              f"{'' if paper is None else f'{paper:.1f}':>11}")  # fmt: skip
+                     f"{100 * c['successes'] / max(n, 1):>6.0f}%  {100 * c['success_low']:>3.0f}-{100 * c['success_high']:<3.0f}%  "
+                     f"{'' if paper is None else f'{paper:.1f}':>11}")  # fmt: skip
     lines.append("\nours against Zhou's, S_obs: measured (paper)")
     for di, density, ours, zhou in margins(table):
         paper = PAPER[di][2] / PAPER[di][0] - 1
@@ -137,7 +136,7 @@ def render(table: list[dict]) -> str:
         for r in paired(table, a, b):
             p = "-" if r["p"] is None else f"{r['p']:.2g}"
             lines.append(f"  density {r['density']:g}: {METHODS[a]} - {METHODS[b]}: mean {r['mean_diff_m2']:+.1f} m^2, "
-                  f"{METHODS[a]} larger on {r['a_larger']} of {r['seeds']}, equal on {r['equal']}, p = {p}")  # fmt: skip
+                         f"{METHODS[a]} larger on {r['a_larger']} of {r['seeds']}, equal on {r['equal']}, p = {p}")  # fmt: skip
     lines.append("\nmean share of yaw plans per mode (exploring / observing / tracking)")
     for c in table:
         if c["modes"] is not None:
