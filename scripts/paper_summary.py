@@ -20,7 +20,9 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from table3_report import METHODS, PAPER, cells, margins  # noqa: E402
+from table3_report import METHODS, PAPER, cells, margins, read_store  # noqa: E402
+
+from mpcde.errors import ConfigError  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]  # commit dates are the repository's, wherever the script runs from
 FIG6_PAPER = {0.5: 0.98, 1.0: 0.95, 2.0: 0.90}  # issue 28's reading of Fig. 6 for MP-CDE (its goals)
@@ -31,8 +33,8 @@ def revisions(*stores: Path) -> tuple[str, str]:
     """(short revisions, their commit dates) recorded by the flights of ``stores``, first seen first."""
     revs: list[str] = []
     for store in stores:
-        for line in (store / "results.jsonl").read_text().splitlines():
-            rev = json.loads(line).get("git_rev")
+        for row in read_store(store).rows():
+            rev = row["git_rev"]
             if rev and rev[:7] not in revs:
                 revs.append(rev[:7])
     dates = []
@@ -160,18 +162,24 @@ def akf(runs: Path) -> list[str]:
     return rows
 
 
-def main() -> None:
-    runs = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("runs")
-    print("| paper figure | paper | ours | command | commit | date |")
-    print("|---|---|---|---|---|---|")
+def main(argv: list[str] | None = None) -> int:
+    """Print the table for the runs folder in ``argv`` (default ``sys.argv[1:]``, else runs/); a missing input leaves
+    its rows out (an HTML comment says which), a corrupt store prints one line on stderr, nothing on stdout, and
+    returns 2."""
+    argv = sys.argv[1:] if argv is None else argv
+    runs = Path(argv[0]) if argv else Path("runs")
+    lines = ["| paper figure | paper | ours | command | commit | date |", "|---|---|---|---|---|---|"]
     for part in (fig10, fig6, table3, akf):
         try:
-            rows = part(runs)
+            lines += part(runs)
         except FileNotFoundError as e:
-            print(f"<!-- {part.__name__}: {e.filename} missing -->")
-            continue
-        print("\n".join(rows))
+            lines.append(f"<!-- {part.__name__}: {e.filename} missing -->")
+        except ConfigError as e:
+            sys.stderr.write(f"paper_summary: error: {e}\n")
+            return 2
+    print("\n".join(lines))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

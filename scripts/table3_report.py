@@ -4,6 +4,10 @@ paper's figures; then the paper's two S_obs orderings tested seed by seed, and t
 
 Usage: .venv/bin/python scripts/table3_report.py STORE_DIR   (the store `mpcde sweep ... --out STORE_DIR` wrote)
 
+The store is read as `mpcde report` reads it (:class:`mpcde.sweep.store.ResultsStore`): a last line cut short by a
+crash is left out, so a sweep still running can be reported; a folder that is not a Table III store (no sweep.json,
+a corrupt row, a sweep without the density and yaw axes) stops the script with one line on stderr and exit status 2.
+
 The paired lines: for each density, the seeds both methods flew, the mean of (a - b) over them [m^2], on how many
 seeds a saw more and on how many the two saw exactly the same, and the two-sided Wilcoxon signed-rank p of the
 differences. Equal seeds are dropped from the test (Wilcoxon's convention); p is from the exact distribution when
@@ -15,7 +19,7 @@ of yaw plans made in the exploring / observing / tracking mode; a flight that ma
 
 from __future__ import annotations
 
-import json
+import errno
 import math
 import sys
 from collections import defaultdict
@@ -23,7 +27,9 @@ from pathlib import Path
 
 from scipy.stats import wilcoxon
 
+from mpcde.errors import ConfigError
 from mpcde.sweep.stats import wilson_interval
+from mpcde.sweep.store import MANIFEST, ResultsStore
 
 PAPER = {  # Table III, S_obs [m^2]: Zhou's, ours w/o exploring, ours; success is not printed in the paper's table
     0: (142.7, 137.1, 167.5),
@@ -47,10 +53,12 @@ def cells(store: Path) -> list[dict]:
     """One dict per (density, method) cell of the store: density, method, flights, S_obs mean and sd [m^2], successes,
     the Wilson 95 % interval, the paper's S_obs (None where the paper gives none), ``area_by_seed`` ({seed: S_obs})
     and ``modes`` (the mean yaw mode shares, None when no flight recorded them)."""
-    spec = json.loads((store / "sweep.json").read_text())["sweep"]
-    densities = dict(spec["axes"])["world.obstacle_density_per_100m2"]
-    by_cell = _flights(store)
-    yaw_values = dict(spec["axes"])["denied.yaw"]
+    results = read_store(store)
+    axes = dict(results.manifest["sweep"].get("axes") or [])
+    if DENSITY_AXIS not in axes or YAW_AXIS not in axes:
+        raise ConfigError("store", str(store / MANIFEST), f"not a Table III sweep: it needs the axes {DENSITY_AXIS} and {YAW_AXIS}")
+    densities, yaw_values = axes[DENSITY_AXIS], axes[YAW_AXIS]
+    by_cell = _flights(results)
     out = []
     for di, density in enumerate(densities):
         for mi, yaw in enumerate(yaw_values):
@@ -75,11 +83,21 @@ MODES = ("exploring", "observing", "tracking")
 PAIRS = (("ours", "zhou"), ("ours", "no_exploring"))  # the paper's two orderings of S_obs: ours above each
 
 
-def _flights(store: Path) -> dict[int, list[dict]]:
+DENSITY_AXIS, YAW_AXIS = "world.obstacle_density_per_100m2", "denied.yaw"
+
+
+def read_store(folder: Path) -> ResultsStore:
+    """The sweep store in ``folder``: FileNotFoundError when it holds no sweep.json (a report of what is not flown
+    yet leaves it out), ConfigError (one line) when it is corrupt."""
+    if not (Path(folder) / MANIFEST).is_file():
+        raise FileNotFoundError(errno.ENOENT, "no sweep store", str(Path(folder) / MANIFEST))
+    return ResultsStore.read(folder)
+
+
+def _flights(results: ResultsStore) -> dict[int, list[dict]]:
     """The store's flights that recorded metrics, by cell index (a store holds one row per cell and seed)."""
     by_cell = defaultdict(list)
-    for line in (store / "results.jsonl").read_text().splitlines():
-        r = json.loads(line)
+    for r in results.rows():
         if r.get("metrics"):
             by_cell[r["cell"]].append(r)
     return by_cell
@@ -115,8 +133,22 @@ def paired(table: list[dict], a: str, b: str) -> list[dict]:
     return out
 
 
-def main() -> None:
-    print(render(cells(Path(sys.argv[1]))), end="")
+def main(argv: list[str] | None = None) -> int:
+    """Print the report of the store named in ``argv`` (default ``sys.argv[1:]``); 2 on bad input (one line on stderr)."""
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 1:
+        sys.stderr.write("table3_report: error: usage: table3_report.py STORE_DIR\n")
+        return 2
+    try:
+        text = render(cells(Path(argv[0])))
+    except FileNotFoundError as e:
+        sys.stderr.write(f"table3_report: error: store={argv[0]!r}: no {MANIFEST} there, not a sweep folder ({e.filename})\n")
+        return 2
+    except ConfigError as e:
+        sys.stderr.write(f"table3_report: error: {e}\n")
+        return 2
+    print(text, end="")
+    return 0
 
 
 def render(table: list[dict]) -> str:
@@ -156,4 +188,4 @@ def margins(table: list[dict]) -> list[tuple[int, float, float, float]]:
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -16,23 +16,33 @@ sys.path.insert(0, str(SCRIPTS))
 import paper_summary  # noqa: E402
 import table3_report  # noqa: E402
 
+REV = "0" * 40
+
+
+def _write_store(folder: Path, axes: list, rows: list[dict]) -> Path:
+    """A sweep store as `mpcde sweep` writes it: sweep.json with its digest, results.jsonl with every row key
+    (``rows`` give cell, seed and metrics; a row without metrics is a failed flight)."""
+    folder.mkdir(parents=True)
+    (folder / "sweep.json").write_text(json.dumps({"digest": "d" * 16, "sweep": {"axes": axes}}))
+    full = [{"values": {}, "status": "ok" if r.get("metrics") else "failed", "error": None if r.get("metrics") else "x",
+             "metrics": None, "wall_s": 1.0, "version": "0", "git_rev": REV, **r} for r in rows]  # fmt: skip
+    (folder / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in full))
+    return folder
+
+
 YAWS = [{"method": "zhou"}, {"exploring_mode": False}, {"tracking_mode": False}, {}]
 AREAS = {0: [500.0, 520.0], 1: [400.0, 410.0], 2: [505.0, 515.0], 3: [440.0, 460.0]}  # per cell (method), two seeds
 
 
 def _table3_store(root: Path) -> Path:
-    store = root / "table3"
-    store.mkdir(parents=True)
     axes = [["world.obstacle_density_per_100m2", [4.0]], ["denied.yaw", YAWS]]
-    (store / "sweep.json").write_text(json.dumps({"sweep": {"axes": axes}}))
     rows = []
     for cell, areas in AREAS.items():
         for seed, area in enumerate(areas):
             ok = not (cell == 3 and seed == 1)  # one failure, in "ours"
-            rows.append({"cell": cell, "seed": seed, "git_rev": "0" * 40, "metrics": {"observed_area_swarm_m2": area, "success": ok}})
-    rows.append({"cell": 0, "seed": 2, "git_rev": "0" * 40, "metrics": None, "error": "x"})  # a failed flight is left out
-    (store / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
-    return store
+            rows.append({"cell": cell, "seed": seed, "metrics": {"observed_area_swarm_m2": area, "success": ok}})
+    rows.append({"cell": 0, "seed": 2, "metrics": None})  # a failed flight is left out
+    return _write_store(root / "table3", axes, rows)
 
 
 def test_table3_cells_and_margin_come_from_the_store(tmp_path):
@@ -48,10 +58,7 @@ def test_table3_cells_and_margin_come_from_the_store(tmp_path):
 def test_table3_pairs_seeds_and_tests_them_against_the_exact_wilcoxon_distribution(tmp_path):
     """Ours against Zhou's over five paired seeds, ours larger on every one: the exact two-sided signed-rank p is
     2 / 2^5 = 0.0625; a seed flown by one method only is left out of the pair; modes are averaged over flights."""
-    store = tmp_path / "t3"
-    store.mkdir()
     axes = [["world.obstacle_density_per_100m2", [8.0]], ["denied.yaw", YAWS]]
-    (store / "sweep.json").write_text(json.dumps({"sweep": {"axes": axes}}))
     half = {"exploring": 0.5, "observing": 0.0, "tracking": 0.5}
 
     def row(cell, seed, area, mode):  # noqa: ANN001, ANN202
@@ -63,8 +70,7 @@ def test_table3_pairs_seeds_and_tests_them_against_the_exact_wilcoxon_distributi
         rows.append(row(0, seed, zhou, {"exploring": 1.0, "observing": 0.0, "tracking": 0.0}))
         rows.append(row(3, seed, ours, {"exploring": 0.0, "observing": 0.0, "tracking": 1.0} if seed == 1 else half))
     rows.append(row(3, 6, 1.0, None))  # a flight that made no yaw plan records no shares: left out of the mean
-    (store / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
-    table = table3_report.cells(store)
+    table = table3_report.cells(_write_store(tmp_path / "t3", axes, rows))
     [pair] = table3_report.paired(table, "ours", "zhou")
     assert (pair["seeds"], pair["a_larger"], pair["mean_diff_m2"]) == (5, 5, pytest.approx(4.0))
     assert pair["p"] == pytest.approx(0.0625)
@@ -73,6 +79,35 @@ def test_table3_pairs_seeds_and_tests_them_against_the_exact_wilcoxon_distributi
     text = table3_report.render(table)
     assert "  density 8: ours - Zhou's [26]: mean +4.0 m^2, ours larger on 5 of 5, equal on 0, p = 0.062\n" in text
     assert "  density 8, Zhou's [26]: 1.00 / 0.00 / 0.00\n" in text
+
+
+def test_table3_report_reads_the_store_as_mpcde_report_does(tmp_path, capsys):
+    """A last line cut short (a sweep still running, or a crash) is left out; a corrupt row, a folder without
+    sweep.json, a sweep without Table III's axes or a wrong argument count stop the script with one line on stderr,
+    exit status 2 and nothing on stdout; paper_summary refuses a corrupt store the same way."""
+    store = _table3_store(tmp_path)
+    whole = table3_report.cells(store)
+    with open(store / "results.jsonl", "a") as f:
+        f.write('{"cell": 3, "seed": 9, "metr')  # no newline: a partial row
+    assert table3_report.cells(store) == whole
+    assert table3_report.main([str(store)]) == 0 and capsys.readouterr().out == table3_report.render(whole)
+
+    def refused(argv: list[str], *needles: str) -> None:
+        assert table3_report.main(argv) == 2
+        out, err = capsys.readouterr()
+        assert out == "" and err.startswith("table3_report: error: ") and err.count("\n") == 1, err
+        assert all(n in err for n in needles), err
+
+    refused([], "usage")
+    refused([str(tmp_path / "nowhere")], "nowhere", "no sweep.json")
+    other = _write_store(tmp_path / "other", [["planner.cruise_speed_mps", [1.0]]], [])
+    refused([str(other)], "store=", "world.obstacle_density_per_100m2", "denied.yaw")
+    text = (store / "results.jsonl").read_text()
+    (store / "results.jsonl").write_text(text.replace("\n", "\nnot json\n", 1))
+    refused([str(store)], "store line 2", "corrupt")
+    assert paper_summary.main([str(tmp_path)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith("paper_summary: error: store line 2=") and err.count("\n") == 1
 
 
 def test_signed_rank_p_drops_equal_seeds_and_corrects_for_ties_in_closed_form():
@@ -107,8 +142,7 @@ def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
     stores = []
     base = {"duration_s": 100}
     for name, overrides in (("denied", base), ("gated", {**base, "radio.view_gated": True}), ("auto", base), ("levels", {**base, "denied.flight_level_spacing_m": 0.4})):
-        (tmp_path / name).mkdir()
-        (tmp_path / name / "results.jsonl").write_text(json.dumps({"git_rev": "0" * 40}) + "\n")
+        _write_store(tmp_path / name, [], [{"cell": 0, "seed": 0, "metrics": {"success": True}}])
         stores.append({"name": name, "folder": str(tmp_path / name), "overrides": overrides})
     cell = {"flights": 30, "success_rate": 0.9, "success_low": 0.74, "success_high": 0.97, "collisions_per_flight": 0.1}
     cells = []
@@ -152,8 +186,7 @@ def test_the_akf_rows_cite_the_revision_eval_tracking_recorded(tmp_path):
 
 def test_a_single_store_report_gives_mp_cde_rows_only_and_skips_unflown_cells(tmp_path):
     """The denied sweep's store reported alone (no baselines kept beside it) still gives MP-CDE's rows."""
-    (tmp_path / "fig6").mkdir()
-    (tmp_path / "fig6" / "results.jsonl").write_text(json.dumps({"git_rev": "0" * 40}) + "\n")
+    _write_store(tmp_path / "fig6", [], [{"cell": 1, "seed": 0, "metrics": {"success": True}}])
     flown = {"flights": 100, "success_rate": 0.94, "success_low": 0.875, "success_high": 0.97, "collisions_per_flight": 0.06}
     empty = {"flights": 0, "success_rate": None, "success_low": None, "success_high": None, "collisions_per_flight": None}
     cells = [{**empty, "values": {"planner.kind": "mpcde", "planner.cruise_speed_mps": 0.5}},
