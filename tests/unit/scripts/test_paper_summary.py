@@ -208,7 +208,7 @@ FIG6_KEPT = {"fig6_denied_portable": 3, "fig6_auto_portable": 3, "fig6_fresh_por
 FIG6_VARIANTS = 2
 FIG6_BASELINES = ["fig6_dmpc_portable", "fig6_minco_portable"]  # flown over the view-gated radio
 TABLE3_KEPT = "table3_portable"
-TABLE3_REPORTED = ["table3_portable", "table3_fuel"]  # every kept Table III store whose whole report mp-cde.md pastes
+TABLE3_REPORTED = ["table3_portable", "table3_fuel", "table3_fuel_2mps"]  # every kept Table III store whose whole report mp-cde.md pastes
 AKF_KEPT = "akf_pipeline_portable"
 
 
