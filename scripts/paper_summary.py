@@ -9,7 +9,10 @@ settings, e.g. look before moving, gets MP-CDE's rows of its own besides its pai
 itself, reported alone, which gives MP-CDE's rows only), RUNS_DIR/table3 (a sweep store; scripts/table3_report.py's cells) and
 RUNS_DIR/akf_pipeline/results.json (`mpcde eval-tracking`). The commit column lists the code revisions the
 stores' flights recorded, the date their commit dates; for `eval-tracking`, the revision its results.json
-records (results written before 2026-11-27 record none: "not recorded"). A missing input leaves its rows out.
+records (results written before 2026-11-27 record none: "not recorded"). A missing input (or a store with no flight
+recorded yet) leaves its rows out, with an HTML comment saying which; a cell not flown yet has no row. A corrupt
+input (a store's row, a report that is not JSON) stops the script with one line on stderr, exit status 2 and nothing
+on stdout.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from table3_report import METHODS, PAPER, cells, margins, read_store  # noqa: E402
+from table3_report import METHODS, cells, margins, paper_margin, read_store  # noqa: E402
 
 from mpcde.errors import ConfigError  # noqa: E402
 
@@ -45,6 +48,15 @@ def revisions(*stores: Path) -> tuple[str, str]:
     return ", ".join(revs) or "-", ", ".join(dates) or "-"
 
 
+def _json(path: Path) -> dict:
+    """The JSON object in ``path`` (FileNotFoundError when absent; ConfigError, one line, when it is not JSON)."""
+    text = path.read_text()
+    try:
+        return json.loads(text)
+    except ValueError:
+        raise ConfigError(str(path), text[:40], "JSON, as `mpcde report` or `mpcde eval-tracking` writes it") from None
+
+
 def commit_date(rev: str) -> str:
     """The commit date (YYYY-MM-DD) of revision ``rev``, "?" where git does not know it."""
     out = subprocess.run(["git", "-C", str(REPO), "show", "-s", "--format=%cs", rev], capture_output=True, text=True)
@@ -56,7 +68,7 @@ def pct(x: float) -> str:
 
 
 def fig10(runs: Path) -> list[str]:
-    report = json.loads((runs / "fig10" / "report.json").read_text())
+    report = _json(runs / "fig10" / "report.json")
     commit, date = revisions(runs / "fig10")
     rows = []
     for c in report["cells"]:
@@ -78,7 +90,7 @@ def fig6_row(c: dict, command: str, commit: str, date: str, variant: str = "") -
 
 
 def fig6(runs: Path) -> list[str]:
-    report = json.loads((runs / "fig6" / "report.json").read_text())
+    report = _json(runs / "fig6" / "report.json")
     if "stores" not in report:  # the denied sweep's own store, reported alone: MP-CDE's rows, nothing to pair
         commit, date = revisions(runs / "fig6")
         return [fig6_row(c, "`mpcde sweep data/sweeps/forest_swarm_denied.yaml`", commit, date) for c in report["cells"] if c["flights"]]
@@ -138,17 +150,18 @@ def table3(runs: Path) -> list[str]:
     commit, date = revisions(runs / "table3")
     rows = []
     for c in table:
+        if not c["flights"]:  # a cell not flown yet has no row
+            continue
         paper = "-" if c["paper_s_obs_m2"] is None else f"{c['paper_s_obs_m2']:.1f} m^2"
         ours = f"{c['s_obs_mean_m2']:.1f} +- {c['s_obs_sd_m2']:.1f} m^2, success {c['successes']} of {c['flights']}"
         rows.append(f"| Table III, {METHODS[c['method']]}, density {c['density']:g} | {paper} | {ours} | `mpcde sweep data/sweeps/table3_active_perception.yaml` | {commit} | {date} |")
     for di, density, ours, zhou in margins(table):
-        paper = PAPER[di][2] / PAPER[di][0] - 1
-        rows.append(f"| Table III, ours against Zhou's, density {density:g} | {100 * paper:+.0f} % | {100 * (ours / zhou - 1):+.1f} % | (same) | {commit} | {date} |")
+        rows.append(f"| Table III, ours against Zhou's, density {density:g} | {paper_margin(di)} | {100 * (ours / zhou - 1):+.1f} % | (same) | {commit} | {date} |")
     return rows
 
 
 def akf(runs: Path) -> list[str]:
-    results = json.loads((runs / "akf_pipeline" / "results.json").read_text())
+    results = _json(runs / "akf_pipeline" / "results.json")
     rows_in, rev = results["rows"], (results.get("run") or {}).get("git_rev")  # results before 2026-11-27 record no revision
     commit, date = "not recorded", "-"
     if rev:
@@ -167,6 +180,9 @@ def main(argv: list[str] | None = None) -> int:
     its rows out (an HTML comment says which), a corrupt store prints one line on stderr, nothing on stdout, and
     returns 2."""
     argv = sys.argv[1:] if argv is None else argv
+    if len(argv) > 1 or (argv and argv[0].startswith("-")):
+        sys.stderr.write(f"paper_summary: error: arguments={argv!r}: at most one RUNS_DIR (default runs/)\n")
+        return 2
     runs = Path(argv[0]) if argv else Path("runs")
     lines = ["| paper figure | paper | ours | command | commit | date |", "|---|---|---|---|---|---|"]
     for part in (fig10, fig6, table3, akf):

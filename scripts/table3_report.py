@@ -5,8 +5,10 @@ paper's figures; then the paper's two S_obs orderings tested seed by seed, and t
 Usage: .venv/bin/python scripts/table3_report.py STORE_DIR   (the store `mpcde sweep ... --out STORE_DIR` wrote)
 
 The store is read as `mpcde report` reads it (:class:`mpcde.sweep.store.ResultsStore`): a last line cut short by a
-crash is left out, so a sweep still running can be reported; a folder that is not a Table III store (no sweep.json,
-a corrupt row, a sweep without the density and yaw axes) stops the script with one line on stderr and exit status 2.
+crash is left out, so a sweep still running can be reported (a cell not flown yet shows 0 flights and nan). A folder
+that is not a Table III store (no sweep.json or no results.jsonl, a kept store not unpacked, a corrupt row, a sweep
+whose axes are not density then yaw, a flight without S_obs) stops the script with one line on stderr and exit
+status 2.
 
 The paired lines: for each density, the seeds both methods flew, the mean of (a - b) over them [m^2], on how many
 seeds a saw more and on how many the two saw exactly the same, and the two-sided Wilcoxon signed-rank p of the
@@ -29,7 +31,7 @@ from scipy.stats import wilcoxon
 
 from mpcde.errors import ConfigError
 from mpcde.sweep.stats import wilson_interval
-from mpcde.sweep.store import MANIFEST, ResultsStore
+from mpcde.sweep.store import MANIFEST, RESULTS, ResultsStore
 
 PAPER = {  # Table III, S_obs [m^2]: Zhou's, ours w/o exploring, ours; success is not printed in the paper's table
     0: (142.7, 137.1, 167.5),
@@ -54,10 +56,12 @@ def cells(store: Path) -> list[dict]:
     the Wilson 95 % interval, the paper's S_obs (None where the paper gives none), ``area_by_seed`` ({seed: S_obs})
     and ``modes`` (the mean yaw mode shares, None when no flight recorded them)."""
     results = read_store(store)
-    axes = dict(results.manifest["sweep"].get("axes") or [])
-    if DENSITY_AXIS not in axes or YAW_AXIS not in axes:
-        raise ConfigError("store", str(store / MANIFEST), f"not a Table III sweep: it needs the axes {DENSITY_AXIS} and {YAW_AXIS}")
-    densities, yaw_values = axes[DENSITY_AXIS], axes[YAW_AXIS]
+    axes = results.manifest["sweep"].get("axes")
+    names = [a[0] for a in axes] if isinstance(axes, list) and all(isinstance(a, list) and len(a) == 2 for a in axes) else None
+    if names != [DENSITY_AXIS, YAW_AXIS] or not all(isinstance(a[1], list) for a in axes):
+        raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes", names if names is not None else axes,
+                          f"a Table III sweep: the axes {DENSITY_AXIS} then {YAW_AXIS}, each a list, and no other")
+    densities, yaw_values = axes[0][1], axes[1][1]
     by_cell = _flights(results)
     out = []
     for di, density in enumerate(densities):
@@ -70,7 +74,7 @@ def cells(store: Path) -> list[dict]:
             sd = math.sqrt(sum((a - mean) ** 2 for a in areas) / (n - 1)) if n > 1 else float("nan")
             lo, hi = wilson_interval(ok, n) if n else (float("nan"), float("nan"))
             m = method_of(yaw)
-            paper = {"zhou": PAPER[di][0], "no_exploring": PAPER[di][1], "ours": PAPER[di][2]}.get(m)
+            paper = dict(zip(("zhou", "no_exploring", "ours"), PAPER.get(di, (None, None, None)))).get(m)  # the paper has 3 densities
             fractions = [f for r in rows if (f := (r["metrics"].get("agents") or [{}])[0].get("yaw_mode_fraction"))]
             modes = {k: sum(f[k] for f in fractions) / len(fractions) for k in MODES} if fractions else None
             out.append({"density_index": di, "density": density, "method": m, "flights": n, "s_obs_mean_m2": mean, "s_obs_sd_m2": sd,
@@ -86,11 +90,16 @@ PAIRS = (("ours", "zhou"), ("ours", "no_exploring"))  # the paper's two ordering
 DENSITY_AXIS, YAW_AXIS = "world.obstacle_density_per_100m2", "denied.yaw"
 
 
-def read_store(folder: Path) -> ResultsStore:
-    """The sweep store in ``folder``: FileNotFoundError when it holds no sweep.json (a report of what is not flown
-    yet leaves it out), ConfigError (one line) when it is corrupt."""
-    if not (Path(folder) / MANIFEST).is_file():
-        raise FileNotFoundError(errno.ENOENT, "no sweep store", str(Path(folder) / MANIFEST))
+def read_store(folder: Path | str) -> ResultsStore:
+    """The sweep store in ``folder``: FileNotFoundError when it holds no sweep.json or no results.jsonl yet (no
+    flight recorded: a report of what is not flown yet leaves it out); ConfigError (one line) when it is corrupt, or
+    holds only a kept store's packed results.jsonl.gz."""
+    folder = Path(folder)
+    for name in (MANIFEST, RESULTS):
+        if not (folder / name).is_file():
+            if name == RESULTS and (folder / (RESULTS + ".gz")).is_file():
+                raise ConfigError(f"store {folder}", RESULTS + ".gz", "an unpacked results.jsonl: gunzip it first (docs/results/stores/README.md)")
+            raise FileNotFoundError(errno.ENOENT, "not in the store", str(folder / name))
     return ResultsStore.read(folder)
 
 
@@ -99,6 +108,10 @@ def _flights(results: ResultsStore) -> dict[int, list[dict]]:
     by_cell = defaultdict(list)
     for r in results.rows():
         if r.get("metrics"):
+            missing = [k for k in ("observed_area_swarm_m2", "success") if k not in r["metrics"]]
+            if missing:
+                raise ConfigError(f"store {results.path} cell {r['cell']} seed {r['seed']}: metrics", missing,
+                                  "a flight's observed_area_swarm_m2 and success (a flight of a package without S_obs?)")
             by_cell[r["cell"]].append(r)
     return by_cell
 
@@ -136,13 +149,13 @@ def paired(table: list[dict], a: str, b: str) -> list[dict]:
 def main(argv: list[str] | None = None) -> int:
     """Print the report of the store named in ``argv`` (default ``sys.argv[1:]``); 2 on bad input (one line on stderr)."""
     argv = sys.argv[1:] if argv is None else argv
-    if len(argv) != 1:
-        sys.stderr.write("table3_report: error: usage: table3_report.py STORE_DIR\n")
-        return 2
     try:
+        if len(argv) != 1 or argv[0].startswith("-"):
+            raise ConfigError("arguments", argv, "exactly one STORE_DIR, the folder `mpcde sweep ... --out STORE_DIR` wrote")
         text = render(cells(Path(argv[0])))
     except FileNotFoundError as e:
-        sys.stderr.write(f"table3_report: error: store={argv[0]!r}: no {MANIFEST} there, not a sweep folder ({e.filename})\n")
+        sys.stderr.write(f"table3_report: error: store={argv[0]!r}: no {Path(e.filename).name} there ({e.filename}): "
+                         "a folder `mpcde sweep` wrote, with at least one flight recorded\n")
         return 2
     except ConfigError as e:
         sys.stderr.write(f"table3_report: error: {e}\n")
@@ -161,8 +174,7 @@ def render(table: list[dict]) -> str:
                      f"{'' if paper is None else f'{paper:.1f}':>11}")  # fmt: skip
     lines.append("\nours against Zhou's, S_obs: measured (paper)")
     for di, density, ours, zhou in margins(table):
-        paper = PAPER[di][2] / PAPER[di][0] - 1
-        lines.append(f"  density {density:g}: {100 * (ours / zhou - 1):+.1f} % ({100 * paper:+.0f} %)")
+        lines.append(f"  density {density:g}: {100 * (ours / zhou - 1):+.1f} % ({paper_margin(di)})")
     lines.append("\npaired by seed, S_obs (Wilcoxon signed-rank, two-sided)")
     for a, b in PAIRS:
         for r in paired(table, a, b):
@@ -174,6 +186,14 @@ def render(table: list[dict]) -> str:
         if c["modes"] is not None:
             lines.append(f"  density {c['density']:g}, {METHODS[c['method']]}: " + " / ".join(f"{c['modes'][k]:.2f}" for k in MODES))
     return "\n".join(lines) + "\n"
+
+
+def paper_margin(density_index: int) -> str:
+    """The paper's ours-over-Zhou's S_obs margin at its ``density_index``-th density ("+17 %"), "-" past its three."""
+    if density_index not in PAPER:
+        return "-"
+    zhou, _, ours = PAPER[density_index]
+    return f"{100 * (ours / zhou - 1):+.0f} %"
 
 
 def margins(table: list[dict]) -> list[tuple[int, float, float, float]]:

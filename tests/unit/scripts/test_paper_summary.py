@@ -82,9 +82,11 @@ def test_table3_pairs_seeds_and_tests_them_against_the_exact_wilcoxon_distributi
 
 
 def test_table3_report_reads_the_store_as_mpcde_report_does(tmp_path, capsys):
-    """A last line cut short (a sweep still running, or a crash) is left out; a corrupt row, a folder without
-    sweep.json, a sweep without Table III's axes or a wrong argument count stop the script with one line on stderr,
-    exit status 2 and nothing on stdout; paper_summary refuses a corrupt store the same way."""
+    """A last line cut short (a sweep still running, or a crash) is left out. Bad input stops the script with one
+    line on stderr naming what is wrong, exit status 2 and nothing on stdout: wrong arguments, a folder without
+    sweep.json or without results.jsonl (a kept store still packed is named as such), a corrupt row, a sweep whose
+    axes are not Table III's, a flight without S_obs. paper_summary refuses a corrupt store the same way, leaves out
+    a store with no flight yet, and gives no row to a cell not flown."""
     store = _table3_store(tmp_path)
     whole = table3_report.cells(store)
     with open(store / "results.jsonl", "a") as f:
@@ -98,16 +100,49 @@ def test_table3_report_reads_the_store_as_mpcde_report_does(tmp_path, capsys):
         assert out == "" and err.startswith("table3_report: error: ") and err.count("\n") == 1, err
         assert all(n in err for n in needles), err
 
-    refused([], "usage")
+    refused([], "arguments=[]", "exactly one STORE_DIR")
+    refused([str(store), "x"], "arguments=[", "exactly one STORE_DIR")
+    refused(["-h"], "arguments=['-h']")
     refused([str(tmp_path / "nowhere")], "nowhere", "no sweep.json")
-    other = _write_store(tmp_path / "other", [["planner.cruise_speed_mps", [1.0]]], [])
-    refused([str(other)], "store=", "world.obstacle_density_per_100m2", "denied.yaw")
+    packed = _write_store(tmp_path / "packed", [], [])
+    (packed / "results.jsonl").rename(packed / "results.jsonl.gz")
+    refused([str(packed)], "results.jsonl.gz", "gunzip")
+    (packed / "results.jsonl.gz").unlink()
+    refused([str(packed)], "no results.jsonl", "at least one flight")
+    density = ["world.obstacle_density_per_100m2", [4.0]]
+    swapped, extra = [["denied.yaw", YAWS], density], [density, ["denied.yaw", YAWS], ["seed_offset", [0]]]
+    for i, axes in enumerate(([["planner.cruise_speed_mps", [1.0]]], swapped, extra)):
+        refused([str(_write_store(tmp_path / f"axes{i}", axes, []))], "sweep.axes=", "a Table III sweep")
+    no_area = _write_store(tmp_path / "no_area", [density, ["denied.yaw", YAWS]], [{"cell": 1, "seed": 4, "metrics": {"success": True}}])
+    refused([str(no_area)], "cell 1 seed 4: metrics=['observed_area_swarm_m2']")
     text = (store / "results.jsonl").read_text()
     (store / "results.jsonl").write_text(text.replace("\n", "\nnot json\n", 1))
     refused([str(store)], "store line 2", "corrupt")
     assert paper_summary.main([str(tmp_path)]) == 2
     out, err = capsys.readouterr()
     assert out == "" and err.startswith("paper_summary: error: store line 2=") and err.count("\n") == 1
+    assert paper_summary.main([str(tmp_path), "x"]) == 2 and "at most one RUNS_DIR" in capsys.readouterr().err
+    (store / "results.jsonl").unlink()  # no flight recorded yet: left out, said
+    assert paper_summary.main([str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "<!-- table3: " in out and "results.jsonl missing -->" in out and "| Table III" not in out
+    (store / "results.jsonl").write_text(text)
+    (tmp_path / "fig10").mkdir()
+    (tmp_path / "fig10" / "report.json").write_text("{not json")
+    assert paper_summary.main([str(tmp_path)]) == 2
+    assert capsys.readouterr().err.startswith(f"paper_summary: error: {tmp_path / 'fig10' / 'report.json'}=")
+
+
+def test_a_table3_cell_not_flown_yet_has_no_summary_row(tmp_path):
+    density = ["world.obstacle_density_per_100m2", [4.0, 8.0, 12.0, 16.0]]  # a fourth density, beyond the paper's three
+    rows = [{"cell": c, "seed": 0, "metrics": {"observed_area_swarm_m2": 100.0 + c, "success": True}} for c in (0, 3, 12, 15)]
+    _write_store(tmp_path / "table3", [density, ["denied.yaw", YAWS]], rows)
+    summary = paper_summary.table3(tmp_path)
+    assert [r.split(" | ")[0] for r in summary] == [
+        "| Table III, Zhou's [26], density 4", "| Table III, ours, density 4", "| Table III, Zhou's [26], density 16",
+        "| Table III, ours, density 16", "| Table III, ours against Zhou's, density 4", "| Table III, ours against Zhou's, density 16"]
+    assert summary[-1].startswith("| Table III, ours against Zhou's, density 16 | - | +2.7 % |")  # 115 / 112: no paper figure
+    assert "(-)" in table3_report.render(table3_report.cells(tmp_path / "table3"))
 
 
 def test_signed_rank_p_drops_equal_seeds_and_corrects_for_ties_in_closed_form():
