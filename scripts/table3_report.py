@@ -62,6 +62,8 @@ def cells(store: Path) -> list[dict]:
         raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes", names if names is not None else axes,
                           f"a Table III sweep: the axes {DENSITY_AXIS} then {YAW_AXIS}, each a list, and no other")
     densities, yaw_values = axes[0][1], axes[1][1]
+    if not all(_finite(d) for d in densities) or not all(isinstance(y, dict) for y in yaw_values):
+        raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes", axes, "densities as finite numbers and yaw settings as mappings")
     by_cell = _flights(results)
     out = []
     for di, density in enumerate(densities):
@@ -104,16 +106,40 @@ def read_store(folder: Path | str) -> ResultsStore:
 
 
 def _flights(results: ResultsStore) -> dict[int, list[dict]]:
-    """The store's flights that recorded metrics, by cell index (a store holds one row per cell and seed)."""
+    """The store's flights that recorded metrics, by cell index (a store holds one row per cell and seed); a row
+    whose fields this report reads are not what `mpcde sweep` writes is refused (ConfigError, one line)."""
     by_cell = defaultdict(list)
-    for r in results.rows():
-        if r.get("metrics"):
-            missing = [k for k in ("observed_area_swarm_m2", "success") if k not in r["metrics"]]
-            if missing:
-                raise ConfigError(f"store {results.path} cell {r['cell']} seed {r['seed']}: metrics", missing,
-                                  "a flight's observed_area_swarm_m2 and success (a flight of a package without S_obs?)")
-            by_cell[r["cell"]].append(r)
+    for line, r in enumerate(results.rows(), start=1):
+        where = f"store {results.path} line {line}"
+        for key in ("cell", "seed"):
+            if not isinstance(r[key], int) or isinstance(r[key], bool) or r[key] < 0:
+                raise ConfigError(f"{where}: {key}", r[key], "an integer >= 0")
+        m = r["metrics"]
+        if not m:
+            continue  # a failed flight (metrics null)
+        if not isinstance(m, dict):
+            raise ConfigError(f"{where}: metrics", m, "a mapping of the flight's metrics, or null for a failed flight")
+        missing = [k for k in ("observed_area_swarm_m2", "success") if k not in m]
+        if missing:
+            raise ConfigError(f"{where} (cell {r['cell']} seed {r['seed']}): metrics", missing,
+                              "a flight's observed_area_swarm_m2 and success (a flight of a package without S_obs?)")
+        if not _finite(m["observed_area_swarm_m2"]) or m["observed_area_swarm_m2"] < 0:
+            raise ConfigError(f"{where}: metrics.observed_area_swarm_m2", m["observed_area_swarm_m2"], "a finite area >= 0 [m^2]")
+        if not isinstance(m["success"], bool):
+            raise ConfigError(f"{where}: metrics.success", m["success"], "true or false")
+        agents = m.get("agents")
+        if agents is not None and not (isinstance(agents, list) and all(isinstance(a, dict) for a in agents)):
+            raise ConfigError(f"{where}: metrics.agents", agents, "a list of per-drone mappings")
+        fraction = (agents or [{}])[0].get("yaw_mode_fraction")
+        if fraction is not None and not (isinstance(fraction, dict) and all(_finite(fraction.get(k)) for k in MODES)):
+            raise ConfigError(f"{where}: metrics.agents[0].yaw_mode_fraction", fraction, f"null or a finite share for each of {', '.join(MODES)}")
+        by_cell[r["cell"]].append(r)
     return by_cell
+
+
+def _finite(x: object) -> bool:
+    """Whether ``x`` is a finite real number (not a bool)."""
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 def signed_rank_p(diff: list[float]) -> float | None:

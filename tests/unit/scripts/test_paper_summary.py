@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import math
 import shutil
@@ -10,6 +12,8 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 SCRIPTS = Path(__file__).resolve().parents[3] / "scripts"
 sys.path.insert(0, str(SCRIPTS))
@@ -114,7 +118,7 @@ def test_table3_report_reads_the_store_as_mpcde_report_does(tmp_path, capsys):
     for i, axes in enumerate(([["planner.cruise_speed_mps", [1.0]]], swapped, extra)):
         refused([str(_write_store(tmp_path / f"axes{i}", axes, []))], "sweep.axes=", "a Table III sweep")
     no_area = _write_store(tmp_path / "no_area", [density, ["denied.yaw", YAWS]], [{"cell": 1, "seed": 4, "metrics": {"success": True}}])
-    refused([str(no_area)], "cell 1 seed 4: metrics=['observed_area_swarm_m2']")
+    refused([str(no_area)], "line 1 (cell 1 seed 4): metrics=['observed_area_swarm_m2']")
     text = (store / "results.jsonl").read_text()
     (store / "results.jsonl").write_text(text.replace("\n", "\nnot json\n", 1))
     refused([str(store)], "store line 2", "corrupt")
@@ -131,6 +135,41 @@ def test_table3_report_reads_the_store_as_mpcde_report_does(tmp_path, capsys):
     (tmp_path / "fig10" / "report.json").write_text("{not json")
     assert paper_summary.main([str(tmp_path)]) == 2
     assert capsys.readouterr().err.startswith(f"paper_summary: error: {tmp_path / 'fig10' / 'report.json'}=")
+
+
+JSON = st.recursive(st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8),
+                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=6), inner, max_size=3), max_leaves=6)
+FIELDS = [("cell",), ("seed",), ("metrics",), ("metrics", "observed_area_swarm_m2"), ("metrics", "success"), ("metrics", "agents"),
+          ("metrics", "agents", 0), ("metrics", "agents", 0, "yaw_mode_fraction"), ("metrics", "agents", 0, "yaw_mode_fraction", "tracking")]
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(field=st.sampled_from(FIELDS), value=JSON, axis=st.booleans())
+def test_table3_report_answers_any_value_in_a_store_with_a_report_or_one_line(tmp_path_factory, field, value, axis):
+    """Property: whatever JSON value stands in one field a Table III report reads (a row's cell, seed or metrics, or
+    one axis value of the sweep), the script prints a report (exit 0) or one line on stderr (exit 2): never a
+    traceback, never both."""
+    root = tmp_path_factory.mktemp("prop")
+    axes = [["world.obstacle_density_per_100m2", [4.0, 8.0]], ["denied.yaw", list(YAWS)]]
+    share = {"exploring": 0.25, "observing": 0.0, "tracking": 0.75}
+    rows = [{"cell": c, "seed": 0, "metrics": {"observed_area_swarm_m2": 100.0 + c, "success": True, "agents": [{"yaw_mode_fraction": dict(share)}]}}
+            for c in range(8)]  # fmt: skip
+    if axis:
+        axes[len(field) % 2][1][0] = value
+    else:
+        target = rows[3]
+        for key in field[:-1]:
+            target = target[key]
+        target[field[-1]] = value
+    store = _write_store(root / "t3", axes, rows)
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = table3_report.main([str(store)])
+    if code == 0:
+        assert out.getvalue().startswith("density /100m^2") and err.getvalue() == ""
+    else:
+        assert code == 2 and out.getvalue() == "", err.getvalue()
+        assert err.getvalue().startswith("table3_report: error: ") and err.getvalue().count("\n") == 1, err.getvalue()
 
 
 def test_a_table3_cell_not_flown_yet_has_no_summary_row(tmp_path):
