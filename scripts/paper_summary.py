@@ -23,7 +23,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from table3_report import METHODS, cells, margins, paper_margin, read_store  # noqa: E402
+from table3_report import cells, label, margins, paper_margin, read_store  # noqa: E402
 
 from mpcde.errors import ConfigError  # noqa: E402
 
@@ -154,7 +154,7 @@ def table3(runs: Path) -> list[str]:
             continue
         paper = "-" if c["paper_s_obs_m2"] is None else f"{c['paper_s_obs_m2']:.1f} m^2"
         ours = f"{c['s_obs_mean_m2']:.1f} +- {c['s_obs_sd_m2']:.1f} m^2, success {c['successes']} of {c['flights']}"
-        rows.append(f"| Table III, {METHODS[c['method']]}, density {c['density']:g} | {paper} | {ours} | `mpcde sweep data/sweeps/table3_active_perception.yaml` | {commit} | {date} |")
+        rows.append(f"| Table III, {label(c['method'])}, density {c['density']:g} | {paper} | {ours} | `mpcde sweep data/sweeps/table3_active_perception.yaml` | {commit} | {date} |")
     for di, density, ours, zhou in margins(table):
         rows.append(f"| Table III, ours against Zhou's, density {density:g} | {paper_margin(di)} | {100 * (ours / zhou - 1):+.1f} % | (same) | {commit} | {date} |")
     return rows

@@ -2,7 +2,13 @@
 table3_fuel_range.yaml): S_obs (mean +- sd) and success per density and method, ours against Zhou's, beside the
 paper's figures; then the paper's two S_obs orderings tested seed by seed, and the share of yaw plans in each mode.
 
-Usage: .venv/bin/python scripts/table3_report.py STORE_DIR   (the store `mpcde sweep ... --out STORE_DIR` wrote)
+Usage: .venv/bin/python scripts/table3_report.py STORE_DIR [STORE_DIR ...]   (stores `mpcde sweep ... --out` wrote)
+
+Several stores are reported as one table when they are flights of one Table III: the same base scenario, overrides,
+densities and seeds (so a seed is the same forest in each), each (density, method) cell flown in one store only;
+e.g. a variant of ours flown in a sweep of its own beside the kept store of the other methods. A reading of Eq. 1's
+d_free other than the default (``free_distance``, in a method that reads it) is a method of its own
+("ours, d_free to occupied"), paired seed by seed with Zhou's, ours without exploring and ours.
 
 The store is read as `mpcde report` reads it (:class:`mpcde.sweep.store.ResultsStore`): a last line cut short by a
 crash is left out, so a sweep still running can be reported (a cell not flown yet shows 0 flights and nan). A folder
@@ -41,14 +47,23 @@ PAPER = {  # Table III, S_obs [m^2]: Zhou's, ours w/o exploring, ours; success i
 METHODS = {"zhou": "Zhou's [26]", "no_exploring": "ours w/o exploring", "no_tracking": "ours w/o tracking", "ours": "ours"}
 
 
+D_FREE = {"occupied": "d_free to occupied", "voxel": "d_free in 3-D"}  # Eq. 1's readings besides the default "horizontal"
+
+
 def method_of(yaw: dict) -> str:
+    """The method key of a ``denied.yaw`` axis value: a key of METHODS, or ``BASE/READING`` for a method of ours
+    flown with a reading of d_free other than the default (Zhou's reads no d_free)."""
     if yaw.get("method") == "zhou":
         return "zhou"
-    if yaw.get("exploring_mode") is False:
-        return "no_exploring"
-    if yaw.get("tracking_mode") is False:
-        return "no_tracking"
-    return "ours"
+    base = "no_exploring" if yaw.get("exploring_mode") is False else "no_tracking" if yaw.get("tracking_mode") is False else "ours"
+    reading = yaw.get("free_distance", "horizontal")
+    return base if reading == "horizontal" else f"{base}/{reading}"
+
+
+def label(method: str) -> str:
+    """The printed name of a method key (:func:`method_of`)."""
+    base, _, reading = method.partition("/")
+    return f"{METHODS[base]}, {D_FREE[reading]}" if reading else METHODS[base]
 
 
 def cells(store: Path) -> list[dict]:
@@ -64,6 +79,9 @@ def cells(store: Path) -> list[dict]:
     densities, yaw_values = axes[0][1], axes[1][1]
     if not all(_finite(d) for d in densities) or not all(isinstance(y, dict) for y in yaw_values):
         raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes", axes, "densities as finite numbers and yaw settings as mappings")
+    readings = [y.get("free_distance", "horizontal") for y in yaw_values]
+    if not all(isinstance(r, str) and r in ("horizontal", *D_FREE) for r in readings):
+        raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes denied.yaw free_distance", readings, f"one of horizontal, {', '.join(D_FREE)}")
     by_cell = _flights(results)
     out = []
     for di, density in enumerate(densities):
@@ -79,7 +97,7 @@ def cells(store: Path) -> list[dict]:
             paper = dict(zip(("zhou", "no_exploring", "ours"), PAPER.get(di, (None, None, None)))).get(m)  # the paper has 3 densities
             fractions = [f for r in rows if (f := (r["metrics"].get("agents") or [{}])[0].get("yaw_mode_fraction"))]
             modes = {k: sum(f[k] for f in fractions) / len(fractions) for k in MODES} if fractions else None
-            out.append({"density_index": di, "density": density, "method": m, "flights": n, "s_obs_mean_m2": mean, "s_obs_sd_m2": sd,
+            out.append({"store": str(store), "density_index": di, "density": density, "method": m, "flights": n, "s_obs_mean_m2": mean, "s_obs_sd_m2": sd,
                         "successes": ok, "success_low": lo, "success_high": hi, "paper_s_obs_m2": paper,
                         "area_by_seed": {r["seed"]: r["metrics"]["observed_area_swarm_m2"] for r in rows}, "modes": modes})  # fmt: skip
     return out
@@ -87,6 +105,35 @@ def cells(store: Path) -> list[dict]:
 
 MODES = ("exploring", "observing", "tracking")
 PAIRS = (("ours", "zhou"), ("ours", "no_exploring"))  # the paper's two orderings of S_obs: ours above each
+
+
+def merged_cells(stores: list[Path]) -> list[dict]:
+    """The cells (:func:`cells`) of several stores of one Table III, ordered by density (module docstring);
+    ConfigError when the stores differ in base, overrides, densities or seeds, or two fly the same cell."""
+    table: list[dict] = []
+    first = None
+    for store in stores:
+        part = cells(store)
+        spec = read_store(store).manifest["sweep"]
+        shared = {k: spec.get(k) for k in ("base", "overrides", "seeds")} | {"densities": [c["density"] for c in part if c["method"] == part[0]["method"]]}
+        if first is None:
+            first = shared
+        for key in shared:
+            if shared[key] != first[key]:
+                raise ConfigError(f"store {store}: {key}", shared[key], f"the {key} of {stores[0]}: stores reported together fly one Table III")
+        flown = {(c["density_index"], c["method"]) for c in table}
+        for c in part:
+            if (c["density_index"], c["method"]) in flown:
+                raise ConfigError(f"store {store}", f"{label(c['method'])} at density {c['density']:g}", "a cell no other store given flies")
+        table += part
+    return sorted(table, key=lambda c: c["density_index"])
+
+
+def pairs_of(table: list[dict]) -> list[tuple[str, str]]:
+    """The pairs the report tests: the paper's two orderings (PAIRS), then each variant of ours (another reading
+    of d_free) against Zhou's, ours without exploring and ours."""
+    variants = [m for m in dict.fromkeys(c["method"] for c in table) if m.startswith("ours/")]
+    return list(PAIRS) + [(v, b) for v in variants for b in ("zhou", "no_exploring", "ours")]
 
 
 DENSITY_AXIS, YAW_AXIS = "world.obstacle_density_per_100m2", "denied.yaw"
@@ -173,14 +220,15 @@ def paired(table: list[dict], a: str, b: str) -> list[dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Print the report of the store named in ``argv`` (default ``sys.argv[1:]``); 2 on bad input (one line on stderr)."""
+    """Print the report of the stores named in ``argv`` (default ``sys.argv[1:]``); 2 on bad input (one line on stderr)."""
     argv = sys.argv[1:] if argv is None else argv
     try:
-        if len(argv) != 1 or argv[0].startswith("-"):
-            raise ConfigError("arguments", argv, "exactly one STORE_DIR, the folder `mpcde sweep ... --out STORE_DIR` wrote")
-        text = render(cells(Path(argv[0])))
+        if not argv or any(a.startswith("-") for a in argv):
+            raise ConfigError("arguments", argv, "one or more STORE_DIR, folders `mpcde sweep ... --out STORE_DIR` wrote")
+        text = render(merged_cells([Path(a) for a in argv]))
     except FileNotFoundError as e:
-        sys.stderr.write(f"table3_report: error: store={argv[0]!r}: no {Path(e.filename).name} there ({e.filename}): "
+        store = str(Path(e.filename).parent)
+        sys.stderr.write(f"table3_report: error: store={store!r}: no {Path(e.filename).name} there ({e.filename}): "
                          "a folder `mpcde sweep` wrote, with at least one flight recorded\n")
         return 2
     except ConfigError as e:
@@ -192,25 +240,29 @@ def main(argv: list[str] | None = None) -> int:
 
 def render(table: list[dict]) -> str:
     """The report main() prints, as one string (the cell table, the margins, the paired tests, the modes)."""
-    lines = [f"{'density /100m^2':>15}  {'method':<20} {'flights':>7}  {'S_obs m^2 mean +- sd':>21}  {'success':>7}  {'95% CI':>9}  {'paper S_obs':>11}"]
+    w = max([20] + [len(label(c["method"])) for c in table])  # the method column: 20 unless a variant's name is longer
+    lines = [f"{'density /100m^2':>15}  {'method':<{w}} {'flights':>7}  {'S_obs m^2 mean +- sd':>21}  {'success':>7}  {'95% CI':>9}  {'paper S_obs':>11}"]
     for c in table:
         n, paper = c["flights"], c["paper_s_obs_m2"]
-        lines.append(f"{c['density']:>15g}  {METHODS[c['method']]:<20} {n:>7d}  {c['s_obs_mean_m2']:>12.1f} +- {c['s_obs_sd_m2']:>5.1f}  "
+        lines.append(f"{c['density']:>15g}  {label(c['method']):<{w}} {n:>7d}  {c['s_obs_mean_m2']:>12.1f} +- {c['s_obs_sd_m2']:>5.1f}  "
                      f"{100 * c['successes'] / max(n, 1):>6.0f}%  {100 * c['success_low']:>3.0f}-{100 * c['success_high']:<3.0f}%  "
                      f"{'' if paper is None else f'{paper:.1f}':>11}")  # fmt: skip
     lines.append("\nours against Zhou's, S_obs: measured (paper)")
     for di, density, ours, zhou in margins(table):
         lines.append(f"  density {density:g}: {100 * (ours / zhou - 1):+.1f} % ({paper_margin(di)})")
+    for variant in [a for a, b in pairs_of(table)[len(PAIRS):] if b == "zhou"]:
+        for di, density, ours, zhou in margins(table, variant):
+            lines.append(f"  density {density:g}, {label(variant)}: {100 * (ours / zhou - 1):+.1f} % ({paper_margin(di)})")
     lines.append("\npaired by seed, S_obs (Wilcoxon signed-rank, two-sided)")
-    for a, b in PAIRS:
+    for a, b in pairs_of(table):
         for r in paired(table, a, b):
             p = "-" if r["p"] is None else f"{r['p']:.2g}"
-            lines.append(f"  density {r['density']:g}: {METHODS[a]} - {METHODS[b]}: mean {r['mean_diff_m2']:+.1f} m^2, "
-                         f"{METHODS[a]} larger on {r['a_larger']} of {r['seeds']}, equal on {r['equal']}, p = {p}")  # fmt: skip
+            lines.append(f"  density {r['density']:g}: {label(a)} - {label(b)}: mean {r['mean_diff_m2']:+.1f} m^2, "
+                         f"{label(a)} larger on {r['a_larger']} of {r['seeds']}, equal on {r['equal']}, p = {p}")  # fmt: skip
     lines.append("\nmean share of yaw plans per mode (exploring / observing / tracking)")
     for c in table:
         if c["modes"] is not None:
-            lines.append(f"  density {c['density']:g}, {METHODS[c['method']]}: " + " / ".join(f"{c['modes'][k]:.2f}" for k in MODES))
+            lines.append(f"  density {c['density']:g}, {label(c['method'])}: " + " / ".join(f"{c['modes'][k]:.2f}" for k in MODES))
     return "\n".join(lines) + "\n"
 
 
@@ -222,14 +274,14 @@ def paper_margin(density_index: int) -> str:
     return f"{100 * (ours / zhou - 1):+.0f} %"
 
 
-def margins(table: list[dict]) -> list[tuple[int, float, float, float]]:
-    """(density index, density, ours' mean S_obs, Zhou's) for every density where both were flown."""
+def margins(table: list[dict], method: str = "ours") -> list[tuple[int, float, float, float]]:
+    """(density index, density, ``method``'s mean S_obs, Zhou's) for every density where both were flown."""
     mean = {(c["density_index"], c["method"]): c["s_obs_mean_m2"] for c in table if c["flights"]}
     out = []
     for c in table:
         di = c["density_index"]
-        if c["method"] == "ours" and (di, "ours") in mean and (di, "zhou") in mean:
-            out.append((di, c["density"], mean[(di, "ours")], mean[(di, "zhou")]))
+        if c["method"] == method and (di, method) in mean and (di, "zhou") in mean:
+            out.append((di, c["density"], mean[(di, method)], mean[(di, "zhou")]))
     return out
 
 

@@ -23,11 +23,12 @@ import table3_report  # noqa: E402
 REV = "0" * 40
 
 
-def _write_store(folder: Path, axes: list, rows: list[dict]) -> Path:
+def _write_store(folder: Path, axes: list, rows: list[dict], overrides: dict | None = None) -> Path:
     """A sweep store as `mpcde sweep` writes it: sweep.json with its digest, results.jsonl with every row key
     (``rows`` give cell, seed and metrics; a row without metrics is a failed flight)."""
     folder.mkdir(parents=True)
-    (folder / "sweep.json").write_text(json.dumps({"digest": "d" * 16, "sweep": {"axes": axes}}))
+    sweep = {"axes": axes, "base": {"name": "forest_dense"}, "overrides": overrides or {}, "seeds": [0, 1]}
+    (folder / "sweep.json").write_text(json.dumps({"digest": "d" * 16, "sweep": sweep}))
     full = [{"values": {}, "status": "ok" if r.get("metrics") else "failed", "error": None if r.get("metrics") else "x",
              "metrics": None, "wall_s": 1.0, "version": "0", "git_rev": REV, **r} for r in rows]  # fmt: skip
     (folder / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in full))
@@ -104,8 +105,8 @@ def test_table3_report_reads_the_store_as_mpcde_report_does(tmp_path, capsys):
         assert out == "" and err.startswith("table3_report: error: ") and err.count("\n") == 1, err
         assert all(n in err for n in needles), err
 
-    refused([], "arguments=[]", "exactly one STORE_DIR")
-    refused([str(store), "x"], "arguments=[", "exactly one STORE_DIR")
+    refused([], "arguments=[]", "one or more STORE_DIR")
+    refused([str(store), str(tmp_path / "x")], "x", "no sweep.json")
     refused(["-h"], "arguments=['-h']")
     refused([str(tmp_path / "nowhere")], "nowhere", "no sweep.json")
     packed = _write_store(tmp_path / "packed", [], [])
@@ -170,6 +171,39 @@ def test_table3_report_answers_any_value_in_a_store_with_a_report_or_one_line(tm
     else:
         assert code == 2 and out.getvalue() == "", err.getvalue()
         assert err.getvalue().startswith("table3_report: error: ") and err.getvalue().count("\n") == 1, err.getvalue()
+
+
+def test_a_variant_of_ours_in_a_store_of_its_own_is_reported_and_paired_with_the_other_stores_cells(tmp_path, capsys):
+    """Ours with Eq. 1's d_free read to the nearest occupied cell, flown in a sweep of its own, is a method of its
+    own: one table with the first store's cells, a margin over Zhou's, and paired by seed with Zhou's, ours
+    without exploring and ours. Stores of different scenarios, or two stores flying one cell, are refused."""
+    first = _table3_store(tmp_path)  # density 4: Zhou's 500 / 520, w/o exploring 400 / 410, ours 440 / 460
+    density = ["world.obstacle_density_per_100m2", [4.0]]
+    variant = {"method": "mpcde", "free_distance": "occupied"}
+    rows = [{"cell": 0, "seed": seed, "metrics": {"observed_area_swarm_m2": area, "success": True}} for seed, area in ((0, 530.0), (1, 515.0))]
+    second = _write_store(tmp_path / "occupied", [density, ["denied.yaw", [variant]]], rows)
+    table = table3_report.merged_cells([first, second])
+    assert [c["method"] for c in table] == ["zhou", "no_exploring", "no_tracking", "ours", "ours/occupied"]
+    assert table3_report.main([str(first), str(second)]) == 0
+    out = capsys.readouterr().out
+    rows_printed = out.split("\n\n")[0].splitlines()
+    assert rows_printed[4].startswith("              4  ours                           2         450.0 +-  14.1      50%")  # the column widens
+    assert rows_printed[5].startswith("              4  ours, d_free to occupied       2         522.5 +-  10.6     100%")
+    assert "  density 4, ours, d_free to occupied: +2.5 % (+17 %)\n" in out  # 522.5 / 510
+    assert "  density 4: ours, d_free to occupied - Zhou's [26]: mean +12.5 m^2, ours, d_free to occupied larger on 1 of 2, equal on 0, p = 1\n" in out
+    assert "  density 4: ours, d_free to occupied - ours: mean +72.5 m^2" in out
+    assert table3_report.render(table3_report.merged_cells([first])) == table3_report.render(table3_report.cells(first))
+
+    def refused(argv: list[str], *needles: str) -> None:
+        assert table3_report.main(argv) == 2
+        out, err = capsys.readouterr()
+        assert out == "" and err.count("\n") == 1 and all(n in err for n in needles), err
+
+    refused([str(first), str(first)], "Zhou's [26] at density 4", "a cell no other store given flies")
+    other = _write_store(tmp_path / "other_range", [density, ["denied.yaw", [variant]]], rows, overrides={"camera.depth_max_m": 4.5})
+    refused([str(first), str(other)], "overrides=", "stores reported together fly one Table III")
+    odd = _write_store(tmp_path / "odd", [density, ["denied.yaw", [{"free_distance": "sideways"}]]], rows)
+    refused([str(odd)], "free_distance=['sideways']", "one of horizontal, occupied, voxel")
 
 
 def test_a_table3_cell_not_flown_yet_has_no_summary_row(tmp_path):
