@@ -105,9 +105,11 @@ class YawPlannerConfig:
             or ``"occupied"`` (in the same slab, to the nearest occupied cell:
             the paper's literal "ESDF value of the map", unknown space counting
             as free while tau_s still ends where verified-free space does); see
-            :mod:`planners.yaw.safety`. ``"occupied"`` is not the default: on a
-            9-flight spot check of Table III it did not lift the observed area
-            to Zhou's (docs/results/mp-cde.md).
+            :mod:`planners.yaw.safety`. ``"occupied"`` is not the default: it
+            lets the camera leave the path while unobserved space is near,
+            and a new default would change every denied flight of record.
+            What each reading measured on Table III: docs/results/mp-cde.md
+            ("Ours with d_free to the nearest occupied cell, at 4.5 m").
         free_slab_half_height_m: half height [m] of the altitude slab of
             ``"horizontal"`` (chosen: 0.3 m, two voxels either side: the
             drone's height plus its altitude tracking error).
