@@ -6,9 +6,10 @@ Usage: .venv/bin/python scripts/table3_report.py STORE_DIR [STORE_DIR ...]   (st
 
 Several stores are reported as one table when they are flights of one Table III: the same base scenario, overrides,
 densities and seeds (so a seed is the same forest in each), each (density, method) cell flown in one store only;
-e.g. a variant of ours flown in a sweep of its own beside the kept store of the other methods. A reading of Eq. 1's
-d_free other than the default (``free_distance``, in a method that reads it) is a method of its own
-("ours, d_free to occupied"), paired seed by seed with Zhou's, ours without exploring and ours.
+the report then ends with each store's name and the revisions its flights recorded. A reading of Eq. 1's d_free
+other than the default (``free_distance``) makes a method of its own ("ours, d_free to occupied"; every method
+reads S(0), which triggers replans). The paper's orderings are tested within one reading (ours with a reading
+against Zhou's and ours without exploring with the same reading), and ours with a reading against ours.
 
 The store is read as `mpcde report` reads it (:class:`mpcde.sweep.store.ResultsStore`): a last line cut short by a
 crash is left out, so a sweep still running can be reported (a cell not flown yet shows 0 flights and nan). A folder
@@ -51,11 +52,11 @@ D_FREE = {"occupied": "d_free to occupied", "voxel": "d_free in 3-D"}  # Eq. 1's
 
 
 def method_of(yaw: dict) -> str:
-    """The method key of a ``denied.yaw`` axis value: a key of METHODS, or ``BASE/READING`` for a method of ours
-    flown with a reading of d_free other than the default (Zhou's reads no d_free)."""
-    if yaw.get("method") == "zhou":
-        return "zhou"
-    base = "no_exploring" if yaw.get("exploring_mode") is False else "no_tracking" if yaw.get("tracking_mode") is False else "ours"
+    """The method key of a ``denied.yaw`` axis value: a key of METHODS, or ``BASE/READING`` for a method flown with a
+    reading of Eq. 1's d_free other than the default. Every method computes S(0) with its reading, and S(0) < tau_thr
+    triggers a replan in each (Alg. 1 line 13), so a reading makes a method of its own, Zhou's included."""
+    base = "zhou" if yaw.get("method") == "zhou" else "no_exploring" if yaw.get("exploring_mode") is False else (
+        "no_tracking" if yaw.get("tracking_mode") is False else "ours")
     reading = yaw.get("free_distance", "horizontal")
     return base if reading == "horizontal" else f"{base}/{reading}"
 
@@ -79,10 +80,18 @@ def cells(store: Path) -> list[dict]:
     densities, yaw_values = axes[0][1], axes[1][1]
     if not all(_finite(d) for d in densities) or not all(isinstance(y, dict) for y in yaw_values):
         raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes", axes, "densities as finite numbers and yaw settings as mappings")
+    if len(set(densities)) < len(densities):
+        raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes[0][1]", densities, "each density once")
     readings = [y.get("free_distance", "horizontal") for y in yaw_values]
     if not all(isinstance(r, str) and r in ("horizontal", *D_FREE) for r in readings):
-        raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes denied.yaw free_distance", readings, f"one of horizontal, {', '.join(D_FREE)}")
-    by_cell = _flights(results)
+        raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes[1][1] free_distance", readings, f"one of horizontal, {', '.join(D_FREE)}")
+    kinds = [y.get("method", "mpcde") for y in yaw_values]
+    if not all(k in ("mpcde", "zhou") for k in kinds):
+        raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes[1][1] method", kinds, "mpcde or zhou: the methods of Table III")
+    methods = [method_of(y) for y in yaw_values]
+    if len(set(methods)) < len(methods):
+        raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes[1][1]", [label(m) for m in methods], "each method once per density")
+    by_cell = _flights(results, len(densities) * len(yaw_values), results.manifest["sweep"].get("seeds"))
     out = []
     for di, density in enumerate(densities):
         for mi, yaw in enumerate(yaw_values):
@@ -97,7 +106,7 @@ def cells(store: Path) -> list[dict]:
             paper = dict(zip(("zhou", "no_exploring", "ours"), PAPER.get(di, (None, None, None)))).get(m)  # the paper has 3 densities
             fractions = [f for r in rows if (f := (r["metrics"].get("agents") or [{}])[0].get("yaw_mode_fraction"))]
             modes = {k: sum(f[k] for f in fractions) / len(fractions) for k in MODES} if fractions else None
-            out.append({"store": str(store), "density_index": di, "density": density, "method": m, "flights": n, "s_obs_mean_m2": mean, "s_obs_sd_m2": sd,
+            out.append({"store": Path(store).name, "revisions": sorted({str(r["git_rev"])[:7] for r in rows}), "density_index": di, "density": density, "method": m, "flights": n, "s_obs_mean_m2": mean, "s_obs_sd_m2": sd,
                         "successes": ok, "success_low": lo, "success_high": hi, "paper_s_obs_m2": paper,
                         "area_by_seed": {r["seed"]: r["metrics"]["observed_area_swarm_m2"] for r in rows}, "modes": modes})  # fmt: skip
     return out
@@ -108,32 +117,49 @@ PAIRS = (("ours", "zhou"), ("ours", "no_exploring"))  # the paper's two ordering
 
 
 def merged_cells(stores: list[Path]) -> list[dict]:
-    """The cells (:func:`cells`) of several stores of one Table III, ordered by density (module docstring);
-    ConfigError when the stores differ in base, overrides, densities or seeds, or two fly the same cell."""
+    """The cells (:func:`cells`) of several stores of one Table III, ordered by density, then method (METHODS'
+    order, the default reading first); ConfigError when a store is given twice, the stores differ in base, overrides,
+    densities or seeds, or two fly the same cell (module docstring)."""
+    folders = [Path(s).resolve() for s in stores]
+    if len(set(folders)) < len(folders):
+        raise ConfigError("arguments", [str(s) for s in stores], "each store once")
     table: list[dict] = []
     first = None
     for store in stores:
         part = cells(store)
         spec = read_store(store).manifest["sweep"]
-        shared = {k: spec.get(k) for k in ("base", "overrides", "seeds")} | {"densities": [c["density"] for c in part if c["method"] == part[0]["method"]]}
+        shared = {f"sweep.{k}": spec.get(k) for k in ("base", "overrides", "seeds")}
+        shared["sweep.axes[0][1]"] = list(dict.fromkeys(c["density"] for c in part))
         if first is None:
             first = shared
         for key in shared:
             if shared[key] != first[key]:
-                raise ConfigError(f"store {store}: {key}", shared[key], f"the {key} of {stores[0]}: stores reported together fly one Table III")
-        flown = {(c["density_index"], c["method"]) for c in table}
+                raise ConfigError(f"store {store}: {key}", shared[key], f"the same as in {stores[0]}: stores reported together fly one Table III")
+        flown = {(c["density_index"], c["method"]): c["store"] for c in table}
         for c in part:
             if (c["density_index"], c["method"]) in flown:
-                raise ConfigError(f"store {store}", f"{label(c['method'])} at density {c['density']:g}", "a cell no other store given flies")
+                raise ConfigError(f"store {store}: sweep.axes[1][1]", label(c["method"]), f"a method {flown[(c['density_index'], c['method'])]} does not fly too")
         table += part
-    return sorted(table, key=lambda c: c["density_index"])
+    order = list(METHODS)
+    readings = ["horizontal", *D_FREE]
+
+    def key(c: dict) -> tuple[int, int, int]:
+        base, _, reading = c["method"].partition("/")
+        return c["density_index"], readings.index(reading or "horizontal"), order.index(base)
+
+    return sorted(table, key=key)
 
 
 def pairs_of(table: list[dict]) -> list[tuple[str, str]]:
-    """The pairs the report tests: the paper's two orderings (PAIRS), then each variant of ours (another reading
-    of d_free) against Zhou's, ours without exploring and ours."""
-    variants = [m for m in dict.fromkeys(c["method"] for c in table) if m.startswith("ours/")]
-    return list(PAIRS) + [(v, b) for v in variants for b in ("zhou", "no_exploring", "ours")]
+    """The pairs the report tests: the paper's two orderings of S_obs (PAIRS, ours above Zhou's and above ours
+    without exploring) within each reading of d_free present, the default first; then ours with each other reading
+    against ours with the default. Methods flown under different readings are not compared otherwise."""
+    present = set(c["method"] for c in table)
+    out = list(PAIRS)
+    for reading in D_FREE:
+        if f"ours/{reading}" in present:
+            out += [(f"{a}/{reading}", f"{b}/{reading}") for a, b in PAIRS] + [(f"ours/{reading}", "ours")]
+    return out
 
 
 DENSITY_AXIS, YAW_AXIS = "world.obstacle_density_per_100m2", "denied.yaw"
@@ -152,18 +178,23 @@ def read_store(folder: Path | str) -> ResultsStore:
     return ResultsStore.read(folder)
 
 
-def _flights(results: ResultsStore) -> dict[int, list[dict]]:
+def _flights(results: ResultsStore, n_cells: int, seeds: object) -> dict[int, list[dict]]:
     """The store's flights that recorded metrics, by cell index (a store holds one row per cell and seed); a row
-    whose fields this report reads are not what `mpcde sweep` writes is refused (ConfigError, one line)."""
+    whose fields this report reads are not what `mpcde sweep` writes for this sweep (``n_cells`` cells, ``seeds``)
+    is refused (ConfigError, one line)."""
     by_cell = defaultdict(list)
     for line, r in enumerate(results.rows(), start=1):
         where = f"store {results.path} line {line}"
         for key in ("cell", "seed"):
             if not isinstance(r[key], int) or isinstance(r[key], bool) or r[key] < 0:
                 raise ConfigError(f"{where}: {key}", r[key], "an integer >= 0")
+        if r["cell"] >= n_cells:
+            raise ConfigError(f"{where}: cell", r["cell"], f"a cell of the sweep, < {n_cells}")
+        if isinstance(seeds, list) and r["seed"] not in seeds:
+            raise ConfigError(f"{where}: seed", r["seed"], "a seed the sweep names (sweep.seeds)")
         m = r["metrics"]
-        if not m:
-            continue  # a failed flight (metrics null)
+        if m is None:
+            continue  # a failed flight
         if not isinstance(m, dict):
             raise ConfigError(f"{where}: metrics", m, "a mapping of the flight's metrics, or null for a failed flight")
         missing = [k for k in ("observed_area_swarm_m2", "success") if k not in m]
@@ -178,8 +209,8 @@ def _flights(results: ResultsStore) -> dict[int, list[dict]]:
         if agents is not None and not (isinstance(agents, list) and all(isinstance(a, dict) for a in agents)):
             raise ConfigError(f"{where}: metrics.agents", agents, "a list of per-drone mappings")
         fraction = (agents or [{}])[0].get("yaw_mode_fraction")
-        if fraction is not None and not (isinstance(fraction, dict) and all(_finite(fraction.get(k)) for k in MODES)):
-            raise ConfigError(f"{where}: metrics.agents[0].yaw_mode_fraction", fraction, f"null or a finite share for each of {', '.join(MODES)}")
+        if fraction is not None and not (isinstance(fraction, dict) and all(_finite(fraction.get(k)) and 0 <= fraction[k] <= 1 for k in MODES)):
+            raise ConfigError(f"{where}: metrics.agents[0].yaw_mode_fraction", fraction, f"null or a share in [0, 1] for each of {', '.join(MODES)}")
         by_cell[r["cell"]].append(r)
     return by_cell
 
@@ -250,9 +281,9 @@ def render(table: list[dict]) -> str:
     lines.append("\nours against Zhou's, S_obs: measured (paper)")
     for di, density, ours, zhou in margins(table):
         lines.append(f"  density {density:g}: {100 * (ours / zhou - 1):+.1f} % ({paper_margin(di)})")
-    for variant in [a for a, b in pairs_of(table)[len(PAIRS):] if b == "zhou"]:
-        for di, density, ours, zhou in margins(table, variant):
-            lines.append(f"  density {density:g}, {label(variant)}: {100 * (ours / zhou - 1):+.1f} % ({paper_margin(di)})")
+    for reading in D_FREE:
+        for di, density, ours, zhou in margins(table, f"ours/{reading}", f"zhou/{reading}"):
+            lines.append(f"  density {density:g}, both {D_FREE[reading]}: {100 * (ours / zhou - 1):+.1f} % ({paper_margin(di)})")
     lines.append("\npaired by seed, S_obs (Wilcoxon signed-rank, two-sided)")
     for a, b in pairs_of(table):
         for r in paired(table, a, b):
@@ -263,6 +294,11 @@ def render(table: list[dict]) -> str:
     for c in table:
         if c["modes"] is not None:
             lines.append(f"  density {c['density']:g}, {label(c['method'])}: " + " / ".join(f"{c['modes'][k]:.2f}" for k in MODES))
+    stores = {}
+    for c in table:
+        stores.setdefault(c["store"], set()).update(c["revisions"])
+    if len(stores) > 1:  # several stores in one table: say which flights were flown at which revision
+        lines.append("\nstores (the revisions their flights recorded): " + ", ".join(f"{name} ({', '.join(sorted(revs)) or '-'})" for name, revs in stores.items()))
     return "\n".join(lines) + "\n"
 
 
@@ -274,14 +310,14 @@ def paper_margin(density_index: int) -> str:
     return f"{100 * (ours / zhou - 1):+.0f} %"
 
 
-def margins(table: list[dict], method: str = "ours") -> list[tuple[int, float, float, float]]:
-    """(density index, density, ``method``'s mean S_obs, Zhou's) for every density where both were flown."""
+def margins(table: list[dict], method: str = "ours", against: str = "zhou") -> list[tuple[int, float, float, float]]:
+    """(density index, density, ``method``'s mean S_obs, ``against``'s) for every density where both were flown."""
     mean = {(c["density_index"], c["method"]): c["s_obs_mean_m2"] for c in table if c["flights"]}
     out = []
     for c in table:
         di = c["density_index"]
-        if c["method"] == method and (di, method) in mean and (di, "zhou") in mean:
-            out.append((di, c["density"], mean[(di, method)], mean[(di, "zhou")]))
+        if c["method"] == method and (di, method) in mean and (di, against) in mean:
+            out.append((di, c["density"], mean[(di, method)], mean[(di, against)]))
     return out
 
 

@@ -214,8 +214,12 @@ class YawPlannerConfig:
             unknown space in view, under the yaw-rate limit). Implemented as
             the same lattice (n, m, rate limit, turn penalty) whose edge reward
             is only the unknown area in view (Eq. 3 without the coverage window
-            W), always: no safety metric, no tracking or observing mode, no
-            neighbour visibility term. ``"spin"`` (not in MP-CDE): the camera
+            W), always: the safety metric chooses no mode (no tracking or
+            observing mode), no neighbour visibility term. S(0) is still
+            computed, with ``free_distance``'s reading, for the replanning
+            trigger of Alg. 1 line 13, which the agent applies to every method
+            (so Zhou's replans as often as ours would at the same S(0)).
+            ``"spin"`` (not in MP-CDE): the camera
             turns counter-clockwise at ``yaw_rate_max_radps`` in every
             situation, whatever the map, the tracks or S(0) say (mode
             ``"spinning"``; S(0) is still computed for Alg. 1 line 13's

@@ -27,7 +27,7 @@ def _write_store(folder: Path, axes: list, rows: list[dict], overrides: dict | N
     """A sweep store as `mpcde sweep` writes it: sweep.json with its digest, results.jsonl with every row key
     (``rows`` give cell, seed and metrics; a row without metrics is a failed flight)."""
     folder.mkdir(parents=True)
-    sweep = {"axes": axes, "base": {"name": "forest_dense"}, "overrides": overrides or {}, "seeds": [0, 1]}
+    sweep = {"axes": axes, "base": {"name": "forest_dense"}, "overrides": overrides or {}, "seeds": list(range(10))}
     (folder / "sweep.json").write_text(json.dumps({"digest": "d" * 16, "sweep": sweep}))
     full = [{"values": {}, "status": "ok" if r.get("metrics") else "failed", "error": None if r.get("metrics") else "x",
              "metrics": None, "wall_s": 1.0, "version": "0", "git_rev": REV, **r} for r in rows]  # fmt: skip
@@ -138,8 +138,9 @@ def test_table3_report_reads_the_store_as_mpcde_report_does(tmp_path, capsys):
     assert capsys.readouterr().err.startswith(f"paper_summary: error: {tmp_path / 'fig10' / 'report.json'}=")
 
 
-JSON = st.recursive(st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8),
-                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=6), inner, max_size=3), max_leaves=6)
+KEYS = st.sampled_from(["method", "free_distance", "exploring_mode", "tracking_mode", "exploring", "tracking", "zhou", "occupied"]) | st.text(max_size=6)
+JSON = st.recursive(st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8) | st.sampled_from(["zhou", "mpcde", "occupied", "voxel"]),
+                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(KEYS, inner, max_size=3), max_leaves=6)
 FIELDS = [("cell",), ("seed",), ("metrics",), ("metrics", "observed_area_swarm_m2"), ("metrics", "success"), ("metrics", "agents"),
           ("metrics", "agents", 0), ("metrics", "agents", 0, "yaw_mode_fraction"), ("metrics", "agents", 0, "yaw_mode_fraction", "tracking")]
 
@@ -173,25 +174,38 @@ def test_table3_report_answers_any_value_in_a_store_with_a_report_or_one_line(tm
         assert err.getvalue().startswith("table3_report: error: ") and err.getvalue().count("\n") == 1, err.getvalue()
 
 
-def test_a_variant_of_ours_in_a_store_of_its_own_is_reported_and_paired_with_the_other_stores_cells(tmp_path, capsys):
-    """Ours with Eq. 1's d_free read to the nearest occupied cell, flown in a sweep of its own, is a method of its
-    own: one table with the first store's cells, a margin over Zhou's, and paired by seed with Zhou's, ours
-    without exploring and ours. Stores of different scenarios, or two stores flying one cell, are refused."""
+def test_methods_under_another_reading_of_d_free_are_paired_within_their_reading(tmp_path, capsys):
+    """Ours and Zhou's with Eq. 1's d_free read to the nearest occupied cell, flown in stores of their own, are
+    methods of their own (every method's S(0) triggers replans): one table with the first store's cells, ordered by
+    density then method; the margin and the paper's orderings are tested within one reading, and ours with the
+    reading against ours with the default; the stores and their revisions close the report. Stores of different
+    scenarios, a store given twice, two stores flying one cell, a method flown twice in one store and methods
+    outside Table III are refused."""
     first = _table3_store(tmp_path)  # density 4: Zhou's 500 / 520, w/o exploring 400 / 410, ours 440 / 460
     density = ["world.obstacle_density_per_100m2", [4.0]]
-    variant = {"method": "mpcde", "free_distance": "occupied"}
-    rows = [{"cell": 0, "seed": seed, "metrics": {"observed_area_swarm_m2": area, "success": True}} for seed, area in ((0, 530.0), (1, 515.0))]
-    second = _write_store(tmp_path / "occupied", [density, ["denied.yaw", [variant]]], rows)
-    table = table3_report.merged_cells([first, second])
-    assert [c["method"] for c in table] == ["zhou", "no_exploring", "no_tracking", "ours", "ours/occupied"]
-    assert table3_report.main([str(first), str(second)]) == 0
+    ours_occ, zhou_occ = {"method": "mpcde", "free_distance": "occupied"}, {"method": "zhou", "free_distance": "occupied"}
+
+    def flights(cell: int, areas: tuple[float, float]) -> list[dict]:
+        return [{"cell": cell, "seed": seed, "metrics": {"observed_area_swarm_m2": a, "success": True}} for seed, a in enumerate(areas)]
+
+    second = _write_store(tmp_path / "occupied", [density, ["denied.yaw", [ours_occ]]], flights(0, (530.0, 515.0)))
+    third = _write_store(tmp_path / "zhou_occupied", [density, ["denied.yaw", [zhou_occ]]], flights(0, (490.0, 500.0)))
+    table = table3_report.merged_cells([third, second, first])  # any order: the table's is density, reading, method
+    assert [c["method"] for c in table] == ["zhou", "no_exploring", "no_tracking", "ours", "zhou/occupied", "ours/occupied"]
+    assert table3_report.pairs_of(table) == [("ours", "zhou"), ("ours", "no_exploring"), ("ours/occupied", "zhou/occupied"),
+                                             ("ours/occupied", "no_exploring/occupied"), ("ours/occupied", "ours")]  # fmt: skip
+    assert table3_report.main([str(first), str(second), str(third)]) == 0
     out = capsys.readouterr().out
-    rows_printed = out.split("\n\n")[0].splitlines()
-    assert rows_printed[4].startswith("              4  ours                           2         450.0 +-  14.1      50%")  # the column widens
-    assert rows_printed[5].startswith("              4  ours, d_free to occupied       2         522.5 +-  10.6     100%")
-    assert "  density 4, ours, d_free to occupied: +2.5 % (+17 %)\n" in out  # 522.5 / 510
-    assert "  density 4: ours, d_free to occupied - Zhou's [26]: mean +12.5 m^2, ours, d_free to occupied larger on 1 of 2, equal on 0, p = 1\n" in out
+    printed = out.split("\n\n")[0].splitlines()
+    w = len("Zhou's [26], d_free to occupied")  # the method column widens to the longest name
+    assert printed[4].startswith(f"{4:>15}  {'ours':<{w}} {2:>7}  {450.0:>12.1f} +- {14.1:>5.1f}      50%")
+    assert printed[5].startswith(f"{4:>15}  {'Zhou' + chr(39) + 's [26], d_free to occupied':<{w}} {2:>7}  {495.0:>12.1f} +- {7.1:>5.1f}     100%")
+    assert printed[6].startswith(f"{4:>15}  {'ours, d_free to occupied':<{w}} {2:>7}  {522.5:>12.1f} +- {10.6:>5.1f}     100%")
+    assert "  density 4, both d_free to occupied: +5.6 % (+17 %)\n" in out  # 522.5 / 495
+    assert "  density 4: ours, d_free to occupied - Zhou's [26], d_free to occupied: mean +27.5 m^2," in out
     assert "  density 4: ours, d_free to occupied - ours: mean +72.5 m^2" in out
+    assert "ours, d_free to occupied - Zhou's [26]:" not in out  # no pair across readings but ours against ours
+    assert out.endswith("\nstores (the revisions their flights recorded): table3 (0000000), zhou_occupied (0000000), occupied (0000000)\n")
     assert table3_report.render(table3_report.merged_cells([first])) == table3_report.render(table3_report.cells(first))
 
     def refused(argv: list[str], *needles: str) -> None:
@@ -199,11 +213,19 @@ def test_a_variant_of_ours_in_a_store_of_its_own_is_reported_and_paired_with_the
         out, err = capsys.readouterr()
         assert out == "" and err.count("\n") == 1 and all(n in err for n in needles), err
 
-    refused([str(first), str(first)], "Zhou's [26] at density 4", "a cell no other store given flies")
-    other = _write_store(tmp_path / "other_range", [density, ["denied.yaw", [variant]]], rows, overrides={"camera.depth_max_m": 4.5})
-    refused([str(first), str(other)], "overrides=", "stores reported together fly one Table III")
-    odd = _write_store(tmp_path / "odd", [density, ["denied.yaw", [{"free_distance": "sideways"}]]], rows)
+    refused([str(first), str(tmp_path / "table3" / ".")], "arguments=", "each store once")
+    again = _write_store(tmp_path / "again", [density, ["denied.yaw", [ours_occ]]], flights(0, (1.0, 2.0)))
+    refused([str(second), str(again)], "again: sweep.axes[1][1]=\"ours, d_free to occupied\"", "a method occupied does not fly too")
+    other = _write_store(tmp_path / "other_range", [density, ["denied.yaw", [ours_occ]]], flights(0, (1.0, 2.0)), overrides={"camera.depth_max_m": 4.5})
+    refused([str(first), str(other)], "other_range: sweep.overrides=", "stores reported together fly one Table III")
+    odd = _write_store(tmp_path / "odd", [density, ["denied.yaw", [{"free_distance": "sideways"}]]], [])
     refused([str(odd)], "free_distance=['sideways']", "one of horizontal, occupied, voxel")
+    twice = _write_store(tmp_path / "twice", [density, ["denied.yaw", [{"method": "zhou"}, {"method": "zhou", "sensing_range_m": 4.5}]]], [])
+    refused([str(twice)], "sweep.axes[1][1]=", "each method once per density")
+    spin = _write_store(tmp_path / "spin", [density, ["denied.yaw", [{"method": "spin"}]]], [])
+    refused([str(spin)], "method=['spin']", "mpcde or zhou")
+    stray = _write_store(tmp_path / "stray", [density, ["denied.yaw", [ours_occ]]], flights(1, (1.0, 2.0)))
+    refused([str(stray)], "line 1: cell=1", "< 1")
 
 
 def test_a_table3_cell_not_flown_yet_has_no_summary_row(tmp_path):
