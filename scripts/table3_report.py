@@ -138,7 +138,7 @@ def merged_cells(stores: list[Path]) -> list[dict]:
         flown = {(c["density_index"], c["method"]): c["store"] for c in table}
         for c in part:
             if (c["density_index"], c["method"]) in flown:
-                raise ConfigError(f"store {store}: sweep.axes[1][1]", label(c["method"]), f"a method {flown[(c['density_index'], c['method'])]} does not fly too")
+                raise ConfigError(f"store {store}: sweep.axes[1][1]", label(c["method"]), f"a method no earlier store flies (store {flown[(c['density_index'], c['method'])]} does)")
         table += part
     order = list(METHODS)
     readings = ["horizontal", *D_FREE]

@@ -215,7 +215,7 @@ def test_methods_under_another_reading_of_d_free_are_paired_within_their_reading
 
     refused([str(first), str(tmp_path / "table3" / ".")], "arguments=", "each store once")
     again = _write_store(tmp_path / "again", [density, ["denied.yaw", [ours_occ]]], flights(0, (1.0, 2.0)))
-    refused([str(second), str(again)], "again: sweep.axes[1][1]=\"ours, d_free to occupied\"", "a method occupied does not fly too")
+    refused([str(second), str(again)], "again: sweep.axes[1][1]='ours, d_free to occupied'", "no earlier store flies (store occupied does)")
     other = _write_store(tmp_path / "other_range", [density, ["denied.yaw", [ours_occ]]], flights(0, (1.0, 2.0)), overrides={"camera.depth_max_m": 4.5})
     refused([str(first), str(other)], "other_range: sweep.overrides=", "stores reported together fly one Table III")
     odd = _write_store(tmp_path / "odd", [density, ["denied.yaw", [{"free_distance": "sideways"}]]], [])
