@@ -109,7 +109,8 @@ class YawPlannerConfig:
             lets the camera leave the path while unobserved space is near,
             and a new default would change every denied flight of record.
             What each reading measured on Table III: docs/results/mp-cde.md
-            ("Ours with d_free to the nearest occupied cell, at 4.5 m").
+            ("Ours and its baselines with d_free to the nearest occupied
+            cell, at 4.5 m").
         free_slab_half_height_m: half height [m] of the altitude slab of
             ``"horizontal"`` (chosen: 0.3 m, two voxels either side: the
             drone's height plus its altitude tracking error).
