@@ -69,9 +69,14 @@ def label(method: str) -> str:
 
 def cells(store: Path) -> list[dict]:
     """One dict per (density, method) cell of the store: density, method, flights, S_obs mean and sd [m^2], successes,
-    the Wilson 95 % interval, the paper's S_obs (None where the paper gives none), ``area_by_seed`` ({seed: S_obs})
-    and ``modes`` (the mean yaw mode shares, None when no flight recorded them)."""
-    results = read_store(store)
+    the Wilson 95 % interval, the paper's S_obs (None where the paper gives none), ``area_by_seed`` ({seed: S_obs}),
+    ``modes`` (the mean yaw mode shares, None when no flight recorded them), the store's folder name and the
+    revisions the cell's flights recorded."""
+    return _cells(read_store(store))
+
+
+def _cells(results: ResultsStore) -> list[dict]:
+    """:func:`cells` of an opened store."""
     axes = results.manifest["sweep"].get("axes")
     names = [a[0] for a in axes] if isinstance(axes, list) and all(isinstance(a, list) and len(a) == 2 for a in axes) else None
     if names != [DENSITY_AXIS, YAW_AXIS] or not all(isinstance(a[1], list) for a in axes):
@@ -106,7 +111,7 @@ def cells(store: Path) -> list[dict]:
             paper = dict(zip(("zhou", "no_exploring", "ours"), PAPER.get(di, (None, None, None)))).get(m)  # the paper has 3 densities
             fractions = [f for r in rows if (f := (r["metrics"].get("agents") or [{}])[0].get("yaw_mode_fraction"))]
             modes = {k: sum(f[k] for f in fractions) / len(fractions) for k in MODES} if fractions else None
-            out.append({"store": Path(store).name, "revisions": sorted({str(r["git_rev"])[:7] for r in rows}), "density_index": di, "density": density, "method": m, "flights": n, "s_obs_mean_m2": mean, "s_obs_sd_m2": sd,
+            out.append({"store": results.folder.name, "revisions": sorted({str(r["git_rev"])[:7] for r in rows}), "density_index": di, "density": density, "method": m, "flights": n, "s_obs_mean_m2": mean, "s_obs_sd_m2": sd,
                         "successes": ok, "success_low": lo, "success_high": hi, "paper_s_obs_m2": paper,
                         "area_by_seed": {r["seed"]: r["metrics"]["observed_area_swarm_m2"] for r in rows}, "modes": modes})  # fmt: skip
     return out
@@ -126,10 +131,11 @@ def merged_cells(stores: list[Path]) -> list[dict]:
     table: list[dict] = []
     first = None
     for store in stores:
-        part = cells(store)
-        spec = read_store(store).manifest["sweep"]
+        results = read_store(store)
+        part = _cells(results)  # also checks the axes, so the densities below are there
+        spec = results.manifest["sweep"]
         shared = {f"sweep.{k}": spec.get(k) for k in ("base", "overrides", "seeds")}
-        shared["sweep.axes[0][1]"] = list(dict.fromkeys(c["density"] for c in part))
+        shared["sweep.axes[0][1]"] = spec["axes"][0][1]
         if first is None:
             first = shared
         for key in shared:
