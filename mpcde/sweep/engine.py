@@ -233,11 +233,19 @@ def _run_pool(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], 
         with contextlib.suppress(ValueError):  # off the main thread signals stay as they are
             signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the workers' cleanup short
         workers = list((getattr(pool, "_processes", None) or {}).values())
+        manager = getattr(pool, "_executor_manager_thread", None)  # shutdown() drops the reference
         pool.shutdown(wait=False, cancel_futures=True)
         for w in workers:
             w.terminate()  # SIGTERM: the flight raises Terminated and closes its session (_warm)
         for w in workers:
             w.join(timeout=10)
+        # The manager thread closes the pool's wake-up pipe as it ends. Python 3.11's exit hook
+        # (concurrent.futures.process._python_exit) writes to that pipe without the lock it is closed
+        # under: a sweep that returned while the thread was still closing it printed an "OSError: [Errno 9]
+        # Bad file descriptor" traceback after our one line (CI, 9415af4). Once the thread has ended, the
+        # pipe is marked closed and the hook skips it.
+        if manager is not None:
+            manager.join(timeout=10)
         raise
     pool.shutdown()
 

@@ -108,6 +108,26 @@ def test_two_jobs_record_the_same_rows_as_one(tmp_path, tiny):
     assert rows(tmp_path / "one") == rows(tmp_path / "two")
 
 
+def test_an_interrupted_pool_has_closed_its_wakeup_pipe_before_the_interrupt_reaches_the_caller(tmp_path, tiny, monkeypatch):
+    """Python 3.11's exit hook writes to each process pool's wake-up pipe unless it is marked closed; a pool
+    still closing it when the interrupt returned printed an EBADF traceback after the one-line message (CI, 9415af4)."""
+    from concurrent.futures import process
+
+    real_append = ResultsStore.append
+
+    def interrupted_append(self, row):  # Ctrl-C after the first recorded flight, two flights at once
+        real_append(self, row)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ResultsStore, "append", interrupted_append)
+    before = set(process._threads_wakeups)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(tiny, tmp_path / "out", jobs=2, progress=False)
+    # The sweep's pool: still listed while its manager thread runs (the failure), or gone once the ended thread is freed.
+    ours = [(t.is_alive(), w._closed) for t, w in process._threads_wakeups.items() if t not in before]
+    assert ours in ([], [(False, True)])
+
+
 def test_a_folder_of_another_sweep_or_a_corrupt_store_is_refused_in_one_line(tmp_path, tiny, capsys):
     out = tmp_path / "out"
     run_sweep(tiny, out, progress=False)
