@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import signal
 
 import pytest
 
@@ -121,8 +122,12 @@ def test_an_interrupted_pool_has_closed_its_wakeup_pipe_before_the_interrupt_rea
 
     monkeypatch.setattr(ResultsStore, "append", interrupted_append)
     before = set(process._threads_wakeups)
-    with pytest.raises(KeyboardInterrupt):
-        run_sweep(tiny, tmp_path / "out", jobs=2, progress=False)
+    sigint = signal.getsignal(signal.SIGINT)  # the interrupt path ignores Ctrl-C from then on; the rest of the session must not
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_sweep(tiny, tmp_path / "out", jobs=2, progress=False)
+    finally:
+        signal.signal(signal.SIGINT, sigint)
     # The sweep's pool: still listed while its manager thread runs (the failure), or gone once the ended thread is freed.
     ours = [(t.is_alive(), w._closed) for t, w in process._threads_wakeups.items() if t not in before]
     assert ours in ([], [(False, True)])
