@@ -1,0 +1,105 @@
+"""What the denied swarm's yaw planner did in each cell of one or more sweep stores: contacts by kind, the share of
+yaw plans in each mode, yaw replans and mission time (issue 28: the tracking mode's safety role in the swarm).
+
+Usage: .venv/bin/python scripts/swarm_modes_report.py STORE_DIR [STORE_DIR ...]   (stores `mpcde sweep ... --out` wrote)
+
+`mpcde report` gives each cell's success rate, its interval, collisions per flight and the minimum distance; this
+script adds, per cell (one line each, labelled by store and the cell's axis values; with ``--seeds N`` only the
+flights of seeds 0..N-1, so a 100-seed store is read on the seeds a 30-seed store flew):
+
+* ``flights``: the flights that recorded metrics (a failed flight records none);
+* ``ok``: the flights that succeeded (every drone arrived, no contact);
+* ``with d-d`` / ``with d-o``: flights with at least one drone-drone / drone-obstacle contact (``drone_drone_collisions``,
+  ``drone_obstacle_collisions``);
+* ``explore`` / ``observe`` / ``track``: the mean over drones and flights of ``yaw_mode_fraction`` (the share of a
+  drone's yaw plans made in each of MP-CDE's modes, Alg. 1), in per cent;
+* ``yaw repl.``: yaw replans per drone and flight (replans forced by S(0) falling below tau, Eq. 2);
+* ``mission s``: mean ``mission_time_s`` over the flights that succeeded.
+
+A folder that is not a store (no sweep.json or no results.jsonl, a kept store not unpacked) stops the script with
+one line on stderr and exit status 2. A store still being flown is read as `mpcde report` reads it (a last line cut
+short is left out).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from table3_report import read_store  # noqa: E402
+
+from mpcde.errors import ConfigError  # noqa: E402
+from mpcde.sweep.report import axis_cells, rows_by_cell  # noqa: E402
+from mpcde.sweep.spec import cell_label  # noqa: E402
+
+MODES = ("exploring", "observing", "tracking")
+
+
+def cell_lines(store: Path, seeds: int | None = None) -> list[dict]:
+    """One dict per cell of ``store`` (see the module docstring), over seeds below ``seeds`` when given."""
+    results = read_store(store)
+    sweep = results.manifest["sweep"]
+    by_cell = rows_by_cell(results.rows())
+    out = []
+    for index, values in enumerate(axis_cells(sweep)):
+        rows = [r for r in by_cell.get(index, []) if r["metrics"] is not None and (seeds is None or r["seed"] < seeds)]
+        shares = {k: [] for k in MODES}
+        replans = []
+        for r in rows:
+            for agent in r["metrics"].get("agents") or []:
+                fraction = agent.get("yaw_mode_fraction")
+                if fraction:
+                    for k in MODES:
+                        shares[k].append(fraction[k])
+                if "yaw_replans" in agent:
+                    replans.append(agent["yaw_replans"])
+        missions = [r["metrics"]["mission_time_s"] for r in rows if r["metrics"]["success"]]
+        out.append({
+            "label": f"{results.folder.name}: {cell_label({**sweep['overrides'], **values})}",
+            "flights": len(rows),
+            "ok": sum(bool(r["metrics"]["success"]) for r in rows),
+            "drone_drone": sum(r["metrics"]["drone_drone_collisions"] > 0 for r in rows),
+            "drone_obstacle": sum(r["metrics"]["drone_obstacle_collisions"] > 0 for r in rows),
+            "shares": {k: (sum(v) / len(v) if v else float("nan")) for k, v in shares.items()},
+            "yaw_replans": sum(replans) / len(replans) if replans else float("nan"),
+            "mission_s": sum(missions) / len(missions) if missions else float("nan"),
+        })  # fmt: skip
+    return out
+
+
+def render(lines: list[dict]) -> str:
+    head = f"{'flights':>7} {'ok':>4} {'with d-d':>8} {'with d-o':>8} {'explore':>7} {'observe':>7} {'track':>6} {'yaw repl.':>9} {'mission s':>9}  cell"
+    out = [head, "-" * len(head)]
+    for c in lines:
+        s = c["shares"]
+        out.append(
+            f"{c['flights']:>7} {c['ok']:>4} {c['drone_drone']:>8} {c['drone_obstacle']:>8} {100 * s['exploring']:>6.1f}% "
+            f"{100 * s['observing']:>6.1f}% {100 * s['tracking']:>5.1f}% {c['yaw_replans']:>9.1f} {c['mission_s']:>9.2f}  {c['label']}"
+        )
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("stores", nargs="+", type=Path)
+    ap.add_argument("--seeds", type=int, default=None, help="only seeds 0..N-1 (N >= 1)")
+    args = ap.parse_args(argv)
+    if args.seeds is not None and args.seeds < 1:
+        sys.stderr.write(f"swarm_modes_report: error: --seeds={args.seeds}: an integer >= 1\n")
+        return 2
+    try:
+        lines = [line for store in args.stores for line in cell_lines(store, args.seeds)]
+    except FileNotFoundError as e:
+        sys.stderr.write(f"swarm_modes_report: error: {e.filename}: not in the store (a folder `mpcde sweep` wrote?)\n")
+        return 2
+    except ConfigError as e:
+        sys.stderr.write(f"swarm_modes_report: error: {e}\n")
+        return 2
+    print(render(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,75 @@
+"""scripts/swarm_modes_report.py counts contacts by kind and averages the yaw modes from a store's rows (issue 28)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPTS = Path(__file__).resolve().parents[3] / "scripts"
+sys.path.insert(0, str(SCRIPTS))
+import swarm_modes_report  # noqa: E402
+
+
+def _agent(explore: float, observe: float, track: float, replans: int) -> dict:
+    return {"yaw_mode_fraction": {"exploring": explore, "observing": observe, "tracking": track}, "yaw_replans": replans}
+
+
+def _metrics(ok: bool, dd: int, do: int, mission: float, agents: list[dict]) -> dict:
+    return {"success": ok, "drone_drone_collisions": dd, "drone_obstacle_collisions": do, "mission_time_s": mission, "agents": agents}
+
+
+def _store(folder: Path, rows: list[dict]) -> Path:
+    """A two-cell store (speed 0.5 and 2.0) as `mpcde sweep` writes it, every row key present."""
+    folder.mkdir()
+    sweep = {"axes": [["planner.cruise_speed_mps", [0.5, 2.0]]], "base": {"name": "forest_swarm"}, "overrides": {"duration_s": 100},
+             "seeds": list(range(40))}  # fmt: skip
+    (folder / "sweep.json").write_text(json.dumps({"digest": "d" * 16, "sweep": sweep}))
+    full = [{"values": {}, "status": "ok" if r["metrics"] else "failed", "error": None if r["metrics"] else "x", "wall_s": 1.0,
+             "version": "0", "git_rev": "0" * 40, **r} for r in rows]  # fmt: skip
+    (folder / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in full))
+    return folder
+
+
+def _rows() -> list[dict]:
+    a, b = _agent(0.5, 0.5, 0.0, 10), _agent(0.0, 0.0, 1.0, 20)
+    return [
+        {"cell": 0, "seed": 0, "metrics": _metrics(True, 0, 0, 40.0, [a, b])},
+        {"cell": 0, "seed": 1, "metrics": _metrics(False, 2, 0, 99.0, [a, a])},  # two contacts, one flight with d-d
+        {"cell": 0, "seed": 2, "metrics": None},  # a failed flight: left out
+        {"cell": 0, "seed": 35, "metrics": _metrics(False, 0, 1, 99.0, [b, b])},  # beyond --seeds 30
+        {"cell": 1, "seed": 0, "metrics": _metrics(True, 0, 0, 10.0, [b, {"yaw_replans": 4}])},  # a drone with no yaw plan
+    ]
+
+
+def test_cells_count_flights_with_each_contact_and_average_modes_over_drones(tmp_path):
+    slow, fast = swarm_modes_report.cell_lines(_store(tmp_path / "s", _rows()))
+    assert (slow["flights"], slow["ok"], slow["drone_drone"], slow["drone_obstacle"]) == (3, 1, 1, 1)
+    assert slow["shares"]["tracking"] == pytest.approx(3 / 6)  # b on 3 of 6 drone-flights
+    assert slow["shares"]["exploring"] == pytest.approx(1.5 / 6)
+    assert slow["yaw_replans"] == pytest.approx((10 + 20 + 10 + 10 + 20 + 20) / 6)
+    assert slow["mission_s"] == 40.0  # successful flights only
+    assert slow["label"] == 's: duration_s=100, planner.cruise_speed_mps=0.5'
+    assert fast["shares"]["tracking"] == 1.0 and fast["yaw_replans"] == 12.0  # shares over drones that planned
+
+
+def test_seeds_limits_the_flights_read(tmp_path):
+    slow, _ = swarm_modes_report.cell_lines(_store(tmp_path / "s", _rows()), seeds=30)
+    assert (slow["flights"], slow["drone_obstacle"]) == (2, 0)
+    assert slow["shares"]["tracking"] == pytest.approx(1 / 4)
+
+
+def test_a_folder_that_is_not_a_store_is_one_line_and_exit_2(tmp_path, capsys):
+    assert swarm_modes_report.main([str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "sweep.json" in err
+    assert swarm_modes_report.main([str(_store(tmp_path / "s", _rows())), "--seeds", "0"]) == 2
+    assert capsys.readouterr().err == "swarm_modes_report: error: --seeds=0: an integer >= 1\n"
+
+
+def test_render_prints_one_line_per_cell(tmp_path, capsys):
+    assert swarm_modes_report.main([str(_store(tmp_path / "s", _rows()))]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == 4 and out[2].split()[:4] == ["3", "1", "1", "1"] and out[3].endswith("planner.cruise_speed_mps=2.0")
