@@ -12,7 +12,7 @@ demo: setup
 	$(PY) -m mpcde fly data/scenarios/forest_swarm.yaml --mode comm --out $(DEMO_OUT) --seed 0 --video --overwrite
 
 test: setup
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q --durations=20
 
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
