@@ -4,26 +4,31 @@ yaw plans in each mode, yaw replans and mission time (issue 28: the tracking mod
 Usage: .venv/bin/python scripts/swarm_modes_report.py STORE_DIR [STORE_DIR ...]   (stores `mpcde sweep ... --out` wrote)
 
 `mpcde report` gives each cell's success rate, its interval, collisions per flight and the minimum distance; this
-script adds, per cell (one line each, labelled by store and the cell's axis values; with ``--seeds N`` only the
-flights of seeds 0..N-1, so a 100-seed store is read on the seeds a 30-seed store flew):
+script adds, per cell (one line each, labelled as `mpcde report` labels it: the store's folder name and the cell's
+axis values; with ``--seeds N`` only the flights of seeds 0..N-1, so a 100-seed store is read on the seeds a 30-seed
+store flew):
 
 * ``flights``: the flights that recorded metrics (a failed flight records none);
 * ``ok``: the flights that succeeded (every drone arrived, no contact);
 * ``with d-d`` / ``with d-o``: flights with at least one drone-drone / drone-obstacle contact (``drone_drone_collisions``,
   ``drone_obstacle_collisions``);
-* ``explore`` / ``observe`` / ``track``: the mean over drones and flights of ``yaw_mode_fraction`` (the share of a
-  drone's yaw plans made in each of MP-CDE's modes, Alg. 1), in per cent;
-* ``yaw repl.``: yaw replans per drone and flight (replans forced by S(0) falling below tau, Eq. 2);
-* ``mission s``: mean ``mission_time_s`` over the flights that succeeded.
+* ``explore`` / ``observe`` / ``track``: the mean of ``yaw_mode_fraction`` (the share of a drone's yaw plans made in
+  each of MP-CDE's modes, Alg. 1), in per cent, over the drones and flights that made a yaw plan;
+* ``yaw repl.``: yaw replans per drone and flight: trajectory replans that Alg. 1's trigger forced (S(0) below
+  tau_thr, Eq. 2, or the nearest neighbour closer than C_s) and that succeeded;
+* ``mission s``: mean ``mission_time_s`` over the flights in which every drone arrived (with or without a contact),
+  as `mpcde report`'s column of that name.
 
-A folder that is not a store (no sweep.json or no results.jsonl, a kept store not unpacked) stops the script with
-one line on stderr and exit status 2. A store still being flown is read as `mpcde report` reads it (a last line cut
-short is left out).
+A cell with no flight recorded yet prints ``nan``. A folder that is not a store (no sweep.json or no results.jsonl,
+a kept store not unpacked) or a row this script cannot read (a cell or seed out of the sweep, metrics without the
+fields above) stops the script with one line on stderr and exit status 2. A store still being flown is read as
+`mpcde report` reads it (a last line cut short is left out).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -41,25 +46,26 @@ def cell_lines(store: Path, seeds: int | None = None) -> list[dict]:
     """One dict per cell of ``store`` (see the module docstring), over seeds below ``seeds`` when given."""
     results = read_store(store)
     sweep = results.manifest["sweep"]
-    by_cell = rows_by_cell(results.rows())
+    cells = axis_cells(sweep)
+    by_cell = rows_by_cell([_checked(r, line, results.path, len(cells)) for line, r in enumerate(results.rows(), start=1)])
     out = []
-    for index, values in enumerate(axis_cells(sweep)):
+    for index, values in enumerate(cells):
         rows = [r for r in by_cell.get(index, []) if r["metrics"] is not None and (seeds is None or r["seed"] < seeds)]
         shares = {k: [] for k in MODES}
         replans = []
         for r in rows:
-            for agent in r["metrics"].get("agents") or []:
+            for agent in r["metrics"]["agents"]:
                 fraction = agent.get("yaw_mode_fraction")
                 if fraction:
                     for k in MODES:
                         shares[k].append(fraction[k])
                 if "yaw_replans" in agent:
                     replans.append(agent["yaw_replans"])
-        missions = [r["metrics"]["mission_time_s"] for r in rows if r["metrics"]["success"]]
+        missions = [r["metrics"]["mission_time_s"] for r in rows if r["metrics"]["mission_time_s"] is not None]
         out.append({
-            "label": f"{results.folder.name}: {cell_label({**sweep['overrides'], **values})}",
+            "label": f"{results.folder.name}: {cell_label(values)}",
             "flights": len(rows),
-            "ok": sum(bool(r["metrics"]["success"]) for r in rows),
+            "ok": sum(r["metrics"]["success"] for r in rows),
             "drone_drone": sum(r["metrics"]["drone_drone_collisions"] > 0 for r in rows),
             "drone_obstacle": sum(r["metrics"]["drone_obstacle_collisions"] > 0 for r in rows),
             "shares": {k: (sum(v) / len(v) if v else float("nan")) for k, v in shares.items()},
@@ -69,7 +75,46 @@ def cell_lines(store: Path, seeds: int | None = None) -> list[dict]:
     return out
 
 
+def _checked(r: dict, line: int, path: Path, n_cells: int) -> dict:
+    """Row ``r`` (line ``line`` of ``path``) if this script can read it, else ConfigError (one line)."""
+    where = f"store {path} line {line}"
+    for key in ("cell", "seed"):
+        if not isinstance(r[key], int) or isinstance(r[key], bool) or r[key] < 0:
+            raise ConfigError(f"{where}: {key}", r[key], "an integer >= 0")
+    if r["cell"] >= n_cells:
+        raise ConfigError(f"{where}: cell", r["cell"], f"a cell of the sweep, < {n_cells}")
+    m = r["metrics"]
+    if m is None:
+        return r  # a failed flight
+    if not isinstance(m, dict):
+        raise ConfigError(f"{where}: metrics", m, "a mapping of the flight's metrics, or null for a failed flight")
+    if not isinstance(m.get("success"), bool):
+        raise ConfigError(f"{where}: metrics.success", m.get("success"), "true or false")
+    for key in ("drone_drone_collisions", "drone_obstacle_collisions"):
+        if not isinstance(m.get(key), int) or isinstance(m.get(key), bool) or m[key] < 0:
+            raise ConfigError(f"{where}: metrics.{key}", m.get(key), "an integer >= 0")
+    mission = m.get("mission_time_s", "absent")
+    if mission is not None and not _real(mission):
+        raise ConfigError(f"{where}: metrics.mission_time_s", mission, "a time [s], or null when a drone did not arrive")
+    agents = m.get("agents")
+    if not isinstance(agents, list) or not all(isinstance(a, dict) for a in agents):
+        raise ConfigError(f"{where}: metrics.agents", agents, "a list of per-drone mappings")
+    for i, a in enumerate(agents):
+        fraction = a.get("yaw_mode_fraction")
+        if fraction and not (isinstance(fraction, dict) and all(_real(fraction.get(k)) and 0 <= fraction[k] <= 1 for k in MODES)):
+            raise ConfigError(f"{where}: metrics.agents[{i}].yaw_mode_fraction", fraction, f"null or a share in [0, 1] for each of {', '.join(MODES)}")
+        if "yaw_replans" in a and not (_real(a["yaw_replans"]) and a["yaw_replans"] >= 0):
+            raise ConfigError(f"{where}: metrics.agents[{i}].yaw_replans", a["yaw_replans"], "a count >= 0")
+    return r
+
+
+def _real(x: object) -> bool:
+    """Whether ``x`` is a finite real number (not a bool)."""
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
 def render(lines: list[dict]) -> str:
+    """The table of :func:`cell_lines`' dicts, one line per cell under a header, as the script prints it."""
     head = f"{'flights':>7} {'ok':>4} {'with d-d':>8} {'with d-o':>8} {'explore':>7} {'observe':>7} {'track':>6} {'yaw repl.':>9} {'mission s':>9}  cell"
     out = [head, "-" * len(head)]
     for c in lines:
@@ -82,6 +127,8 @@ def render(lines: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Print the table of the stores in ``argv`` (default ``sys.argv[1:]``); a folder that is not a readable store
+    prints one line on stderr, nothing on stdout, and returns 2."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("stores", nargs="+", type=Path)
     ap.add_argument("--seeds", type=int, default=None, help="only seeds 0..N-1 (N >= 1)")
@@ -92,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         lines = [line for store in args.stores for line in cell_lines(store, args.seeds)]
     except FileNotFoundError as e:
-        sys.stderr.write(f"swarm_modes_report: error: {e.filename}: not in the store (a folder `mpcde sweep` wrote?)\n")
+        sys.stderr.write(f"swarm_modes_report: error: store={e.filename}: no such file there: a folder `mpcde sweep` wrote\n")
         return 2
     except ConfigError as e:
         sys.stderr.write(f"swarm_modes_report: error: {e}\n")
