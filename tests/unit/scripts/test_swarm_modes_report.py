@@ -107,3 +107,16 @@ def test_render_prints_one_line_per_cell(tmp_path, capsys):
     out = capsys.readouterr().out.splitlines()
     assert len(out) == 4 and out[3].endswith("s: planner.cruise_speed_mps=2.0")
     assert out[2].split()[:9] == ["4", "1", "1", "2", "21.4%", "21.4%", "57.1%", "15.7", "45.00"]
+
+
+KEPT_SEEDS = 12  # fig6_modes holds seeds 0-11 of its 30 (stopped for time, 2026-11-29; the store resumes)
+
+
+def test_the_report_of_the_kept_swarm_stores_stands_verbatim_in_mp_cde_md(tmp_path, unpack_kept_store):
+    """mp-cde.md pastes this script's output for MP-CDE's kept Fig. 6 row and the kept swarm ablation, on the seeds
+    the ablation flew: printed, not typed (issue 28)."""
+    stores = [unpack_kept_store(name, tmp_path / name) for name in ("fig6_denied_portable", "fig6_modes")]
+    assert max(r["seed"] for r in map(json.loads, (stores[1] / "results.jsonl").read_text().splitlines())) == KEPT_SEEDS - 1
+    text = swarm_modes_report.render([line for s in stores for line in swarm_modes_report.cell_lines(s, KEPT_SEEDS)])
+    doc = (SCRIPTS.parent / "docs" / "results" / "mp-cde.md").read_text()
+    assert text in doc, "mp-cde.md lacks swarm_modes_report.py's output for fig6_denied_portable and fig6_modes"
