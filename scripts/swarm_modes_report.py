@@ -28,26 +28,23 @@ fields above) stops the script with one line on stderr and exit status 2. A stor
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from table3_report import read_store  # noqa: E402
+from table3_report import MODES, _finite, check_mode_fraction, check_place, read_store  # noqa: E402
 
 from mpcde.errors import ConfigError  # noqa: E402
 from mpcde.sweep.report import axis_cells, rows_by_cell  # noqa: E402
 from mpcde.sweep.spec import cell_label  # noqa: E402
-
-MODES = ("exploring", "observing", "tracking")
-
 
 def cell_lines(store: Path, seeds: int | None = None) -> list[dict]:
     """One dict per cell of ``store`` (see the module docstring), over seeds below ``seeds`` when given."""
     results = read_store(store)
     sweep = results.manifest["sweep"]
     cells = axis_cells(sweep)
-    by_cell = rows_by_cell([_checked(r, line, results.path, len(cells)) for line, r in enumerate(results.rows(), start=1)])
+    checked = [_checked(r, f"store {results.path} line {line}", len(cells), sweep.get("seeds")) for line, r in enumerate(results.rows(), start=1)]
+    by_cell = rows_by_cell(checked)
     out = []
     for index, values in enumerate(cells):
         rows = [r for r in by_cell.get(index, []) if r["metrics"] is not None and (seeds is None or r["seed"] < seeds)]
@@ -75,14 +72,9 @@ def cell_lines(store: Path, seeds: int | None = None) -> list[dict]:
     return out
 
 
-def _checked(r: dict, line: int, path: Path, n_cells: int) -> dict:
-    """Row ``r`` (line ``line`` of ``path``) if this script can read it, else ConfigError (one line)."""
-    where = f"store {path} line {line}"
-    for key in ("cell", "seed"):
-        if not isinstance(r[key], int) or isinstance(r[key], bool) or r[key] < 0:
-            raise ConfigError(f"{where}: {key}", r[key], "an integer >= 0")
-    if r["cell"] >= n_cells:
-        raise ConfigError(f"{where}: cell", r["cell"], f"a cell of the sweep, < {n_cells}")
+def _checked(r: dict, where: str, n_cells: int, seeds: object) -> dict:
+    """Row ``r`` (at ``where``) if this script can read it, else ConfigError (one line)."""
+    check_place(r, where, n_cells, seeds)
     m = r["metrics"]
     if m is None:
         return r  # a failed flight
@@ -94,23 +86,16 @@ def _checked(r: dict, line: int, path: Path, n_cells: int) -> dict:
         if not isinstance(m.get(key), int) or isinstance(m.get(key), bool) or m[key] < 0:
             raise ConfigError(f"{where}: metrics.{key}", m.get(key), "an integer >= 0")
     mission = m.get("mission_time_s", "absent")
-    if mission is not None and not _real(mission):
+    if mission is not None and not _finite(mission):
         raise ConfigError(f"{where}: metrics.mission_time_s", mission, "a time [s], or null when a drone did not arrive")
     agents = m.get("agents")
     if not isinstance(agents, list) or not all(isinstance(a, dict) for a in agents):
         raise ConfigError(f"{where}: metrics.agents", agents, "a list of per-drone mappings")
     for i, a in enumerate(agents):
-        fraction = a.get("yaw_mode_fraction")
-        if fraction and not (isinstance(fraction, dict) and all(_real(fraction.get(k)) and 0 <= fraction[k] <= 1 for k in MODES)):
-            raise ConfigError(f"{where}: metrics.agents[{i}].yaw_mode_fraction", fraction, f"null or a share in [0, 1] for each of {', '.join(MODES)}")
-        if "yaw_replans" in a and not (_real(a["yaw_replans"]) and a["yaw_replans"] >= 0):
+        check_mode_fraction(a.get("yaw_mode_fraction"), f"{where}: metrics.agents[{i}].yaw_mode_fraction")
+        if "yaw_replans" in a and not (_finite(a["yaw_replans"]) and a["yaw_replans"] >= 0):
             raise ConfigError(f"{where}: metrics.agents[{i}].yaw_replans", a["yaw_replans"], "a count >= 0")
     return r
-
-
-def _real(x: object) -> bool:
-    """Whether ``x`` is a finite real number (not a bool)."""
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 def render(lines: list[dict]) -> str:

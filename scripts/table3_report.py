@@ -191,13 +191,7 @@ def _flights(results: ResultsStore, n_cells: int, seeds: object) -> dict[int, li
     by_cell = defaultdict(list)
     for line, r in enumerate(results.rows(), start=1):
         where = f"store {results.path} line {line}"
-        for key in ("cell", "seed"):
-            if not isinstance(r[key], int) or isinstance(r[key], bool) or r[key] < 0:
-                raise ConfigError(f"{where}: {key}", r[key], "an integer >= 0")
-        if r["cell"] >= n_cells:
-            raise ConfigError(f"{where}: cell", r["cell"], f"a cell of the sweep, < {n_cells}")
-        if isinstance(seeds, list) and r["seed"] not in seeds:
-            raise ConfigError(f"{where}: seed", r["seed"], "a seed the sweep names (sweep.seeds)")
+        check_place(r, where, n_cells, seeds)
         m = r["metrics"]
         if m is None:
             continue  # a failed flight
@@ -214,11 +208,28 @@ def _flights(results: ResultsStore, n_cells: int, seeds: object) -> dict[int, li
         agents = m.get("agents")
         if agents is not None and not (isinstance(agents, list) and all(isinstance(a, dict) for a in agents)):
             raise ConfigError(f"{where}: metrics.agents", agents, "a list of per-drone mappings")
-        fraction = (agents or [{}])[0].get("yaw_mode_fraction")
-        if fraction is not None and not (isinstance(fraction, dict) and all(_finite(fraction.get(k)) and 0 <= fraction[k] <= 1 for k in MODES)):
-            raise ConfigError(f"{where}: metrics.agents[0].yaw_mode_fraction", fraction, f"null or a share in [0, 1] for each of {', '.join(MODES)}")
+        check_mode_fraction((agents or [{}])[0].get("yaw_mode_fraction"), f"{where}: metrics.agents[0].yaw_mode_fraction")
         by_cell[r["cell"]].append(r)
     return by_cell
+
+
+def check_place(r: dict, where: str, n_cells: int, seeds: object) -> None:
+    """ConfigError (one line, prefixed ``where``) unless row ``r``'s cell and seed are integers >= 0, its cell one of
+    the sweep's ``n_cells`` and its seed one the sweep names (``seeds``, when a list)."""
+    for key in ("cell", "seed"):
+        if not isinstance(r[key], int) or isinstance(r[key], bool) or r[key] < 0:
+            raise ConfigError(f"{where}: {key}", r[key], "an integer >= 0")
+    if r["cell"] >= n_cells:
+        raise ConfigError(f"{where}: cell", r["cell"], f"a cell of the sweep, < {n_cells}")
+    if isinstance(seeds, list) and r["seed"] not in seeds:
+        raise ConfigError(f"{where}: seed", r["seed"], "a seed the sweep names (sweep.seeds)")
+
+
+def check_mode_fraction(fraction: object, field: str) -> None:
+    """ConfigError (one line, naming ``field``) unless a drone's ``yaw_mode_fraction`` is null or a share in [0, 1]
+    for each of MODES."""
+    if fraction is not None and not (isinstance(fraction, dict) and all(_finite(fraction.get(k)) and 0 <= fraction[k] <= 1 for k in MODES)):
+        raise ConfigError(field, fraction, f"null or a share in [0, 1] for each of {', '.join(MODES)}")
 
 
 def _finite(x: object) -> bool:

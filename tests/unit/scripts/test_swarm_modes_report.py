@@ -102,6 +102,16 @@ def test_a_row_it_cannot_read_is_one_line_naming_the_field_and_exit_2(tmp_path, 
     assert f"line 1: {field}=" in out.err
 
 
+def test_a_row_outside_the_sweep_is_one_line_and_exit_2(tmp_path, capsys):
+    """A seed the sweep does not name, or a cell past its last, as table3_report.py refuses them (the same check)."""
+    for i, (key, value) in enumerate((("seed", 40), ("cell", 2))):
+        rows = _rows()
+        rows[0][key] = value
+        assert swarm_modes_report.main([str(_store(tmp_path / f"s{i}", rows))]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"line 1: {key}={value}:" in err
+
+
 def test_render_prints_one_line_per_cell(tmp_path, capsys):
     assert swarm_modes_report.main([str(_store(tmp_path / "s", _rows()))]) == 0
     out = capsys.readouterr().out.splitlines()
