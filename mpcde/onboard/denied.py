@@ -60,6 +60,7 @@ from mpcde.config.level_rules import flight_level_m
 from mpcde.config.perception import PerceptionConfig
 from mpcde.onboard.base import AgentCounters, OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
+from mpcde.onboard.flight_levels import FlightLevels
 from mpcde.onboard.fresh_path import FreshPathWatch, Look
 from mpcde.onboard.heading import ActiveYaw
 from mpcde.onboard.perception import NeighbourPerception, onboard_perception
@@ -141,9 +142,7 @@ class DeniedAgent(OnboardAgent):
         # detector_request: what the loop's batched detector reads (None: no detections)
         self.perception, self.detector_request = onboard_perception(c.perceive_neighbours, perception_config, perception)
         self.search = PathSearchConfig()
-        self.flight_level_m: float | None = None  # config.flight_level_spacing_m: this drone's level, fixed by its first estimate
-        self.level_reached = False  # came within s / 8 of the level: from then on held there, for good
-        self.level_released = False  # left the level for the goal (within flight_level_release_m of it), for good
+        self.levels: FlightLevels | None = None  # config.flight_level_spacing_m: this drone's level, fixed by its first estimate
         # where plan_step reads the neighbours from (None: this drone's tracks); the auto agent adds its radio memory
         # (t, count) -> predictions; count: whether the call is a planning use the source may tally
         self.neighbour_source: Callable[[float, bool], list[NeighborPrediction]] | None = None
@@ -164,7 +163,8 @@ class DeniedAgent(OnboardAgent):
             spacing = self.config.flight_level_spacing_m
             if np.isfinite(spacing):
                 centre = 0.5 * (float(self.hover_world[2]) + float(self.goal_world[2]))
-                self.flight_level_m = flight_level_m(centre, self.drone_id, self.swarm_neighbours + 1, spacing)
+                level = flight_level_m(centre, self.drone_id, self.swarm_neighbours + 1, spacing)
+                self.levels = FlightLevels(self.goal_world, level, spacing, self.config.flight_level_release_m)
             yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
             c = self.config
             self.heading = ActiveYaw(
@@ -461,36 +461,13 @@ class DeniedAgent(OnboardAgent):
         return True
 
     def _level_goal(self, pos_world: np.ndarray) -> np.ndarray:
-        """The goal this replan flies to, and with flight levels the layer it is flown in.
-
-        Without levels: the goal. With them (``config.flight_level_spacing_m`` s):
-        1. until the drone first comes within s / 8 of its level, it climbs (or descends)
-           to it where it is: the goal is its own position ``pos_world`` [m] carried to the
-           level, the layer spans its altitude and the level. Climbing in place, before
-           leaving the start, no drone crosses another's level on the way (a climb spread
-           along the path left two drones 0.2 m apart at 1.58 m, both still between their
-           levels 5 s into the flight: docs/results/safety.md);
-        2. then it flies to its goal carried to the level, held within s / 8 of it;
-        3. within ``flight_level_release_m`` of the goal horizontally it is released, for
-           good: the goal itself, the layer down (or up) to the goal's altitude.
-        The optimiser's altitude penalty and the front end's layer are set here (``_hold_layer``).
-        """
-        level = self.flight_level_m
-        if level is None:
+        """The goal this replan from ``pos_world`` (3,) [m] flies to: the goal, or with flight levels
+        (:meth:`mpcde.onboard.flight_levels.FlightLevels.goal_and_layer`) the goal of the sequence's step, whose
+        layer is then held (``_hold_layer``: the optimiser's altitude penalty and the front end's search)."""
+        if self.levels is None:
             return self.goal_world
-        c = self.config
-        b = c.flight_level_spacing_m / 8.0
-        z = float(pos_world[2])
-        self.level_reached = self.level_reached or abs(z - level) <= b
-        if np.linalg.norm(pos_world[:2] - self.goal_world[:2]) <= c.flight_level_release_m:
-            self.level_released = True
-        if self.level_released:
-            heights, goal = [level, z, float(self.goal_world[2])], self.goal_world
-        elif self.level_reached:
-            heights, goal = [level], np.array([self.goal_world[0], self.goal_world[1], level])
-        else:
-            heights, goal = [level, z], np.array([pos_world[0], pos_world[1], level])
-        self._hold_layer(min(heights) - b, max(heights) + b)
+        goal, (lo, hi) = self.levels.goal_and_layer(pos_world)
+        self._hold_layer(lo, hi)
         return goal
 
     def _hold_layer(self, lo: float, hi: float) -> None:
@@ -501,9 +478,9 @@ class DeniedAgent(OnboardAgent):
 
     def _climbed(self, t: float) -> bool:
         """Whether the plan in hand has just brought the drone to its flight level (replan at once for the goal)."""
-        if self.flight_level_m is None or self.level_reached or self.trajectory is None:
+        if self.levels is None or self.trajectory is None:
             return False
-        return abs(float(self.state_at(t)[0][2]) - self.flight_level_m) <= self.config.flight_level_spacing_m / 8.0
+        return self.levels.climbed(self.state_at(t)[0])
 
     def _fresh_path_due(self, t: float) -> bool:
         """Whether the corridor ahead is checked at ``t`` [s] (``denied.fresh_path_age_s`` finite, a plan being flown, every t_y)."""

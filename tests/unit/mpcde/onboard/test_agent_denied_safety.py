@@ -175,11 +175,11 @@ def test_flight_levels_are_spaced_by_id_about_the_mission_altitude_and_distinct(
     for k in range(6):
         agent = DeniedAgent(k, goal, config, swarm_neighbours=5)
         _first_estimate(agent, [-9.0, 0.0, 1.5])
-        levels.append(agent.flight_level_m)
+        levels.append(agent.levels.level_m)
     np.testing.assert_allclose(levels, 1.5 + 0.4 * (np.arange(6) - 2.5))
     free = DeniedAgent(0, goal, DeniedAgentConfig(), swarm_neighbours=5)
     _first_estimate(free, [-9.0, 0.0, 1.5])
-    assert free.flight_level_m is None
+    assert free.levels is None
     np.testing.assert_array_equal(free._level_goal(np.array([0.0, 0.0, 1.5])), goal)  # no levels: the goal, no layer
     assert free.optimizer.altitude_band_m == (-np.inf, np.inf)
 
@@ -189,7 +189,7 @@ def test_a_drone_climbs_to_its_level_in_place_is_held_there_and_released_near_it
     agent = DeniedAgent(5, goal, DeniedAgentConfig(flight_level_spacing_m=0.4), swarm_neighbours=5)
     _first_estimate(agent, [-9.0, 0.0, 1.5])
     level, b, pad = 2.5, 0.05, agent.config.map.voxel_m
-    assert agent.flight_level_m == pytest.approx(level)
+    assert agent.levels.level_m == pytest.approx(level)
     # climbing: in place, the layer spans the current altitude and the level
     np.testing.assert_allclose(agent._level_goal(np.array([-9.0, 0.1, 1.5])), [-9.0, 0.1, level])
     assert agent.optimizer.altitude_band_m == pytest.approx((1.5 - b, level + b))
@@ -213,7 +213,7 @@ def test_reaching_the_level_on_a_climb_triggers_the_replan_to_the_goal():
     assert not agent._climbed(0.0)  # no plan in hand
     agent.trajectory = _line(np.array([-9.0, 0.0, 1.5]), np.array([0.0, 0.0, -0.2]))
     assert not agent._climbed(0.5) and agent._climbed(0.9)  # 1.4 m, then 1.32 m: within s / 8 of 1.3 m
-    agent.level_reached = True
+    agent.levels.reached = True
     assert not agent._climbed(0.9)  # once reached, the replan period rules again
 
 

@@ -1,0 +1,72 @@
+"""Flight levels for the denied agent (``denied.flight_level_spacing_m``): which goal a replan flies to, in which layer.
+
+With flight levels, drone k of a mission of N cruises at its own altitude
+(:func:`mpcde.config.level_rules.flight_level_m`), so that drones that cannot
+see each other do not share a layer. This module holds the rule's state for
+one drone (reached its level, released from it) and turns the drone's
+position into the goal and the altitude layer of its next replan; the agent
+(:class:`mpcde.onboard.denied.DeniedAgent`) applies the layer to its
+optimiser and front end.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["FlightLevels"]
+
+
+@dataclass
+class FlightLevels:
+    """One drone's flight level and where it is in the climb-cruise-release sequence.
+
+    Args:
+        goal_world: (3,) the mission's goal [m].
+        level_m: this drone's level [m] (fixed by its first pose estimate).
+        spacing_m: s, the levels' vertical spacing [m]; the level is held within s / 8.
+        release_m: horizontal distance [m] to the goal within which the drone leaves its level, for good.
+    """
+
+    goal_world: np.ndarray
+    level_m: float
+    spacing_m: float
+    release_m: float
+    reached: bool = False  # came within s / 8 of the level: from then on held there, for good
+    released: bool = False  # left the level for the goal (within release_m of it), for good
+
+    @property
+    def hold_m(self) -> float:
+        """b = s / 8 [m], how far from its level a drone counts as at it, and the layer's margin."""
+        return self.spacing_m / 8.0
+
+    def goal_and_layer(self, pos_world: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
+        """The goal (3,) [m] a replan from ``pos_world`` (3,) [m] flies to, and the layer (lo, hi) [m] it is flown in.
+
+        1. until the drone first comes within b of its level, it climbs (or descends)
+           to it where it is: the goal is its own position carried to the level, the
+           layer spans its altitude and the level. Climbing in place, before leaving
+           the start, no drone crosses another's level on the way (a climb spread along
+           the path left two drones 0.2 m apart at 1.58 m, both still between their
+           levels 5 s into the flight: docs/results/safety.md);
+        2. then it flies to its goal carried to the level, held within b of it;
+        3. within ``release_m`` of the goal horizontally it is released, for good: the
+           goal itself, the layer down (or up) to the goal's altitude.
+        Each layer is widened by b on both sides.
+        """
+        level, b, z = self.level_m, self.hold_m, float(pos_world[2])
+        self.reached = self.reached or abs(z - level) <= b
+        if np.linalg.norm(pos_world[:2] - self.goal_world[:2]) <= self.release_m:
+            self.released = True
+        if self.released:
+            heights, goal = [level, z, float(self.goal_world[2])], self.goal_world
+        elif self.reached:
+            heights, goal = [level], np.array([self.goal_world[0], self.goal_world[1], level])
+        else:
+            heights, goal = [level, z], np.array([pos_world[0], pos_world[1], level])
+        return goal, (min(heights) - b, max(heights) + b)
+
+    def climbed(self, pos_world: np.ndarray) -> bool:
+        """Whether a drone not yet at its level is now, at ``pos_world`` (3,) [m], within b of it (replan for the goal)."""
+        return not self.reached and abs(float(pos_world[2]) - self.level_m) <= self.hold_m
