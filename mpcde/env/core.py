@@ -27,6 +27,7 @@ from mpcde.env.options import EnvOptions
 from mpcde.env.rewards import StepOutcome, default_reward
 from mpcde.errors import ConfigError
 from mpcde.flight.session import EPS_S
+from sim.rendering.pool_keeper import PoolKeeper
 
 __all__ = ["EnvCore", "load_env_scenario"]
 
@@ -105,6 +106,7 @@ class EnvCore:
         )
         self.observations = ObservationBuilder(cfg, options, intrinsics(cfg.camera), n)
         self.session = None
+        self.pools = PoolKeeper()  # one render pool for all episodes: a reset loads the scene, starts no workers
         self._seeds: np.random.Generator | None = None  # draws the seeds of unseeded resets
         self._composer = None
         self.drones: dict[str, ExternalDrone] = {}
@@ -127,7 +129,7 @@ class EnvCore:
         """Close any running episode and start one with scenario seed ``seed``; the learners' first observations."""
         from mpcde.flight.loop import open_session, prepare_run
 
-        self.close()
+        self.end_episode()
         cfg = replace(self.cfg, seed=int(seed))
         prepared = prepare_run(cfg) if cfg.seed != self.prepared.config.seed else self.prepared
         if prepared.starts.shape[0] != self.n:
@@ -139,7 +141,7 @@ class EnvCore:
             name: ExternalDrone(i, o.action, perceive, prepared.config.perception, o.broadcast, o.plan_samples, o.plan_horizon_s)
             for name, i in self.index.items()
         }  # fmt: skip
-        self.session = open_session(prepared, agents={d.drone_id: d for d in self.drones.values()})
+        self.session = open_session(prepared, agents={d.drone_id: d for d in self.drones.values()}, pools=self.pools)
         self._composer = None
         t = self.session.time_s
         for d in self.drones.values():
@@ -238,7 +240,14 @@ class EnvCore:
             raise RuntimeError("result() before reset()")
         return self.session.result()
 
-    def close(self) -> None:
-        """Free PyBullet and the render pool of the running episode."""
+    def end_episode(self) -> None:
+        """Free the running episode's PyBullet world (the render pool stays for the next episode)."""
         if self.session is not None:
             self.session.close()
+
+    def close(self) -> None:
+        """Free the running episode and the render pool (its worker processes and shared memory)."""
+        try:
+            self.end_episode()
+        finally:
+            self.pools.close()

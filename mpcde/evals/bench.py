@@ -68,6 +68,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("mlr", "MLR-DMPC compute-unit step (trackers, trigger, QP) vs the DMPC QP in bvc mode"),
     Benchmark("sweep", "mpcde sweep --jobs 2 vs the same flights back to back; denied flights per hour", ("--quick",)),
     Benchmark("env", "PettingZoo env steps/s without cameras vs PyFlyt's MA QuadX env; with cameras vs mpcde fly", ("--quick",)),
+    Benchmark("env_reset", "an environment's reset with the render pool kept vs a new pool per episode", ("--quick",)),
     Benchmark("numerics", "a perceiving flight under the portable numerics profile vs the CPU's native kernels", ("--duration", "1", "--repeats", "1")),
 )
 _BY_NAME = {b.name: b for b in BENCHMARKS}

@@ -20,6 +20,7 @@ from mpcde.flight.session import FlightSession, FrameSink
 from mpcde.onboard.base import OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
 from mpcde.onboard.factory import make_agent
+from sim.rendering.pool_keeper import PoolKeeper
 
 __all__ = ["PreparedRun", "RunLog", "RunResult", "open_session", "pose_error_m", "prepare_run", "run_scenario"]
 
@@ -40,7 +41,7 @@ def prepare_run(cfg: ScenarioConfig) -> PreparedRun:
 
 def open_session(
     prepared: PreparedRun, *, agents: Mapping[int, OnboardAgent] | None = None,
-    frame_sink: FrameSink | None = None, progress: bool = False,
+    frame_sink: FrameSink | None = None, progress: bool = False, pools: PoolKeeper | None = None,
 ) -> FlightSession:  # fmt: skip
     """A :class:`FlightSession` of ``prepared``'s scenario at time 0, each drone flown by the scenario's agent.
 
@@ -56,6 +57,8 @@ def open_session(
             scenario's own (the PettingZoo environment's externally driven
             drones, a traced agent); every other drone gets ``make_agent``'s.
         frame_sink, progress: as in :func:`run_scenario`.
+        pools: where the render pool is taken from, kept across flights (the environments' resets;
+            :class:`mpcde.flight.session.FlightSession`); None: the session's own.
     """
     given = dict(agents or {})
     n = prepared.starts.shape[0]
@@ -64,7 +67,7 @@ def open_session(
     budget = ComputeBudget()
     cfg = prepared.config
     flown = [given[i] if i in given else make_agent(cfg, i, prepared.goals, prepared.obstacles, budget) for i in range(n)]
-    return FlightSession(prepared, flown, budget, frame_sink=frame_sink, progress=progress)
+    return FlightSession(prepared, flown, budget, frame_sink=frame_sink, progress=progress, pools=pools)
 
 
 def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, progress: bool = False) -> RunResult:

@@ -52,6 +52,7 @@ from sim.ground_truth import TrueState
 from sim.pose_estimate import PoseEstimator
 from sim.radio import Radio
 from sim.rendering.pool import RenderPool
+from sim.rendering.pool_keeper import PoolKeeper
 from sim.rotations import yaw_from_rotation
 from sim.scene import SceneSpec
 from sim.types import GroundTruthSegmentation, RgbdFrame
@@ -79,6 +80,9 @@ class FlightSession:
         frame_sink: called at every camera delivery with (time, truth, latest
             frame per drone); the video writer is one.
         progress: show a progress bar over simulated time.
+        pools: a :class:`sim.rendering.pool_keeper.PoolKeeper` to take the render pool from (a pool
+            kept across flights; the keeper's owner closes it), or None: the session starts its own
+            pool and closes it with itself.
 
     Use: :meth:`step` until :attr:`done`, then :meth:`result` (which closes
     the session); :meth:`close` frees PyBullet and the render pool at any time.
@@ -86,9 +90,10 @@ class FlightSession:
 
     def __init__(
         self, prepared: PreparedRun, agents: Sequence[OnboardAgent], budget: ComputeBudget,
-        frame_sink: FrameSink | None = None, progress: bool = False,
+        frame_sink: FrameSink | None = None, progress: bool = False, pools: PoolKeeper | None = None,
     ) -> None:  # fmt: skip
         self.world = self.pool = self.bar = None  # what close() frees, before anything can fail
+        self._pools = pools
         self._threads = contextlib.ExitStack()
         self._closed = False
         try:
@@ -124,7 +129,9 @@ class FlightSession:
         self.workers = cfg.run.render_workers if cfg.run.render_workers >= 0 else _default_workers(self.agents, self.detector is not None)
         # the detector runs in the render workers when there are any (mpcde/onboard/detection.py)
         processor = (frame_detector, self.detector.request) if self.detector is not None and self.workers > 0 else None
-        self.pool = RenderPool(spec, cfg.camera, self.workers, processor) if cfg.run.cameras else None
+        if cfg.run.cameras:
+            pools = self._pools
+            self.pool = RenderPool(spec, cfg.camera, self.workers, processor) if pools is None else pools.get(spec, cfg.camera, self.workers, processor)
         self.bar = None
         if progress:
             from tqdm import tqdm
@@ -294,7 +301,8 @@ class FlightSession:
                 self.budget.add("render", self.pool.render_s, self.pool.renders)
                 if self.pool.has_processor:
                     self.budget.add("detect", self.pool.process_s, self.pool.processed_frames, off_main=True)
-                self.pool.close()
+                if self._pools is None:  # a kept pool stays with its keeper (its next get() drains it)
+                    self.pool.close()
         finally:
             if self.world is not None:
                 self.world.close()

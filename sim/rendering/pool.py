@@ -125,6 +125,13 @@ def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_s
                 break
             if msg[0] == "stop":
                 break
+            if msg[0] == "scene":  # another flight's scene (RenderPool.reload): same camera, slots and processor
+                renderer.close()
+                renderer = make_renderer(msg[1], camera)
+                _warm_up(renderer, None, 0)
+                if not _send(conn, ("ready",)):
+                    break
+                continue
             _, pos, quat, jobs, style, sensor, wanted = msg
             t0 = time.process_time()
             renderer.set_drone_poses(pos, quat)
@@ -182,7 +189,9 @@ class RenderPool:
         self.process_s = 0.0
         self.processed_frames = 0
         self.processed: list[Any] = []
+        self.processor = processor
         self.has_processor = processor is not None
+        self.closed = False
         if n_workers == 0:
             self._local = make_renderer(spec, camera)
             self._local_processor = processor[0](processor[1]) if processor is not None else None
@@ -213,6 +222,57 @@ class RenderPool:
         except BaseException:
             self.close()
             raise
+
+    def accepts(self, spec: SceneSpec, camera: CameraConfig, n_workers: int, processor: ProcessorSpec | None = None) -> bool:
+        """Whether :meth:`reload` can take ``spec``: a pool built with these arguments would differ only in its scene
+        (the same drone count, hence shared-memory slots, camera, worker count and processor)."""
+        return (
+            not self.closed
+            and spec.n_drones == self.spec.n_drones
+            and camera == self.camera
+            and n_workers == self.n_workers
+            and processor == self.processor
+        )
+
+    def reload(self, spec: SceneSpec) -> None:
+        """Load another flight's scene ``spec`` into the running workers, instead of starting new ones.
+
+        A worker's start (a spawned process that imports the renderer and builds
+        its processor, e.g. loads the detector) costs seconds; building a scene
+        costs a fraction of that (measured: ``benchmarks/bench_env_reset.py``).
+        Each worker builds the new scene's renderer, renders once (as at its
+        start) and answers, so :meth:`reload` returns ready for the first camera
+        tick. A batch never collected is collected first and dropped. The
+        counters (:attr:`render_s`, :attr:`renders`, :attr:`process_s`,
+        :attr:`processed_frames`) start again from zero, so they count the new
+        flight's work only. Renders depend only on the scene, the poses and the
+        (seed, frame index) of :meth:`submit`, so a reloaded pool renders what
+        a new one would.
+
+        Raises:
+            ValueError: ``spec`` has another drone count (see :meth:`accepts`).
+            RuntimeError: a worker is gone (the pool is then unusable: close it).
+        """
+        if spec.n_drones != self.spec.n_drones:
+            raise ValueError(f"reload: the scene has {spec.n_drones} drones, the pool's slots {self.spec.n_drones}")
+        if self._pending is not None:
+            self.collect()
+        self.spec = spec
+        if self._local is not None:
+            self._local.close()
+            self._local = make_renderer(spec, self.camera)
+        else:
+            for conn in self._conns:
+                conn.send(("scene", spec))
+            for w, conn in enumerate(self._conns):
+                try:
+                    reply = conn.recv()
+                except EOFError:
+                    raise RuntimeError(f"render worker {w} exited while loading a scene (exit code {self._workers[w].exitcode})") from None
+                if reply[0] != "ready":  # pragma: no cover - defensive
+                    raise RuntimeError(f"render worker {w} failed to load a scene: {reply!r}")
+        self.render_s, self.renders, self.process_s, self.processed_frames = 0.0, 0, 0.0, 0
+        self.processed = []
 
     def submit(
         self,
@@ -313,7 +373,8 @@ class RenderPool:
         return self._pending is not None
 
     def close(self) -> None:
-        """Stop the workers and free shared memory."""
+        """Stop the workers and free shared memory (idempotent)."""
+        self.closed = True
         if self._local is not None:
             self._local.close()
             self._local = None

@@ -19,12 +19,19 @@ pytestmark = pytest.mark.slow
 
 
 def test_the_denied_policy_flies_the_flight_of_mpcde_fly():
-    """Same seed: the env driven by the denied policy gives the states and metrics of `mpcde fly --mode denied`."""
+    """Same seed: the env driven by the denied policy gives the states and metrics of `mpcde fly --mode denied`,
+    in an episode after another one (cut short mid-flight), whose render pool it takes over (a reset loads the new
+    scene into the running render workers: sim/rendering/pool_keeper.py)."""
     cfg = mpcde.load_scenario("forest_swarm", mode="denied", seed=3, duration_s=2.5)
     fly = mpcde.fly(cfg)
     env = SwarmParallelEnv(cfg, options=EXACT_REPLAY_OPTIONS)
+    before = StackPolicy("denied", env)
+    obs, _ = env.reset(seed=1)  # another forest layout
+    for _ in range(7):
+        obs, *_ = env.step(before(obs))
     policy = StackPolicy("denied", env)
     obs, _ = env.reset(seed=3)
+    assert (env.core.pools.started, env.core.pools.reloaded) == (1, 1)
     while env.agents:
         obs, *_ = env.step(policy(obs))
     flown = env.flight_result()
