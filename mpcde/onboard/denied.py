@@ -478,7 +478,7 @@ class DeniedAgent(OnboardAgent):
 
     def _climbed(self, t: float) -> bool:
         """Whether the plan in hand has just brought the drone to its flight level (replan at once for the goal)."""
-        if self.levels is None or self.trajectory is None:
+        if self.levels is None or self.levels.reached or self.trajectory is None:
             return False
         return self.levels.climbed(self.state_at(t)[0])
 

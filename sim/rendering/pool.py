@@ -126,8 +126,9 @@ def _worker_main(conn, spec: SceneSpec, camera: CameraConfig, shm_name: str, n_s
             if msg[0] == "stop":
                 break
             if msg[0] == "scene":  # another flight's scene (RenderPool.reload): same camera, slots and processor
+                fresh = make_renderer(msg[1], camera)  # built first: a failure leaves the old one to the finally
                 renderer.close()
-                renderer = make_renderer(msg[1], camera)
+                renderer = fresh
                 _warm_up(renderer, None, 0)
                 if not _send(conn, ("ready",)):
                     break
@@ -192,6 +193,9 @@ class RenderPool:
         self.processor = processor
         self.has_processor = processor is not None
         self.closed = False
+        # set while a message exchange with the workers is under way (cleared when it completes): one cut short by
+        # an exception or Ctrl-C leaves requests and answers out of step, and such a pool is not reloaded (accepts)
+        self._exchanging = False
         if n_workers == 0:
             self._local = make_renderer(spec, camera)
             self._local_processor = processor[0](processor[1]) if processor is not None else None
@@ -225,9 +229,12 @@ class RenderPool:
 
     def accepts(self, spec: SceneSpec, camera: CameraConfig, n_workers: int, processor: ProcessorSpec | None = None) -> bool:
         """Whether :meth:`reload` can take ``spec``: a pool built with these arguments would differ only in its scene
-        (the same drone count, hence shared-memory slots, camera, worker count and processor)."""
+        (the same drone count, hence shared-memory slots, camera, worker count and processor), and the pool is open
+        with no exchange with its workers cut short (an exception or Ctrl-C inside :meth:`submit`, :meth:`collect`
+        or :meth:`reload`: such a pool is closed, which bounds its waits, and a new one started)."""
         return (
             not self.closed
+            and not self._exchanging
             and spec.n_drones == self.spec.n_drones
             and camera == self.camera
             and n_workers == self.n_workers
@@ -250,18 +257,20 @@ class RenderPool:
         a new one would.
 
         Raises:
-            ValueError: ``spec`` has another drone count (see :meth:`accepts`).
+            ValueError: ``spec`` has another drone count, or the pool is closed (see :meth:`accepts`).
             RuntimeError: a worker is gone (the pool is then unusable: close it).
         """
-        if spec.n_drones != self.spec.n_drones:
-            raise ValueError(f"reload: the scene has {spec.n_drones} drones, the pool's slots {self.spec.n_drones}")
+        if self.closed or spec.n_drones != self.spec.n_drones:
+            why = "the pool is closed" if self.closed else f"the scene has {spec.n_drones} drones, the pool's slots {self.spec.n_drones}"
+            raise ValueError(f"reload: {why}")
         if self._pending is not None:
             self.collect()
-        self.spec = spec
         if self._local is not None:
+            fresh = make_renderer(spec, self.camera)
             self._local.close()
-            self._local = make_renderer(spec, self.camera)
+            self._local = fresh
         else:
+            self._exchanging = True
             for conn in self._conns:
                 conn.send(("scene", spec))
             for w, conn in enumerate(self._conns):
@@ -271,6 +280,8 @@ class RenderPool:
                     raise RuntimeError(f"render worker {w} exited while loading a scene (exit code {self._workers[w].exitcode})") from None
                 if reply[0] != "ready":  # pragma: no cover - defensive
                     raise RuntimeError(f"render worker {w} failed to load a scene: {reply!r}")
+            self._exchanging = False
+        self.spec = spec
         self.render_s, self.renders, self.process_s, self.processed_frames = 0.0, 0, 0.0, 0
         self.processed = []
 
@@ -318,10 +329,12 @@ class RenderPool:
             slot = len(assign[w])
             assign[w].append((slot, int(drone), np.asarray(T_cw, float)))
             order.append((w, slot))
+        self._exchanging = True
         for w, jobs in enumerate(assign):
             if jobs:
                 self._conns[w].send(("render", np.asarray(pos_world, float), np.asarray(quat_xyzw, float), jobs, style, sensor, wanted))
         self._pending = [(w, []) for w, jobs in enumerate(assign) if jobs]
+        self._exchanging = False
         self._order = order
         self._sensor = sensor is not None
 
@@ -334,6 +347,7 @@ class RenderPool:
             self.processed = self._local_processed
             return out
         outs: dict[tuple[int, int], Any] = {}
+        self._exchanging = True
         for w, _ in self._pending:
             reply = self._conns[w].recv()
             if reply[0] != "done":  # pragma: no cover - defensive
@@ -344,6 +358,7 @@ class RenderPool:
             self.processed_frames += n_processed
             self.process_s += process_s
             outs.update({(w, slot): o for slot, o in processed.items()})
+        self._exchanging = False
         self.processed = [outs.get(key) for key in self._order]
         out = []
         for w, slot in self._order:

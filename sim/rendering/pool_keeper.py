@@ -8,7 +8,11 @@ flight at every ``reset``. A :class:`PoolKeeper` hands out the pool it holds
 when the next flight's camera, drone count, worker count and processor match
 (:meth:`RenderPool.accepts`), with the new flight's scene loaded into the
 running workers (:meth:`RenderPool.reload`); otherwise it closes it and starts
-a new one. Its owner closes the keeper (and with it the pool) at the end.
+a new one. Its owner closes the keeper (and with it the pool) at the end; until
+then the pool's worker processes and shared memory stay, between flights too.
+A keeper serves one flight at a time: the next :meth:`PoolKeeper.get` reloads
+the pool under any flight still using it (the environments close an episode's
+session before they start the next).
 Measured: ``benchmarks/bench_env_reset.py``.
 """
 

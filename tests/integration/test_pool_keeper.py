@@ -52,7 +52,7 @@ def test_a_kept_pool_renders_the_next_flights_scene_as_a_new_pool_would(workers)
     with PoolKeeper() as keeper:
         first = keeper.get(spec0, CAMERA, workers)
         pos, quat, cams = _looking_along_x(starts0)
-        old = first.render(pos, quat, cams, sensor=(0, 3))
+        first.render(pos, quat, cams, sensor=(0, 3))
         first.submit(pos, quat, cams, sensor=(0, 4))  # a flight cut short with a batch in flight
         pos, quat, cams = _looking_along_x(starts1)
         kept = keeper.get(spec1, CAMERA, workers)
@@ -64,7 +64,8 @@ def test_a_kept_pool_renders_the_next_flights_scene_as_a_new_pool_would(workers)
     with RenderPool(spec1, CAMERA, workers) as fresh:
         want = fresh.render(pos, quat, cams, sensor=(1, 3))
     assert _same(got, want)
-    assert not _same(old, want)  # the two forests' renders differ: the scene was reloaded, not kept
+    with RenderPool(spec0, CAMERA, workers) as other:  # the first forest from the same cameras: other images
+        assert not _same(other.render(pos, quat, cams, sensor=(1, 3)), want)
 
 
 def test_a_keeper_starts_a_new_pool_for_another_drone_count_or_camera_and_after_a_worker_died():
@@ -90,3 +91,25 @@ def test_reload_refuses_a_scene_with_another_drone_count():
     with RenderPool(spec, CAMERA, 0) as pool:
         with pytest.raises(ValueError, match="drones"):
             pool.reload(SceneSpec(obstacles=spec.obstacles, n_drones=spec.n_drones + 1))
+
+
+def test_a_pool_whose_collect_was_cut_short_is_replaced_not_reloaded():
+    """Ctrl-C inside collect() leaves a worker's answer unread: reusing the pool would read it as the answer to the
+    next request, so the keeper closes it (close() bounds its wait) and starts a new one."""
+    spec, starts = _forest(0)
+    pos, quat, cams = _looking_along_x(starts)
+    with PoolKeeper() as keeper:
+        pool = keeper.get(spec, CAMERA, 2)
+        pool.submit(pos, quat, cams, sensor=(0, 1))
+
+        def interrupted():
+            raise KeyboardInterrupt
+
+        pool._conns[1].recv = interrupted  # worker 0's answer is read, then the interrupt
+        with pytest.raises(KeyboardInterrupt):
+            pool.collect()
+        del pool._conns[1].recv  # the pipe's own recv again (worker 1's answer is still unread)
+        assert not pool.accepts(spec, CAMERA, 2)
+        fresh = keeper.get(spec, CAMERA, 2)
+        assert fresh is not pool and pool.closed and (keeper.started, keeper.reloaded) == (2, 0)
+        assert len(fresh.render(pos, quat, cams, sensor=(0, 1))) == len(cams)
