@@ -216,16 +216,20 @@ class RenderPool:
                 self._workers.append(proc)
                 self._conns.append(parent)
                 self._views.append(_slot_views(shm.buf, n_slots, H, W))
-            for w, conn in enumerate(self._conns):  # built their scene and processor (started together, so in parallel)
-                try:
-                    reply = conn.recv()
-                except EOFError:
-                    raise RuntimeError(f"render worker {w} exited while starting (exit code {self._workers[w].exitcode})") from None
-                if reply[0] != "ready":  # pragma: no cover - defensive
-                    raise RuntimeError(f"render worker {w} failed to start: {reply!r}")
+            self._await_ready("starting")  # built their scene and processor (started together, so in parallel)
         except BaseException:
             self.close()
             raise
+
+    def _await_ready(self, doing: str) -> None:
+        """Wait for every worker's "ready" (a start, or :meth:`reload`); RuntimeError naming ``doing`` if one is gone."""
+        for w, conn in enumerate(self._conns):
+            try:
+                reply = conn.recv()
+            except EOFError:
+                raise RuntimeError(f"render worker {w} exited while {doing} (exit code {self._workers[w].exitcode})") from None
+            if reply[0] != "ready":  # pragma: no cover - defensive
+                raise RuntimeError(f"render worker {w} failed while {doing}: {reply!r}")
 
     def accepts(self, spec: SceneSpec, camera: CameraConfig, n_workers: int, processor: ProcessorSpec | None = None) -> bool:
         """Whether :meth:`reload` can take ``spec``: a pool built with these arguments would differ only in its scene
@@ -273,13 +277,7 @@ class RenderPool:
             self._exchanging = True
             for conn in self._conns:
                 conn.send(("scene", spec))
-            for w, conn in enumerate(self._conns):
-                try:
-                    reply = conn.recv()
-                except EOFError:
-                    raise RuntimeError(f"render worker {w} exited while loading a scene (exit code {self._workers[w].exitcode})") from None
-                if reply[0] != "ready":  # pragma: no cover - defensive
-                    raise RuntimeError(f"render worker {w} failed to load a scene: {reply!r}")
+            self._await_ready("loading a scene")
             self._exchanging = False
         self.spec = spec
         self.render_s, self.renders, self.process_s, self.processed_frames = 0.0, 0, 0.0, 0
