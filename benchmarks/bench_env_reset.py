@@ -38,7 +38,7 @@ def reset_ms(make_env, reuse: bool, repeats: int, steps: int) -> float:
     env.reset(seed=0)
     times = []
     parallel = isinstance(env, SwarmParallelEnv)
-    for k in range(repeats):
+    for _ in range(repeats):
         for _ in range(steps):
             if parallel:
                 env.step({a: env.action_space(a).sample() for a in env.agents})
