@@ -119,7 +119,7 @@ def test_render_prints_one_line_per_cell(tmp_path, capsys):
     assert out[2].split()[:9] == ["4", "1", "1", "2", "21.4%", "21.4%", "57.1%", "15.7", "45.00"]
 
 
-KEPT_SEEDS = 29  # fig6_modes holds seeds 0-28 of its 30 (stopped for time, 2026-11-29; the store resumes)
+KEPT_SEEDS = 30  # fig6_modes holds all 30 seeds of its sweep file (completed 2026-11-29)
 
 
 def test_the_report_of_the_kept_swarm_stores_stands_verbatim_in_mp_cde_md(tmp_path, unpack_kept_store):
