@@ -69,7 +69,10 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("sweep", "mpcde sweep --jobs 2 vs the same flights back to back; denied flights per hour", ("--quick",)),
     Benchmark("env", "PettingZoo env steps/s without cameras vs PyFlyt's MA QuadX env; with cameras vs mpcde fly", ("--quick",)),
     Benchmark("env_reset", "an environment's reset with the render pool kept vs a new pool per episode", ("--quick",)),
-    Benchmark("numerics", "a perceiving flight under the portable numerics profile vs the CPU's native kernels", ("--duration", "1", "--repeats", "1")),
+    # quick: the crossing pair over the radio, whose stack compiles far fewer numba kernels for the native
+    # profile (a cold cache) than the denied forest's MINCO and L-BFGS: the same script path in about half the time
+    Benchmark("numerics", "a perceiving flight under the portable numerics profile vs the CPU's native kernels",
+              ("--scenario", "crossing", "--mode", "comm", "--duration", "1", "--repeats", "1")),
 )
 _BY_NAME = {b.name: b for b in BENCHMARKS}
 
