@@ -15,7 +15,13 @@ Denied with cameras: ``--denied-flights`` flights of ``radio_outage`` in
 MINCO), ``--jobs 2``, the scenario's own 40-s limit (a flight ends 1 s after
 every drone arrived): flights per hour on this machine.
 
-Run: ``.venv/bin/python benchmarks/bench_sweep.py [--flights 200] [--denied-flights 4]``
+Render pool kept: ``--pool-flights`` 2-second camera flights of ``crossing``
+over the radio (DMPC; each renders and detects), ``--jobs 2``, once with a
+render pool per flight (the baseline, ``keep_pools=False``) and once with each
+worker keeping its pool across its flights (the default): the wall time of
+each sweep and the ratio kept / baseline.
+
+Run: ``.venv/bin/python benchmarks/bench_sweep.py [--flights 200] [--denied-flights 4] [--pool-flights 8]``
 """
 
 from __future__ import annotations
@@ -40,14 +46,30 @@ def _tiny(flights: int) -> dict:
     }  # fmt: skip
 
 
+def _pools(flights: int) -> None:
+    spec = sweep_from_dict({"base": "crossing", "seeds": flights, "overrides": {"duration_s": 2.0, "planner.kind": "dmpc"}})
+    walls = {}
+    for keep in (False, True):
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            counts = run_sweep(spec, Path(tmp) / "pools", jobs=2, progress=False, keep_pools=keep)
+            walls[keep] = time.perf_counter() - t0
+            assert counts["flown"] == flights, counts
+    print(f"render pool kept: {flights} flights of crossing over the radio (DMPC, cameras), 2 s simulated, --jobs 2")
+    print(f"  a pool per flight (baseline)            {walls[False]:8.1f} s   {1e3 * walls[False] / flights:8.0f} ms per flight")
+    print(f"  each worker keeps its pool              {walls[True]:8.1f} s   {1e3 * walls[True] / flights:8.0f} ms per flight")
+    print(f"  ratio kept / baseline                   {walls[True] / walls[False]:8.3f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--flights", type=int, default=200, help="1-second no-camera flights (even)")
     ap.add_argument("--denied-flights", type=int, default=4, help="radio_outage denied flights with cameras (0: skip)")
-    ap.add_argument("--quick", action="store_true", help="40 tiny flights, 2 denied ones")
+    ap.add_argument("--pool-flights", type=int, default=8, help="2-s camera flights per sweep, pool kept vs one per flight (0: skip)")
+    ap.add_argument("--quick", action="store_true", help="40 tiny flights, 2 denied ones, 4 per pool sweep")
     args = ap.parse_args()
     if args.quick:
-        args.flights, args.denied_flights = 40, 2
+        args.flights, args.denied_flights, args.pool_flights = 40, 2, 4
     spec = sweep_from_dict(_tiny(args.flights))
     tasks = [FlightTask((c.index, s), prepare_run(spec.scenario(c, s))) for s in spec.seeds for c in spec.cells()]
     fly_task(tasks[0])  # warm: numba caches, imports
@@ -77,6 +99,8 @@ def main() -> None:
         ratio = total / ideal
         print(f"  ratio {label} / (baseline / 2)   {ratio:8.2f}   goal <= 1.20: {'met' if ratio <= 1.2 else 'NOT met'}")
     print(f"  overhead per flight                     {1e3 * (sweep_s - ideal) / n:8.1f} ms   flights per hour {3600 * n / sweep_s:8.0f}")
+    if args.pool_flights > 0:
+        _pools(args.pool_flights)
     if args.denied_flights > 0:
         denied = sweep_from_dict({"base": "radio_outage", "seeds": args.denied_flights, "axes": {"planner.kind": ["mpcde"]}})
         with tempfile.TemporaryDirectory() as tmp:

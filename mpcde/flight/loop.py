@@ -70,7 +70,7 @@ def open_session(
     return FlightSession(prepared, flown, budget, frame_sink=frame_sink, progress=progress, pools=pools)
 
 
-def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, progress: bool = False) -> RunResult:
+def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, progress: bool = False, pools: PoolKeeper | None = None) -> RunResult:
     """Fly a prepared scenario to its end: a :class:`mpcde.flight.session.FlightSession` of the scenario's agents, stepped until done.
 
     Args:
@@ -78,8 +78,9 @@ def run_scenario(prepared: PreparedRun, frame_sink: FrameSink | None = None, pro
         frame_sink: called at every camera delivery with (time, truth, latest
             frame per drone); the video writer is one.
         progress: show a progress bar over simulated time.
+        pools: as in :func:`open_session` (a sweep's worker keeps one across its flights).
     """
-    session = open_session(prepared, frame_sink=frame_sink, progress=progress)
+    session = open_session(prepared, frame_sink=frame_sink, progress=progress, pools=pools)
     try:
         while not session.done:
             session.step()

@@ -88,12 +88,12 @@ def fly_task(task: FlightTask) -> FlightOutcome:
         prepared = task.prepared() if callable(task.prepared) else task.prepared
         out = task.run_folder
         if out is None:
-            result = run_scenario(prepared)
+            result = run_scenario(prepared, pools=_KEEPER)
         else:  # mpcde.fly writes the run folder (and the video) all or nothing
             result = fly(prepared.config, out=out, overwrite=True, video=task.video)
     except Terminated:
         if _IN_POOL:  # the flight has closed its session on the way here; a stopped worker takes no further flight
-            os._exit(143)
+            _exit_stopped()
         raise
     except Exception as e:  # a failed flight is a result of the sweep, not the end of it
         last = traceback.extract_tb(e.__traceback__)[-1] if e.__traceback__ else None
@@ -108,6 +108,30 @@ _IN_POOL = False
 """Whether this process is a local pool's worker (set by :func:`_warm`)."""
 _FLYING = False
 """Whether this process is inside :func:`fly_task` (a SIGTERM then unwinds the flight; otherwise it exits at once)."""
+_KEEPER: Any = None
+"""The :class:`sim.rendering.pool_keeper.PoolKeeper` this process's flights take their render pool from (None: each
+flight starts its own). A local pool's worker and ``jobs=1`` keep one across their flights: a camera flight then
+loads its scene into the running render workers instead of spawning new ones (benchmarks/bench_sweep.py)."""
+
+
+def _exit_stopped() -> None:
+    """A stopped pool worker's end: close its kept render pool, then exit with 143 at once.
+
+    Once one worker has exited, the pool's manager sends SIGTERM to the others: a second SIGTERM, here or
+    still unwinding a flight, must not cut the close short (measured: the sweep's exit then took 51 s
+    instead of 4 s), so further ones are ignored from here on."""
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    _close_keeper()
+    os._exit(143)
+
+
+def _close_keeper() -> None:
+    """Close this process's kept render pool, if any (before a worker exits; never raises)."""
+    global _KEEPER
+    keeper, _KEEPER = _KEEPER, None
+    if keeper is not None:
+        with contextlib.suppress(Exception):
+            keeper.close()
 
 
 def share_cores_count(jobs: int, cpus: int | None = None) -> int:
@@ -134,6 +158,7 @@ def run_flights(
     jobs: int = 1,
     backend: str = "local",
     ray_address: str | None = None,
+    keep_pools: bool = True,
 ) -> None:
     """Fly every task and call ``on_done`` with each outcome as it finishes.
 
@@ -148,19 +173,36 @@ def run_flights(
         backend: ``"local"`` or ``"ray"``.
         ray_address: with Ray, ``"auto"`` (or a ``ray start`` address) joins an
             existing cluster; None starts a local Ray instance.
+        keep_pools: on the local backend, each process keeps one render pool
+            across its camera flights (:data:`_KEEPER`); False starts one per
+            flight (the benchmark's baseline). A flight's metrics are the same
+            either way (tests/integration/test_sweep_pools.py).
     """
     if backend not in BACKENDS:
         raise ConfigError("--backend", backend, f"one of {', '.join(BACKENDS)}")
     if backend == "ray":
         _run_ray(tasks, on_done, ray_address)
     elif jobs <= 1:
+        _run_here(tasks, on_done, keep_pools)
+    else:
+        _run_pool(tasks, on_done, jobs, keep_pools)
+
+
+def _run_here(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], on_done: Callable[[FlightOutcome], None], keep_pools: bool) -> None:
+    """The flights one after the other in this process, with one kept render pool (closed at the end, whatever happens)."""
+    global _KEEPER
+    if keep_pools:
+        from sim.rendering.pool_keeper import PoolKeeper
+
+        _KEEPER = PoolKeeper()
+    try:
         for task in tasks() if callable(tasks) else tasks:
             on_done(fly_task(task))
-    else:
-        _run_pool(tasks, on_done, jobs)
+    finally:
+        _close_keeper()
 
 
-def _warm() -> None:
+def _warm(keep_pools: bool = True) -> None:
     """A pool worker's first job: import the simulator and the stacks (what every flight needs) before a flight waits on it.
 
     It also makes SIGTERM raise :class:`mpcde.errors.Terminated` in the worker, so that a flight stopped by
@@ -169,17 +211,28 @@ def _warm() -> None:
     one SIGTERM stopped one flight, and the sweep's exit waited for the next). It ignores
     SIGINT: Ctrl-C reaches the whole process group, and the main process answers it by stopping the
     workers with SIGTERM (a second Ctrl-C must not interrupt that cleanup).
+
+    With ``keep_pools`` it starts the worker's :data:`_KEEPER`, closed when the worker exits: at a SIGTERM
+    (either way above), and at the pool's shutdown by a finalizer that multiprocessing runs before it stops
+    the worker's own (daemonic) children, the render workers.
     """
     import mpcde.flight.loop  # noqa: F401
     import mpcde.onboard.factory  # noqa: F401
     from mpcde.errors import Terminated
 
-    global _IN_POOL
+    global _IN_POOL, _KEEPER
     _IN_POOL = True
+    if keep_pools:
+        from multiprocessing import util
+
+        from sim.rendering.pool_keeper import PoolKeeper
+
+        _KEEPER = PoolKeeper()
+        util.Finalize(None, _close_keeper, exitpriority=10)
 
     def raise_terminated(signum: int, frame: object) -> None:
-        if not _FLYING:  # idle, between flights: nothing to close, and no next flight may start
-            os._exit(143)
+        if not _FLYING:  # idle, between flights: only the kept pool to close, and no next flight may start
+            _exit_stopped()
         raise Terminated()
 
     signal.signal(signal.SIGTERM, raise_terminated)
@@ -213,12 +266,12 @@ def _environment(values: dict[str, str]) -> Iterator[None]:
                 os.environ[k] = v
 
 
-def _run_pool(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], on_done: Callable[[FlightOutcome], None], jobs: int) -> None:
+def _run_pool(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], on_done: Callable[[FlightOutcome], None], jobs: int, keep_pools: bool) -> None:
     with _environment(_ONE_THREAD):  # the pool's queues start multiprocessing's resource tracker, with this environment
         pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
     try:
         with main_module_hidden(), _environment(_ONE_THREAD), sigint_ignored():  # the workers start on these first submits (sim/spawn.py)
-            warm = [pool.submit(_warm) for _ in range(jobs)]
+            warm = [pool.submit(_warm, keep_pools) for _ in range(jobs)]
             pending = {pool.submit(fly_task, t) for t in (tasks() if callable(tasks) else tasks)}
         for future in warm:
             future.result()

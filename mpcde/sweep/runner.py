@@ -47,9 +47,12 @@ def run_folder_name(cell: int, seed: int) -> str:
 
 
 def run_sweep(
-    spec: SweepSpec, out: str | Path, jobs: int = 1, backend: str = "local", ray_address: str | None = None, progress: bool = True
+    spec: SweepSpec, out: str | Path, jobs: int = 1, backend: str = "local", ray_address: str | None = None, progress: bool = True,
+    keep_pools: bool = True,
 ) -> dict[str, Any]:
     """Fly what ``out``'s store is missing of ``spec``; returns counts: ``total``, ``recorded_before``, ``flown``, ``failed``.
+
+    ``keep_pools``: as in :func:`mpcde.sweep.engine.run_flights` (False: a render pool per flight, the benchmark's baseline).
 
     Raises:
         ConfigError: a folder of another sweep, a corrupt store (before a
@@ -100,7 +103,7 @@ def run_sweep(
             bar.write(f"failed: cell {by_index[cell].label}, seed {seed}: {o.error}")
 
     try:
-        run_flights(open_store, on_done, jobs=jobs, backend=backend, ray_address=ray_address)
+        run_flights(open_store, on_done, jobs=jobs, backend=backend, ray_address=ray_address, keep_pools=keep_pools)
     finally:
         bar.close()
     counts["wall_s"] = time.perf_counter() - t0
