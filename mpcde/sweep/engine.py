@@ -9,7 +9,8 @@ main loop plus its render workers). A flight that raises becomes a failed
 ``on_done`` is called in this process as each flight finishes, in finishing
 order. A flight's metrics do not depend on where it flew (everything is
 seeded and stepped in simulated time; a render does not depend on the worker
-that made it), except the wall-clock ones (``real_time_factor``, ``compute_time``).
+that made it), except the wall-clock ones (``wall_time_s``, ``real_time_factor``,
+``compute_time``'s times, and the agents' millisecond timings such as ``qp_solve_ms``).
 """
 
 from __future__ import annotations
@@ -74,8 +75,12 @@ class FlightOutcome:
     result: Any = None
 
 
-def fly_task(task: FlightTask) -> FlightOutcome:
-    """Fly ``task`` to its end (top level, so it pickles); any exception becomes a failed outcome."""
+def fly_task(task: FlightTask, pools: Any = None) -> FlightOutcome:
+    """Fly ``task`` to its end (top level, so it pickles); any exception becomes a failed outcome.
+
+    ``pools``: the :class:`sim.rendering.pool_keeper.PoolKeeper` to take the render pool from; None: this
+    process's :data:`_KEEPER` (a pool worker's), if any. A flight with a run folder (``mpcde.fly``) starts its own.
+    """
     from mpcde.api import fly
     from mpcde.flight.loop import run_scenario
 
@@ -88,7 +93,7 @@ def fly_task(task: FlightTask) -> FlightOutcome:
         prepared = task.prepared() if callable(task.prepared) else task.prepared
         out = task.run_folder
         if out is None:
-            result = run_scenario(prepared, pools=_KEEPER)
+            result = run_scenario(prepared, pools=pools if pools is not None else _KEEPER)
         else:  # mpcde.fly writes the run folder (and the video) all or nothing
             result = fly(prepared.config, out=out, overwrite=True, video=task.video)
     except Terminated:
@@ -109,20 +114,30 @@ _IN_POOL = False
 _FLYING = False
 """Whether this process is inside :func:`fly_task` (a SIGTERM then unwinds the flight; otherwise it exits at once)."""
 _KEEPER: Any = None
-"""The :class:`sim.rendering.pool_keeper.PoolKeeper` this process's flights take their render pool from (None: each
-flight starts its own). A local pool's worker and ``jobs=1`` keep one across their flights: a camera flight then
-loads its scene into the running render workers instead of spawning new ones (benchmarks/bench_sweep.py)."""
+"""A local pool worker's :class:`sim.rendering.pool_keeper.PoolKeeper` (set by :func:`_warm`; None: each flight
+starts its own render pool). Its camera flights without a run folder load their scene into the running render
+workers instead of spawning new ones (benchmarks/bench_sweep.py); ``jobs=1`` keeps one the same way."""
 
 
 def _exit_stopped() -> None:
     """A stopped pool worker's end: close its kept render pool, then exit with 143 at once.
 
-    Once one worker has exited, the pool's manager sends SIGTERM to the others: a second SIGTERM, here or
-    still unwinding a flight, must not cut the close short (measured: the sweep's exit then took 51 s
-    instead of 4 s), so further ones are ignored from here on."""
+    Once one worker has exited, the pool's manager sends SIGTERM to the others: a second SIGTERM must not cut
+    the close short (measured: the sweep's exit took 51 s instead of about 2 s; docs/results/sweeps.md), so
+    further ones are ignored (already from the first, :func:`_warm`)."""
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     _close_keeper()
     os._exit(143)
+
+
+def _close_at_exit() -> None:
+    """A worker's finalizer at the pool's shutdown: close the kept pool, not to be cut short by a late SIGTERM."""
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    _close_keeper()
+
+
+def _started() -> None:
+    """A no-op task: submitted once per worker, it starts the workers (and their :func:`_warm`) early."""
 
 
 def _close_keeper() -> None:
@@ -190,20 +205,19 @@ def run_flights(
 
 def _run_here(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], on_done: Callable[[FlightOutcome], None], keep_pools: bool) -> None:
     """The flights one after the other in this process, with one kept render pool (closed at the end, whatever happens)."""
-    global _KEEPER
-    if keep_pools:
-        from sim.rendering.pool_keeper import PoolKeeper
+    from sim.rendering.pool_keeper import PoolKeeper
 
-        _KEEPER = PoolKeeper()
+    keeper = PoolKeeper(reuse=keep_pools)  # reuse=False: a new pool for every flight, as without a keeper
     try:
         for task in tasks() if callable(tasks) else tasks:
-            on_done(fly_task(task))
+            on_done(fly_task(task, keeper))
     finally:
-        _close_keeper()
+        keeper.close()
 
 
 def _warm(keep_pools: bool = True) -> None:
-    """A pool worker's first job: import the simulator and the stacks (what every flight needs) before a flight waits on it.
+    """A pool worker's initializer (run once in each, before its first task): import the simulator and the
+    stacks (what every flight needs) before a flight waits on it.
 
     It also makes SIGTERM raise :class:`mpcde.errors.Terminated` in the worker, so that a flight stopped by
     an interrupted sweep closes its session (render pool, shared memory) on the way out; the worker then
@@ -214,7 +228,10 @@ def _warm(keep_pools: bool = True) -> None:
 
     With ``keep_pools`` it starts the worker's :data:`_KEEPER`, closed when the worker exits: at a SIGTERM
     (either way above), and at the pool's shutdown by a finalizer that multiprocessing runs before it stops
-    the worker's own (daemonic) children, the render workers.
+    the worker's own (daemonic) children, the render workers. From the first SIGTERM on, further ones are
+    ignored: the pool's manager sends one to every other worker once one has exited, and a second
+    ``Terminated`` must neither cut a close short nor escape :func:`fly_task` (the worker would then take
+    its next queued flight).
     """
     import mpcde.flight.loop  # noqa: F401
     import mpcde.onboard.factory  # noqa: F401
@@ -228,9 +245,10 @@ def _warm(keep_pools: bool = True) -> None:
         from sim.rendering.pool_keeper import PoolKeeper
 
         _KEEPER = PoolKeeper()
-        util.Finalize(None, _close_keeper, exitpriority=10)
+        util.Finalize(None, _close_at_exit, exitpriority=10)
 
     def raise_terminated(signum: int, frame: object) -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
         if not _FLYING:  # idle, between flights: only the kept pool to close, and no next flight may start
             _exit_stopped()
         raise Terminated()
@@ -268,10 +286,10 @@ def _environment(values: dict[str, str]) -> Iterator[None]:
 
 def _run_pool(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], on_done: Callable[[FlightOutcome], None], jobs: int, keep_pools: bool) -> None:
     with _environment(_ONE_THREAD):  # the pool's queues start multiprocessing's resource tracker, with this environment
-        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
+        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"), initializer=_warm, initargs=(keep_pools,))
     try:
         with main_module_hidden(), _environment(_ONE_THREAD), sigint_ignored():  # the workers start on these first submits (sim/spawn.py)
-            warm = [pool.submit(_warm, keep_pools) for _ in range(jobs)]
+            warm = [pool.submit(_started) for _ in range(jobs)]  # each worker runs _warm once, as it starts
             pending = {pool.submit(fly_task, t) for t in (tasks() if callable(tasks) else tasks)}
         for future in warm:
             future.result()

@@ -357,6 +357,7 @@ class RenderPool:
             self.process_s += process_s
             outs.update({(w, slot): o for slot, o in processed.items()})
         self._exchanging = False
+        self._pending = None  # every answer read: a copy below that raises must not leave a batch to wait for again
         self.processed = [outs.get(key) for key in self._order]
         out = []
         for w, slot in self._order:
@@ -364,7 +365,6 @@ class RenderPool:
             out.append(
                 RawRender(rgb=rgb.copy(), depth_true_m=depth.copy(), drone_index_mask=mask.copy(), depth_sensor_m=sensor.copy() if self._sensor else None)
             )
-        self._pending = None
         return out
 
     def render(
