@@ -23,11 +23,12 @@ if [ ! -x "$VENV/bin/python" ]; then
     "$PYTHON" -m venv "$VENV"
 fi
 PIP="$VENV/bin/python -m pip"
-# --no-compile: pip would byte-compile all 16,000 modules of the environment (about 70 s on 2 cores); Python
-# compiles the ones a run imports, once, on first import.
+# Not --no-compile: it saved about 70 s of setup here, but where PYTHONDONTWRITEBYTECODE is set (this machine,
+# and multiprocessing's spawned children run with -B) no .pyc is ever written, and every process then compiled
+# torch's modules from source on every import: a test run went several times slower.
 pip_install() {  # quiet pip install; on failure print pip's output and stop
     local out
-    if ! out=$($PIP install -q --no-compile "$@" 2>&1); then
+    if ! out=$($PIP install -q "$@" 2>&1); then
         echo "$out" >&2
         echo "[setup] pip install $* failed" >&2
         exit 1
