@@ -125,8 +125,7 @@ def _exit_stopped() -> None:
     Once one worker has exited, the pool's manager sends SIGTERM to the others: a second SIGTERM must not cut
     the close short (measured: the sweep's exit took 51 s instead of about 2 s; docs/results/sweeps.md), so
     further ones are ignored (already from the first, :func:`_warm`)."""
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    _close_keeper()
+    _close_at_exit()
     os._exit(143)
 
 
@@ -289,9 +288,9 @@ def _run_pool(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], 
         pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"), initializer=_warm, initargs=(keep_pools,))
     try:
         with main_module_hidden(), _environment(_ONE_THREAD), sigint_ignored():  # the workers start on these first submits (sim/spawn.py)
-            warm = [pool.submit(_started) for _ in range(jobs)]  # each worker runs _warm once, as it starts
+            started = [pool.submit(_started) for _ in range(jobs)]  # each worker runs _warm once, as it starts
             pending = {pool.submit(fly_task, t) for t in (tasks() if callable(tasks) else tasks)}
-        for future in warm:
+        for future in started:
             future.result()
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
