@@ -39,12 +39,11 @@ The goals, as issue 28 words them, and how each verdict is decided:
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from paper_summary import AKF_PAPER, FIG6_PAPER, _json, pct  # noqa: E402
+from paper_summary import AKF_PAPER, FIG6_PAPER, _json, pct, print_table  # noqa: E402
 from scipy.stats import rankdata  # noqa: E402
 from table3_report import PAPER, cells, margins, paired  # noqa: E402
 
@@ -264,18 +263,8 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"paper_goals: error: arguments={argv!r}: at most one RUNS_DIR (default runs/)\n")
         return 2
     runs = Path(argv[0]) if argv else Path("runs")
-    lines = ["| goal (issue 28) | target | ours | verdict | discussed in |", "|---|---|---|---|---|"]
-    for part in (table3, fig6, swarm_modes, fig10, akf):
-        try:
-            lines += part(runs)
-        except FileNotFoundError as e:
-            lines.append(f"<!-- {part.__name__}: {e.filename} missing -->")
-        except (ConfigError, KeyError, TypeError, ValueError, IndexError, AttributeError, ZeroDivisionError, OSError) as e:
-            what = e if isinstance(e, ConfigError) else f"{part.__name__}: {type(e).__name__}: {e}: not what `mpcde report` writes"
-            sys.stderr.write(f"paper_goals: error: {what}\n")
-            return 2
-    print("\n".join(lines))
-    return 0
+    head = ["| goal (issue 28) | target | ours | verdict | discussed in |", "|---|---|---|---|---|"]
+    return print_table("paper_goals", head, (table3, fig6, swarm_modes, fig10, akf), runs)
 
 
 if __name__ == "__main__":

@@ -184,14 +184,28 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"paper_summary: error: arguments={argv!r}: at most one RUNS_DIR (default runs/)\n")
         return 2
     runs = Path(argv[0]) if argv else Path("runs")
-    lines = ["| paper figure | paper | ours | command | commit | date |", "|---|---|---|---|---|---|"]
-    for part in (fig10, fig6, table3, akf):
+    return print_table("paper_summary", ["| paper figure | paper | ours | command | commit | date |", "|---|---|---|---|---|---|"],
+                       (fig10, fig6, table3, akf), runs)
+
+
+MALFORMED = (ConfigError, KeyError, TypeError, ValueError, IndexError, AttributeError, ZeroDivisionError, OSError)
+"""What reading a store or report that is not what `mpcde sweep` / `mpcde report` writes can raise."""
+
+
+def print_table(prog: str, head: list[str], parts: tuple, runs: Path) -> int:
+    """Print ``head`` and every part's rows for ``runs``; 0, or 2 with one line on stderr and nothing on stdout.
+
+    A part whose input is missing (FileNotFoundError) leaves an HTML comment naming it; a malformed input
+    (:data:`MALFORMED`) stops the table: ``prog: error: ...`` naming the part and what is wrong."""
+    lines = list(head)
+    for part in parts:
         try:
             lines += part(runs)
         except FileNotFoundError as e:
             lines.append(f"<!-- {part.__name__}: {e.filename} missing -->")
-        except ConfigError as e:
-            sys.stderr.write(f"paper_summary: error: {e}\n")
+        except MALFORMED as e:
+            what = e if isinstance(e, ConfigError) else f"{part.__name__}: {type(e).__name__}: {e}: not what `mpcde report` writes"
+            sys.stderr.write(f"{prog}: error: {what}\n")
             return 2
     print("\n".join(lines))
     return 0
