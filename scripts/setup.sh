@@ -38,7 +38,9 @@ pip_install() {  # quiet pip install; on failure print pip's output and stop
 stamp="$VENV/.mpcde-installed"
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || [ requirements-lock.txt -nt "$stamp" ]; then
     pip_install --upgrade pip setuptools wheel
-    # CPU build of torch first so that no dependency pulls a multi-GB CUDA build.
+    # torch pinned first, so that no dependency pulls another build. Which build the pin gets is pip's configuration's
+    # choice: the CPU one on this project's machines; from plain PyPI on Linux, set PIP_EXTRA_INDEX_URL to PyTorch's
+    # CPU index (README).
     pip_install "torch==2.13.0"
     # Every other dependency at the version in requirements-lock.txt (why: that file's header).
     pip_install -c requirements-lock.txt -e ".[dev,ray,env]"
