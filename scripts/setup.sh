@@ -23,9 +23,9 @@ if [ ! -x "$VENV/bin/python" ]; then
     "$PYTHON" -m venv "$VENV"
 fi
 PIP="$VENV/bin/python -m pip"
-# Not --no-compile: it saved about 70 s of setup here, but where PYTHONDONTWRITEBYTECODE is set (this machine,
-# and multiprocessing's spawned children run with -B) no .pyc is ever written, and every process then compiled
-# torch's modules from source on every import: a test run went several times slower.
+# Not --no-compile: it shortens setup, but where PYTHONDONTWRITEBYTECODE is set (this machine, and
+# multiprocessing's spawned children run with -B) no .pyc is ever written, and every process then compiles
+# torch's modules from source on every import, so the tests run far slower (docs/results/ci_time.md).
 pip_install() {  # quiet pip install; on failure print pip's output and stop
     local out
     if ! out=$($PIP install -q "$@" 2>&1); then

@@ -11,16 +11,13 @@ fresh clone failed on the working checkout; docs/results/minco.md).
 :func:`use_versioned_cache` therefore points numba's cache at
 ``<base>/kernels-<digest>``, where the digest is a SHA-256 of every module of
 the project's packages that mentions numba (path and text). Any edit of such a
-module gives a new folder and a fresh compile of every kernel (once, about a
-minute on 2 cores; the denied stack's kernels about 100 s); unchanged sources
-reuse it across runs and processes of one checkout. Not across checkouts at
-different paths: inside the folder numba keys each entry by its source file's
-absolute folder (a SHA-1 of the path), so a checkout elsewhere compiles its own
-entries (measured: a fresh clone in /tmp compiled, then /work/main compiled
-again, 102 s). A new clone at the same path reuses them: numba 0.68 stamps an
-entry with a SHA-256 of the source file's contents (its mtime and size only
-key a memo), measured as a second fresh clone's CI whose first denied flights
-compiled nothing. ``<base>`` is ``$NUMBA_CACHE_DIR`` if the user set it, else
+module gives a new folder and a fresh compile of every kernel (once; the times
+are in docs/results/minco.md); unchanged sources reuse it across runs and
+processes of one checkout. Not across checkouts at different paths: inside the
+folder numba keys each entry by its source file's absolute folder (a SHA-1 of
+the path), so a checkout elsewhere compiles its own entries. A new clone at the
+same path reuses them: numba 0.68 stamps an entry with a SHA-256 of the source
+file's contents (its mtime and size only key a memo). ``<base>`` is ``$NUMBA_CACHE_DIR`` if the user set it, else
 ``$XDG_CACHE_HOME/mpcde/numba`` (``~/.cache/mpcde/numba``), else, if that is
 not writable, a folder in the temporary directory. Each package's
 ``__init__`` calls it before any of its modules is imported, so every kernel

@@ -70,7 +70,8 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("env", "PettingZoo env steps/s without cameras vs PyFlyt's MA QuadX env; with cameras vs mpcde fly", ("--quick",)),
     Benchmark("env_reset", "an environment's reset with the render pool kept vs a new pool per episode", ("--quick",)),
     # quick: the crossing pair over the radio, whose stack compiles far fewer numba kernels for the native
-    # profile (a cold cache) than the denied forest's MINCO and L-BFGS: the same script path in about half the time
+    # profile (a cold cache) than the denied forest's MINCO and L-BFGS: the same script path, faster
+    # (docs/results/ci_time.md)
     Benchmark("numerics", "a perceiving flight under the portable numerics profile vs the CPU's native kernels",
               ("--scenario", "crossing", "--mode", "comm", "--duration", "1", "--repeats", "1")),
 )

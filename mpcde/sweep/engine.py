@@ -123,8 +123,8 @@ def _exit_stopped() -> None:
     """A stopped pool worker's end: close its kept render pool, then exit with 143 at once.
 
     Once one worker has exited, the pool's manager sends SIGTERM to the others: a second SIGTERM must not cut
-    the close short (measured: the sweep's exit took 51 s instead of about 2 s; docs/results/sweeps.md), so
-    further ones are ignored (already from the first, :func:`_warm`)."""
+    the close short (it stretched the sweep's exit: docs/results/sweeps.md), so further ones are ignored
+    (already from the first, :func:`_warm`)."""
     _close_at_exit()
     os._exit(143)
 
