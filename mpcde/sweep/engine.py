@@ -130,22 +130,18 @@ def _exit_stopped() -> None:
 
 
 def _close_at_exit() -> None:
-    """A worker's finalizer at the pool's shutdown: close the kept pool, not to be cut short by a late SIGTERM."""
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    _close_keeper()
-
-
-def _started() -> None:
-    """A no-op task: submitted once per worker, it starts the workers (and their :func:`_warm`) early."""
-
-
-def _close_keeper() -> None:
-    """Close this process's kept render pool, if any (before a worker exits; never raises)."""
+    """A worker's finalizer at the pool's shutdown: close the kept render pool, if any, not to be cut short by a
+    late SIGTERM (never raises)."""
     global _KEEPER
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     keeper, _KEEPER = _KEEPER, None
     if keeper is not None:
         with contextlib.suppress(Exception):
             keeper.close()
+
+
+def _started() -> None:
+    """A no-op task: submitted once per worker, it starts the workers (and their :func:`_warm`) early."""
 
 
 def share_cores_count(jobs: int, cpus: int | None = None) -> int:
