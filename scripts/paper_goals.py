@@ -43,7 +43,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from paper_summary import AKF_PAPER, FIG6_PAPER, _json, pct, print_table  # noqa: E402
+from paper_summary import AKF_PAPER, FIG6_PAPER, _json, pct, print_table, variant_of  # noqa: E402
 from scipy.stats import rankdata  # noqa: E402
 from table3_report import PAPER, cells, margins, paired  # noqa: E402
 
@@ -133,24 +133,14 @@ def table3(runs: Path) -> list[str]:
     return rows
 
 
-def _variants(report: dict) -> dict[str, str]:
-    """Each store of the denied stack besides the first (MP-CDE's), with the settings that set it apart."""
-    first = report["stores"][0]["name"]
-    skip = ("planner.cruise_speed_mps", "radio.view_gated", "planner.kind", *report["shared_overrides"])
-    out = {}
-    for c in report["cells"]:
-        if c["store"] != first and c["flights"] and c["settings"].get("planner.kind") == "mpcde":
-            out[c["store"]] = ", ".join(f"{k}={v}" for k, v in c["settings"].items() if k not in skip)
-    return out
-
-
 def fig6(runs: Path) -> list[str]:
     report = _json(runs / "fig6" / "report.json")
     if "stores" not in report:
         raise ConfigError(str(runs / "fig6" / "report.json"), "a single store's report", "the cross-store report of MP-CDE and its baselines")
     first = report["stores"][0]["name"]
-    variants = _variants(report)
     skip = ("planner.cruise_speed_mps", "radio.view_gated", *report["shared_overrides"])
+    # each store of the denied stack besides MP-CDE's, with the settings that set it apart
+    variants = {c["store"]: v for c in report["cells"] if (v := variant_of(c, first, skip)) is not None}
     rows = []
     for store in (first, *variants):
         name = f"MP-CDE ({first})" if store == first else f"MP-CDE with {variants[store]} ({store})"

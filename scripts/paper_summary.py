@@ -109,8 +109,8 @@ def fig6(runs: Path) -> list[str]:
     # a variant of the denied stack (another store of planner.kind mpcde) gets MP-CDE's rows of its own too
     variants = {}  # store -> the settings that set it apart from MP-CDE's
     for c in report["cells"]:
-        if c["store"] != first and c["flights"] and c["settings"].get("planner.kind") == "mpcde":
-            variant = variants[c["store"]] = ", ".join(f"{k}={val}" for k, val in c["settings"].items() if k not in skip and k != "planner.kind")
+        if (variant := variant_of(c, first, skip)) is not None:
+            variants[c["store"]] = variant
             rows.append(fig6_row(c, "(same)", *revs[c["store"]], variant=variant))
     for p in report["pairs"]:
         a, b = report["cells"][p["a"]], report["cells"][p["b"]]
@@ -133,6 +133,15 @@ def fig6(runs: Path) -> list[str]:
         against = f"against {ok_a} of MP-CDE with {variants[a['store']]} ({a['store']})"
         rows.append(_pair_row("baseline", "below MP-CDE", a, b, p, ok_b, "view-gated", against, skip, revs))
     return rows
+
+
+def variant_of(c: dict, first: str, skip: tuple) -> str | None:
+    """What sets cell ``c`` of the cross-store report apart from MP-CDE's store ``first`` when it is a variant of the
+    denied stack (a flown cell of another store of planner.kind mpcde): its settings less ``skip`` and planner.kind;
+    None for any other cell."""
+    if c["store"] == first or not c["flights"] or c["settings"].get("planner.kind") != "mpcde":
+        return None
+    return ", ".join(f"{k}={val}" for k, val in c["settings"].items() if k not in skip and k != "planner.kind")
 
 
 def _pair_row(role: str, paper: str, a: dict, b: dict, p: dict, ok_b: int, radio: str, against: str, skip: tuple, revs: dict) -> str:
