@@ -13,19 +13,10 @@ import pytest
 SCRIPTS = Path(__file__).resolve().parents[3] / "scripts"
 sys.path.insert(0, str(SCRIPTS))
 import paper_goals  # noqa: E402
+from sweep_stores import write_store  # noqa: E402  (tests/unit/scripts/sweep_stores.py)
 
 YAWS = [{"method": "zhou"}, {"exploring_mode": False}, {"tracking_mode": False}, {}]
 ZHOU, NO_EXPLORING, NO_TRACKING, OURS = range(4)
-
-
-def _store(folder: Path, axes: list, rows: list[dict]) -> Path:
-    """A sweep store as `mpcde sweep` writes it (sweep.json and results.jsonl with every row key)."""
-    folder.mkdir(parents=True)
-    sweep = {"axes": axes, "base": {"name": "forest_dense"}, "overrides": {}, "seeds": list(range(20))}
-    (folder / "sweep.json").write_text(json.dumps({"digest": "d" * 16, "sweep": sweep}))
-    full = [{"values": {}, "status": "ok", "error": None, "wall_s": 1.0, "version": "0", "git_rev": "0" * 40, **r} for r in rows]
-    (folder / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in full))
-    return folder
 
 
 def _table3(runs: Path) -> None:
@@ -44,7 +35,7 @@ def _table3(runs: Path) -> None:
             for method, area in areas.items():
                 ok = not (di == 0 and method == NO_TRACKING and seed == 3)
                 rows.append({"cell": 4 * di + method, "seed": seed, "metrics": {"observed_area_swarm_m2": area, "success": ok}})
-    _store(runs / "table3", [["world.obstacle_density_per_100m2", [4.0, 8.0, 12.0, 16.0]], ["denied.yaw", YAWS]], rows)
+    write_store(runs / "table3", [["world.obstacle_density_per_100m2", [4.0, 8.0, 12.0, 16.0]], ["denied.yaw", YAWS]], rows, seeds=20)
 
 
 def _cell(store: str, overrides: dict, values: dict, rate: float, flights: int = 100, failed: int = 0) -> dict:

@@ -19,21 +19,7 @@ SCRIPTS = Path(__file__).resolve().parents[3] / "scripts"
 sys.path.insert(0, str(SCRIPTS))
 import paper_summary  # noqa: E402
 import table3_report  # noqa: E402
-
-REV = "0" * 40
-
-
-def _write_store(folder: Path, axes: list, rows: list[dict], overrides: dict | None = None) -> Path:
-    """A sweep store as `mpcde sweep` writes it: sweep.json with its digest, results.jsonl with every row key
-    (``rows`` give cell, seed and metrics; a row without metrics is a failed flight)."""
-    folder.mkdir(parents=True)
-    sweep = {"axes": axes, "base": {"name": "forest_dense"}, "overrides": overrides or {}, "seeds": list(range(10))}
-    (folder / "sweep.json").write_text(json.dumps({"digest": "d" * 16, "sweep": sweep}))
-    full = [{"values": {}, "status": "ok" if r.get("metrics") else "failed", "error": None if r.get("metrics") else "x",
-             "metrics": None, "wall_s": 1.0, "version": "0", "git_rev": REV, **r} for r in rows]  # fmt: skip
-    (folder / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in full))
-    return folder
-
+from sweep_stores import write_store  # noqa: E402  (tests/unit/scripts/sweep_stores.py)
 
 YAWS = [{"method": "zhou"}, {"exploring_mode": False}, {"tracking_mode": False}, {}]
 AREAS = {0: [500.0, 520.0], 1: [400.0, 410.0], 2: [505.0, 515.0], 3: [440.0, 460.0]}  # per cell (method), two seeds
@@ -47,7 +33,7 @@ def _table3_store(root: Path) -> Path:
             ok = not (cell == 3 and seed == 1)  # one failure, in "ours"
             rows.append({"cell": cell, "seed": seed, "metrics": {"observed_area_swarm_m2": area, "success": ok}})
     rows.append({"cell": 0, "seed": 2, "metrics": None})  # a failed flight is left out
-    return _write_store(root / "table3", axes, rows)
+    return write_store(root / "table3", axes, rows)
 
 
 def test_table3_cells_and_margin_come_from_the_store(tmp_path):
@@ -75,7 +61,7 @@ def test_table3_pairs_seeds_and_tests_them_against_the_exact_wilcoxon_distributi
         rows.append(row(0, seed, zhou, {"exploring": 1.0, "observing": 0.0, "tracking": 0.0}))
         rows.append(row(3, seed, ours, {"exploring": 0.0, "observing": 0.0, "tracking": 1.0} if seed == 1 else half))
     rows.append(row(3, 6, 1.0, None))  # a flight that made no yaw plan records no shares: left out of the mean
-    table = table3_report.cells(_write_store(tmp_path / "t3", axes, rows))
+    table = table3_report.cells(write_store(tmp_path / "t3", axes, rows))
     [pair] = table3_report.paired(table, "ours", "zhou")
     assert (pair["seeds"], pair["a_larger"], pair["mean_diff_m2"]) == (5, 5, pytest.approx(4.0))
     assert pair["p"] == pytest.approx(0.0625)
@@ -109,7 +95,7 @@ def test_table3_report_reads_the_store_as_mpcde_report_does(tmp_path, capsys):
     refused([str(store), str(tmp_path / "x")], "x", "no sweep.json")
     refused(["-h"], "arguments=['-h']")
     refused([str(tmp_path / "nowhere")], "nowhere", "no sweep.json")
-    packed = _write_store(tmp_path / "packed", [], [])
+    packed = write_store(tmp_path / "packed", [], [])
     (packed / "results.jsonl").rename(packed / "results.jsonl.gz")
     refused([str(packed)], "results.jsonl.gz", "gunzip")
     (packed / "results.jsonl.gz").unlink()
@@ -117,8 +103,8 @@ def test_table3_report_reads_the_store_as_mpcde_report_does(tmp_path, capsys):
     density = ["world.obstacle_density_per_100m2", [4.0]]
     swapped, extra = [["denied.yaw", YAWS], density], [density, ["denied.yaw", YAWS], ["seed_offset", [0]]]
     for i, axes in enumerate(([["planner.cruise_speed_mps", [1.0]]], swapped, extra)):
-        refused([str(_write_store(tmp_path / f"axes{i}", axes, []))], "sweep.axes=", "a Table III sweep")
-    no_area = _write_store(tmp_path / "no_area", [density, ["denied.yaw", YAWS]], [{"cell": 1, "seed": 4, "metrics": {"success": True}}])
+        refused([str(write_store(tmp_path / f"axes{i}", axes, []))], "sweep.axes=", "a Table III sweep")
+    no_area = write_store(tmp_path / "no_area", [density, ["denied.yaw", YAWS]], [{"cell": 1, "seed": 4, "metrics": {"success": True}}])
     refused([str(no_area)], "line 1 (cell 1 seed 4): metrics=['observed_area_swarm_m2']")
     text = (store / "results.jsonl").read_text()
     (store / "results.jsonl").write_text(text.replace("\n", "\nnot json\n", 1))
@@ -163,7 +149,7 @@ def test_table3_report_answers_any_value_in_a_store_with_a_report_or_one_line(tm
         for key in field[:-1]:
             target = target[key]
         target[field[-1]] = value
-    store = _write_store(root / "t3", axes, rows)
+    store = write_store(root / "t3", axes, rows)
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         code = table3_report.main([str(store)])
@@ -188,8 +174,8 @@ def test_methods_under_another_reading_of_d_free_are_paired_within_their_reading
     def flights(cell: int, areas: tuple[float, float]) -> list[dict]:
         return [{"cell": cell, "seed": seed, "metrics": {"observed_area_swarm_m2": a, "success": True}} for seed, a in enumerate(areas)]
 
-    second = _write_store(tmp_path / "occupied", [density, ["denied.yaw", [ours_occ]]], flights(0, (530.0, 515.0)))
-    third = _write_store(tmp_path / "zhou_occupied", [density, ["denied.yaw", [zhou_occ]]], flights(0, (490.0, 500.0)))
+    second = write_store(tmp_path / "occupied", [density, ["denied.yaw", [ours_occ]]], flights(0, (530.0, 515.0)))
+    third = write_store(tmp_path / "zhou_occupied", [density, ["denied.yaw", [zhou_occ]]], flights(0, (490.0, 500.0)))
     table = table3_report.merged_cells([third, second, first])  # any order: the table's is density, reading, method
     assert [c["method"] for c in table] == ["zhou", "no_exploring", "no_tracking", "ours", "zhou/occupied", "ours/occupied"]
     assert table3_report.pairs_of(table) == [("ours", "zhou"), ("ours", "no_exploring"), ("ours/occupied", "zhou/occupied"),
@@ -214,24 +200,24 @@ def test_methods_under_another_reading_of_d_free_are_paired_within_their_reading
         assert out == "" and err.count("\n") == 1 and all(n in err for n in needles), err
 
     refused([str(first), str(tmp_path / "table3" / ".")], "arguments=", "each store once")
-    again = _write_store(tmp_path / "again", [density, ["denied.yaw", [ours_occ]]], flights(0, (1.0, 2.0)))
+    again = write_store(tmp_path / "again", [density, ["denied.yaw", [ours_occ]]], flights(0, (1.0, 2.0)))
     refused([str(second), str(again)], "again: sweep.axes[1][1]='ours, d_free to occupied'", "no earlier store flies (store occupied does)")
-    other = _write_store(tmp_path / "other_range", [density, ["denied.yaw", [ours_occ]]], flights(0, (1.0, 2.0)), overrides={"camera.depth_max_m": 4.5})
+    other = write_store(tmp_path / "other_range", [density, ["denied.yaw", [ours_occ]]], flights(0, (1.0, 2.0)), overrides={"camera.depth_max_m": 4.5})
     refused([str(first), str(other)], "other_range: sweep.overrides=", "stores reported together fly one Table III")
-    odd = _write_store(tmp_path / "odd", [density, ["denied.yaw", [{"free_distance": "sideways"}]]], [])
+    odd = write_store(tmp_path / "odd", [density, ["denied.yaw", [{"free_distance": "sideways"}]]], [])
     refused([str(odd)], "free_distance=['sideways']", "one of horizontal, occupied, voxel")
-    twice = _write_store(tmp_path / "twice", [density, ["denied.yaw", [{"method": "zhou"}, {"method": "zhou", "sensing_range_m": 4.5}]]], [])
+    twice = write_store(tmp_path / "twice", [density, ["denied.yaw", [{"method": "zhou"}, {"method": "zhou", "sensing_range_m": 4.5}]]], [])
     refused([str(twice)], "sweep.axes[1][1]=", "each method once per density")
-    spin = _write_store(tmp_path / "spin", [density, ["denied.yaw", [{"method": "spin"}]]], [])
+    spin = write_store(tmp_path / "spin", [density, ["denied.yaw", [{"method": "spin"}]]], [])
     refused([str(spin)], "method=['spin']", "mpcde or zhou")
-    stray = _write_store(tmp_path / "stray", [density, ["denied.yaw", [ours_occ]]], flights(1, (1.0, 2.0)))
+    stray = write_store(tmp_path / "stray", [density, ["denied.yaw", [ours_occ]]], flights(1, (1.0, 2.0)))
     refused([str(stray)], "line 1: cell=1", "< 1")
 
 
 def test_a_table3_cell_not_flown_yet_has_no_summary_row(tmp_path):
     density = ["world.obstacle_density_per_100m2", [4.0, 8.0, 12.0, 16.0]]  # a fourth density, beyond the paper's three
     rows = [{"cell": c, "seed": 0, "metrics": {"observed_area_swarm_m2": 100.0 + c, "success": True}} for c in (0, 3, 12, 15)]
-    _write_store(tmp_path / "table3", [density, ["denied.yaw", YAWS]], rows)
+    write_store(tmp_path / "table3", [density, ["denied.yaw", YAWS]], rows)
     summary = paper_summary.table3(tmp_path)
     assert [r.split(" | ")[0] for r in summary] == [
         "| Table III, Zhou's [26], density 4", "| Table III, ours, density 4", "| Table III, Zhou's [26], density 16",
@@ -272,7 +258,7 @@ def test_fig6_ranks_only_view_gated_baselines_and_sets_others_beside(tmp_path):
     stores = []
     base = {"duration_s": 100}
     for name, overrides in (("denied", base), ("gated", {**base, "radio.view_gated": True}), ("auto", base), ("levels", {**base, "denied.flight_level_spacing_m": 0.4})):
-        _write_store(tmp_path / name, [], [{"cell": 0, "seed": 0, "metrics": {"success": True}}])
+        write_store(tmp_path / name, [], [{"cell": 0, "seed": 0, "metrics": {"success": True}}])
         stores.append({"name": name, "folder": str(tmp_path / name), "overrides": overrides})
     cell = {"flights": 30, "success_rate": 0.9, "success_low": 0.74, "success_high": 0.97, "collisions_per_flight": 0.1}
     cells = []
@@ -316,7 +302,7 @@ def test_the_akf_rows_cite_the_revision_eval_tracking_recorded(tmp_path):
 
 def test_a_single_store_report_gives_mp_cde_rows_only_and_skips_unflown_cells(tmp_path):
     """The denied sweep's store reported alone (no baselines kept beside it) still gives MP-CDE's rows."""
-    _write_store(tmp_path / "fig6", [], [{"cell": 1, "seed": 0, "metrics": {"success": True}}])
+    write_store(tmp_path / "fig6", [], [{"cell": 1, "seed": 0, "metrics": {"success": True}}])
     flown = {"flights": 100, "success_rate": 0.94, "success_low": 0.875, "success_high": 0.97, "collisions_per_flight": 0.06}
     empty = {"flights": 0, "success_rate": None, "success_low": None, "success_high": None, "collisions_per_flight": None}
     cells = [{**empty, "values": {"planner.kind": "mpcde", "planner.cruise_speed_mps": 0.5}},

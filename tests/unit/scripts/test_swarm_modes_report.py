@@ -11,6 +11,7 @@ import pytest
 SCRIPTS = Path(__file__).resolve().parents[3] / "scripts"
 sys.path.insert(0, str(SCRIPTS))
 import swarm_modes_report  # noqa: E402
+from sweep_stores import write_store  # noqa: E402  (tests/unit/scripts/sweep_stores.py)
 
 
 def _agent(explore: float, observe: float, track: float, replans: int) -> dict:
@@ -23,14 +24,7 @@ def _metrics(ok: bool, dd: int, do: int, mission: float | None, agents: list[dic
 
 def _store(folder: Path, rows: list[dict]) -> Path:
     """A two-cell store (speed 0.5 and 2.0) as `mpcde sweep` writes it, every row key present."""
-    folder.mkdir()
-    sweep = {"axes": [["planner.cruise_speed_mps", [0.5, 2.0]]], "base": {"name": "forest_swarm"}, "overrides": {"duration_s": 100},
-             "seeds": list(range(40))}  # fmt: skip
-    (folder / "sweep.json").write_text(json.dumps({"digest": "d" * 16, "sweep": sweep}))
-    full = [{"values": {}, "status": "ok" if r["metrics"] else "failed", "error": None if r["metrics"] else "x", "wall_s": 1.0,
-             "version": "0", "git_rev": "0" * 40, **r} for r in rows]  # fmt: skip
-    (folder / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in full))
-    return folder
+    return write_store(folder, [["planner.cruise_speed_mps", [0.5, 2.0]]], rows, {"duration_s": 100}, base="forest_swarm", seeds=40)
 
 
 def _rows() -> list[dict]:
