@@ -39,7 +39,7 @@ import numpy as np
 
 from mpcde.config.scenario import load_scenario
 from mpcde.flight.loop import prepare_run
-from mpcde.onboard.factory import make_agent
+from mpcde.stacks.build import make_agent
 from planners.dmpc import DmpcProblem, DmpcSolveError
 from sim.types import PoseEstimate, RadioMessage
 

@@ -27,7 +27,7 @@ import numpy as np
 from peer_pyflyt import pyflyt_available, pyflyt_peer_rtf
 from timing import median_ms
 
-from mpcde.config.modes import MODES
+from mpcde.stacks import get_stack
 from mpcde.config.scenario import load_scenario
 from mpcde.flight.loop import prepare_run, run_scenario
 from mpcde.onboard.budget import COMPONENTS
@@ -88,7 +88,7 @@ def physics_bench(repeats: int) -> None:
           f"240 Hz needs {step * 240:.0f} ms per simulated s")
 
 
-STACKS = ("placeholder", "comm", "denied", "auto")  # mpcde.config.modes.MODES names; the stacks that fly forest_swarm
+STACKS = ("placeholder", "comm", "denied", "auto")  # registry names (mpcde.stacks); the stacks that fly forest_swarm
 BUDGET_ROWS = (*COMPONENTS, "other")
 
 
@@ -106,7 +106,7 @@ def rtf_bench(duration_s: float, stacks: tuple[str, ...] = STACKS, peer: bool = 
     base = load_scenario("forest_swarm", {"duration_s": duration_s})
     rows = {}
     for stack in stacks:
-        over = {"duration_s": duration_s, "planner": {"kind": MODES[stack]}, "camera": {"renderer": renderer}}
+        over = {"duration_s": duration_s, "planner": {"kind": get_stack(stack).kind}, "camera": {"renderer": renderer}}
         if detector_weights is not None:
             over["perception"] = {"detector_weights": detector_weights}
         cfg = load_scenario("forest_swarm", over)

@@ -6,7 +6,8 @@ The Python API (``docs/design.md``, "Python API"):
   :class:`~mpcde.flight.loop.RunResult` (metrics, state log), optionally
   writing the run folder that ``mpcde fly`` writes;
 * :func:`mpcde.load_scenario` reads and checks a scenario file or built-in name;
-* :data:`mpcde.MODES` names the onboard stacks.
+* :func:`mpcde.stacks` lists the onboard stacks (:mod:`mpcde.stacks`), and
+  :func:`mpcde.register_stack` adds one (a :class:`mpcde.Stack`) from a script.
 
 They are imported on first use, so ``import mpcde`` (and reading a scenario)
 loads no simulator, detector or planner.
@@ -26,15 +27,19 @@ use_versioned_cache()  # before any kernel of this package is compiled (sim/kern
 
 if TYPE_CHECKING:
     from mpcde.api import fly, load_scenario
-    from mpcde.config.modes import MODES
+    from mpcde.stacks import AgentContext, Stack, Uses, get_stack, register_stack, stacks
     from mpcde.config.scenario import ScenarioConfig
     from mpcde.errors import ConfigError
     from mpcde.flight.loop import RunResult
 
-__all__ = ["MODES", "ConfigError", "RunResult", "ScenarioConfig", "fly", "load_scenario"]
+__all__ = [
+    "AgentContext", "ConfigError", "RunResult", "ScenarioConfig", "Stack", "Uses", "fly", "get_stack", "load_scenario",
+    "register_stack", "stacks",
+]  # fmt: skip
 
 _WHERE = {
-    "fly": "mpcde.api", "load_scenario": "mpcde.api", "MODES": "mpcde.config.modes",
+    "fly": "mpcde.api", "load_scenario": "mpcde.api",
+    **{name: "mpcde.stacks" for name in ("AgentContext", "Stack", "Uses", "get_stack", "register_stack", "stacks")},
     "ScenarioConfig": "mpcde.config.scenario", "ConfigError": "mpcde.errors", "RunResult": "mpcde.flight.loop",
 }
 

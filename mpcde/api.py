@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from mpcde import numerics
-from mpcde.config.modes import MODES
+from mpcde.stacks import get_stack
 from mpcde.config.scenario import ScenarioConfig
 from mpcde.config.scenario import load_scenario as _load_file
 from mpcde.errors import ConfigError
@@ -37,23 +37,23 @@ def load_scenario(
 
     Args:
         scenario: the file, or the name of one in ``data/scenarios/``.
-        mode: onboard stack replacing the file's ``planner.kind`` (a key of
-            :data:`mpcde.config.modes.MODES`: ``"placeholder"``, ``"denied"``,
-            ``"comm"``, ``"auto"``, ``"mlr"``, ``"admm"``); None keeps the file's.
+        mode: onboard stack replacing the file's ``planner.kind``, by its
+            registry name (:func:`mpcde.stacks`: ``"placeholder"``, ``"denied"``,
+            ``"comm"``, ``"auto"``, ``"mlr"``, ``"admm"``, ``"minco_comm"`` or a
+            registered third-party stack); None keeps the file's.
         seed: replaces the file's ``seed``.
         duration_s: replaces the file's ``duration_s`` [s].
 
     Raises:
         ConfigError: a missing file or any invalid field (one line naming it).
     """
-    if mode is not None and mode not in MODES:
-        raise ConfigError("mode", mode, f"one of {', '.join(MODES)}")
+    kind = None if mode is None else get_stack(mode).kind
     overrides = {}
     if seed is not None:
         overrides["seed"] = seed
     if duration_s is not None:
         overrides["duration_s"] = duration_s
-    return _load_file(scenario, overrides, planner_kind=None if mode is None else MODES[mode])
+    return _load_file(scenario, overrides, planner_kind=kind)
 
 
 def fly(

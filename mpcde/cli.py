@@ -25,7 +25,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from mpcde import numerics
-from mpcde.config.modes import MODES
+from mpcde.stacks import stacks
 from mpcde.errors import ConfigError, MpcdeError, Terminated
 from mpcde.onboard.budget import ComputeBudget
 
@@ -61,16 +61,13 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_argument("--out", required=True, type=Path, help="output folder (created; must be empty unless --overwrite)")
     fly.add_argument("--seed", type=_seed, default=None, help="seed of the run (overrides the file's)")
     fly.add_argument("--duration", type=float, default=None, help="time limit [s] (overrides the file's)")
+    registered = stacks()  # the built-in stacks and every installed plugin's (mpcde.stacks)
     fly.add_argument(
         "--mode",
-        choices=sorted(MODES),
+        choices=[s.name for s in registered],
         default=None,
-        help="onboard stack, overriding the file's planner.kind: placeholder (blind straight line), "
-        "denied (MP-CDE: own map, tracks, active yaw, MINCO), comm (DMPC on radio plans), "
-        "auto (DMPC, falling back to tracks and to MP-CDE when the radio fails), "
-        "mlr (MLR-DMPC: compute units on the first drones, message-loss recovery; no obstacles), "
-        "admm (formation DMPC by ADMM across neighbours, the goals are the formation; radio at 2 l_max / h; "
-        "no obstacles)",
+        help="onboard stack, overriding the file's planner.kind: "
+        + "; ".join(f"{s.name} ({s.summary})" if s.summary else s.name for s in registered),
     )
     fly.add_argument("--video", action="store_true", help="also write video.mp4 (top view beside each camera)")
     fly.add_argument("--no-cameras", action="store_true", help="do not render cameras (faster; no video tiles)")
@@ -113,7 +110,7 @@ def build_parser() -> argparse.ArgumentParser:
     cmp.add_argument("--out", required=True, type=Path, help="output folder (must be empty unless --overwrite)")
     cmp.add_argument(
         "--modes", nargs="+", default=None, metavar="MODE",
-        help=f"onboard stacks to fly, of: {', '.join(MODES)} (default: those of comm, denied, auto that exist)",
+        help=f"onboard stacks to fly, of: {', '.join(s.name for s in registered)} (default: comm, denied, auto)",
     )  # fmt: skip
     cmp.add_argument("--seeds", type=int, default=1, help="flights per mode (seeds 0..N-1; a seed: one draw for all)")
     cmp.add_argument("--duration", type=float, default=None, help="time limit [s] (overrides the file's)")

@@ -111,13 +111,24 @@ def from_dict(cls: type, data: Any, path: str = "", ranges: Ranges | None = None
     if not isinstance(data, dict):
         raise ConfigError(where, data, "must be a mapping of fields")
     hints = typing.get_type_hints(cls)
-    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
-    unknown = sorted(set(data) - set(fields), key=str)
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init and "sections" not in f.metadata}
+    # a field with metadata "sections" (a callable: name -> (dataclass, ranges)) gathers the mapping's extra
+    # sections, each read as its dataclass (the scenario's third-party stacks, mpcde.config.scenario.PluginSections)
+    gathered = {f.name: f.metadata["sections"]() for f in dataclasses.fields(cls) if f.init and "sections" in f.metadata}
+    extra = {key for kinds in gathered.values() for key in kinds}
+    unknown = sorted(set(data) - set(fields) - extra, key=str)
     if unknown:
         key = unknown[0]
         name = f"{path}.{key}" if path else key
-        raise ConfigError(name, data[key], f"unknown key; allowed keys: {', '.join(sorted(fields))}")
-    kwargs = {name: _convert(value, hints[name], f"{path}.{name}" if path else name, ranges) for name, value in data.items()}
+        raise ConfigError(name, data[key], f"unknown key; allowed keys: {', '.join(sorted(set(fields) | extra))}")
+    kwargs = {
+        name: _convert(value, hints[name], f"{path}.{name}" if path else name, ranges) for name, value in data.items() if name in fields
+    }
+    for name, kinds in gathered.items():
+        kwargs[name] = {
+            key: from_dict(tp, data[key], f"{path}.{key}" if path else key, {**(ranges or {}), **own})
+            for key, (tp, own) in kinds.items() if key in data
+        }  # fmt: skip
     out_of_range: list[ConfigError] = []
     for name, value in kwargs.items():
         try:
@@ -143,7 +154,11 @@ def from_dict(cls: type, data: Any, path: str = "", ranges: Ranges | None = None
 def to_dict(obj: Any) -> Any:
     """Plain-data (YAML/JSON-ready) form of a config dataclass tree."""
     if dataclasses.is_dataclass(obj):
-        return {f.name: to_dict(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+        out = {f.name: to_dict(getattr(obj, f.name)) for f in dataclasses.fields(obj) if "sections" not in f.metadata}
+        for f in dataclasses.fields(obj):  # gathered sections (from_dict) are the mapping's own top-level keys again
+            if "sections" in f.metadata:
+                out.update({key: to_dict(value) for key, value in getattr(obj, f.name).items()})
+        return out
     if isinstance(obj, (list, tuple)):
         return [to_dict(v) for v in obj]
     if isinstance(obj, float) and math.isinf(obj):

@@ -2,8 +2,8 @@
 
 Drone k of N cruises at z_k = z_c + (k - (N - 1) / 2) s, z_c the mean of its own start
 and goal altitudes (:class:`mpcde.config.denied.DeniedAgentConfig`). Two rules make the
-levels what they promise, checked at load time for the stacks that fly them (``mpcde``,
-``auto``): every drone's z_c is the same, so that the levels are distinct and s apart;
+levels what they promise, checked at load time for the stacks that fly them (their
+registry entries' ``check``, :mod:`mpcde.stacks.builtin`): every drone's z_c is the same, so that the levels are distinct and s apart;
 and the lowest and highest levels lie within the altitudes a layout may use.
 :meth:`mpcde.config.scenario.ScenarioConfig.__post_init__` calls :func:`check_flight_levels`.
 """
@@ -33,7 +33,7 @@ def flight_level_m(centre_m: float, drone_id: int, drones: int, spacing_m: float
 def check_flight_levels(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> None:
     """ConfigError if the flight levels of the layout's starts and goals (N, 3) [m] are not distinct or leave the altitudes."""
     spacing = cfg.denied.flight_level_spacing_m
-    if cfg.planner.kind not in ("mpcde", "auto") or not np.isfinite(spacing):
+    if not np.isfinite(spacing):
         return
     centres = 0.5 * (starts[:, 2] + goals[:, 2])
     odd = np.flatnonzero(np.abs(centres - centres[0]) > 1e-6)

@@ -9,17 +9,18 @@ flight. Derived fields (target <- source):
   and ``pose_yaw_std_rad`` <- ``pose_estimate.yaw_noise_rad``: a drone's
   back-projection uncertainty includes its own localisation noise, what its
   VIO reports (MP-CDE Eq. 8);
-* ``denied.v_max_mps`` (with ``planner.kind`` ``mpcde``, ``auto`` or ``minco_comm``) and
-  ``dmpc.qp.v_max`` (``dmpc`` or ``auto``) <- ``planner.cruise_speed_mps``
-  when it is set: the scenario's speed is each stack's speed limit;
+* each stack's ``speed_fields`` (``denied.v_max_mps`` with ``mpcde``,
+  ``auto`` or ``minco_comm``, ``dmpc.qp.v_max`` with ``dmpc`` or ``auto``;
+  :mod:`mpcde.stacks.builtin`) <- ``planner.cruise_speed_mps`` when it is
+  set: the scenario's speed is each stack's speed limit;
 * ``denied.yaw.v_max_mps`` <- ``denied.v_max_mps``, ``denied.yaw.yaw_rate_max_radps``
   <- ``denied.yaw_rate_max_radps``, ``denied.yaw.t_hold_s`` <-
   ``perception.tracker.t_hold_s``, ``denied.yaw.fov_h_deg`` / ``fov_v_deg`` <-
   ``camera.hfov_deg`` / ``vfov_deg``: the yaw planner predicts with the
   optimiser's speed limit, turns at the heading limit, calls a track recent
   as the tracker does, and covers the camera's field of view (Alg. 1);
-* ``radio.rate_hz`` <- ``2 admm.l_max / admm.step_s`` with ``planner.kind: admm``
-  and ``admm.radio_rate_from_step``: one radio sub-round per ADMM exchange.
+* a stack's own ``derived`` fields: ``radio.rate_hz`` <- ``2 admm.l_max / admm.step_s``
+  with ``planner.kind: admm`` and ``admm.radio_rate_from_step``: one radio sub-round per ADMM exchange.
 
 A target that the file (or the code building the config) sets to another
 value than its derivation is refused with one line naming both, never
@@ -35,33 +36,33 @@ from typing import Any, Callable
 from mpcde.config.bounds import check_ranges
 from mpcde.config.scenario import SCENARIO_RANGES, ScenarioConfig
 from mpcde.errors import ConfigError
+from mpcde.stacks.registry import Derivation, stack_of
 
-__all__ = ["DERIVED", "resolve"]
+__all__ = ["COMMON", "derivations", "resolve"]
 
 _MISSING = object()
 
-# (target path, source named in errors, derivation, applies to this scenario)
-DERIVED: tuple[tuple[str, str, Callable[[ScenarioConfig], Any], Callable[[ScenarioConfig], bool]], ...] = (
-    (
-        "denied.v_max_mps", "planner.cruise_speed_mps", lambda c: c.planner.cruise_speed_mps,
-        lambda c: c.planner.cruise_speed_mps is not None and c.planner.kind in ("mpcde", "auto", "minco_comm"),
-    ),
-    (
-        "dmpc.qp.v_max", "planner.cruise_speed_mps", lambda c: c.planner.cruise_speed_mps,
-        lambda c: c.planner.cruise_speed_mps is not None and c.planner.kind in ("dmpc", "auto"),
-    ),
-    ("perception.backprojection.pose_pos_std_m", "pose_estimate.pos_noise_m", lambda c: c.pose_estimate.pos_noise_m, lambda c: True),
-    ("perception.backprojection.pose_yaw_std_rad", "pose_estimate.yaw_noise_rad", lambda c: c.pose_estimate.yaw_noise_rad, lambda c: True),
-    ("denied.yaw.v_max_mps", "denied.v_max_mps", lambda c: c.denied.v_max_mps, lambda c: True),
-    ("denied.yaw.yaw_rate_max_radps", "denied.yaw_rate_max_radps", lambda c: c.denied.yaw_rate_max_radps, lambda c: True),
-    ("denied.yaw.t_hold_s", "perception.tracker.t_hold_s", lambda c: c.perception.tracker.t_hold_s, lambda c: True),
-    ("denied.yaw.fov_h_deg", "camera.hfov_deg", lambda c: c.camera.hfov_deg, lambda c: True),
-    ("denied.yaw.fov_v_deg", "camera.vfov_deg", lambda c: c.camera.vfov_deg, lambda c: True),
-    (
-        "radio.rate_hz", "2 admm.l_max / admm.step_s (admm.radio_rate_from_step: true)", lambda c: c.admm.radio_rate_hz,
-        lambda c: c.planner.kind == "admm" and c.admm.radio_rate_from_step,
-    ),
+# every scenario's: (target path, source named in errors, derivation, applies to this scenario)
+COMMON: tuple[Derivation, ...] = (
+    Derivation("perception.backprojection.pose_pos_std_m", "pose_estimate.pos_noise_m", lambda c: c.pose_estimate.pos_noise_m),
+    Derivation("perception.backprojection.pose_yaw_std_rad", "pose_estimate.yaw_noise_rad", lambda c: c.pose_estimate.yaw_noise_rad),
+    Derivation("denied.yaw.v_max_mps", "denied.v_max_mps", lambda c: c.denied.v_max_mps),
+    Derivation("denied.yaw.yaw_rate_max_radps", "denied.yaw_rate_max_radps", lambda c: c.denied.yaw_rate_max_radps),
+    Derivation("denied.yaw.t_hold_s", "perception.tracker.t_hold_s", lambda c: c.perception.tracker.t_hold_s),
+    Derivation("denied.yaw.fov_h_deg", "camera.hfov_deg", lambda c: c.camera.hfov_deg),
+    Derivation("denied.yaw.fov_v_deg", "camera.vfov_deg", lambda c: c.camera.vfov_deg),
 )  # fmt: skip
+
+
+def derivations(cfg: ScenarioConfig) -> tuple[Derivation, ...]:
+    """The fields derived for ``cfg``, in order: its stack's speed limits from ``planner.cruise_speed_mps`` (its
+    ``speed_fields``), the common ones, then its stack's own (``derived``): a derived field may be the source of a later one."""
+    stack = stack_of(cfg)
+    speed = tuple(
+        Derivation(target, "planner.cruise_speed_mps", lambda c: c.planner.cruise_speed_mps, lambda c: c.planner.cruise_speed_mps is not None)
+        for target in stack.speed_fields
+    )  # fmt: skip
+    return speed + COMMON + stack.derived
 
 
 def _get(obj: Any, path: str) -> Any:
@@ -113,10 +114,11 @@ def resolve(cfg: ScenarioConfig, written: dict | None = None) -> ScenarioConfig:
     """
     check_ranges(cfg, SCENARIO_RANGES)
     out = cfg
-    for target, source, derive, applies in DERIVED:  # in order: a derived field may be the source of a later one
-        if not applies(out):
+    for d in derivations(cfg):  # in order: a derived field may be the source of a later one
+        target, source = d.target, d.source
+        if not d.applies(out):
             continue
-        value = derive(out)
+        value = d.derive(out)
         current = _get(cfg, target)
         given = _written(written, target) if written is not None else (current if not _same(current, _default(target)) else _MISSING)
         if given is not _MISSING and not _same(given, value):

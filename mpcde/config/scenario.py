@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar, Literal, get_args
+from typing import Any, ClassVar, Iterator, Literal, Mapping
 
 import numpy as np
 
@@ -22,12 +22,12 @@ from mpcde.config.denied import DeniedAgentConfig
 from mpcde.config.dmpc import DmpcAgentConfig
 from mpcde.config.io import from_dict, load_yaml
 from mpcde.config.layout import build_layout, resolve_obstacles
-from mpcde.config.level_rules import check_flight_levels
 from mpcde.config.mlr import MlrAgentConfig
 from mpcde.config.perception import PerceptionConfig
 from mpcde.config.ranges import RANGES
-from mpcde.config.stack_rules import check_admm, check_mlr
 from mpcde.errors import ConfigError
+from mpcde.stacks.builtin import DEFAULT_KIND
+from mpcde.stacks.registry import stack_for_kind, stacks
 from planners.yaw.config import YawPlannerConfig
 from sim.camera import CameraConfig
 from sim.faults import FaultsConfig
@@ -41,6 +41,7 @@ __all__ = [
     "DronesConfig",
     "ObstacleEntry",
     "PlannerConfig",
+    "PluginSections",
     "RunOptions",
     "ScenarioConfig",
     "WorldConfig",
@@ -161,48 +162,34 @@ class DronesConfig:
             raise ConfigError("altitude_m", self.altitude_m, "in [0.3, 20] m")
 
 
-PlannerKind = Literal["min_jerk_line", "mpcde", "dmpc", "auto", "mlr", "admm", "minco_comm"]
-
-
 @dataclass(frozen=True)
 class PlannerConfig:
     """Onboard planning.
 
     Attributes:
-        kind: ``"min_jerk_line"``, the placeholder (a straight minimum-jerk
-            line to the goal, blind to obstacles and neighbours), or
-            ``"mpcde"``, the communication-denied stack (own map from the
-            camera, A* front end, MINCO; settings in ``denied``), or
-            ``"dmpc"``, the communicating stack (DMPC on exchanged radio
-            plans; settings in ``dmpc``), or ``"auto"``, both: DMPC while
-            the radio delivers, falling back neighbour by neighbour to camera
-            tracks and, when the radio is out, to the denied stack (settings
-            in ``auto``, ``dmpc`` and ``denied``; :mod:`mpcde.onboard.auto`), or
-            ``"mlr"``, MLR-DMPC (DMPC-Swarm: compute units hosted by the first
-            drones, message-loss recovery; settings in ``mlr``; obstacle-free
-            scenarios only; :mod:`mpcde.onboard.mlr`), or ``"admm"``, the
-            cooperative formation DMPC solved by ADMM across neighbours
-            (Stomberg et al.; the goals are the formation; settings in
-            ``admm``; obstacle-free scenarios whose drones start in formation;
-            the radio runs at the ADMM exchange rate; :mod:`mpcde.onboard.admm`),
-            or ``"minco_comm"``, the communicating MINCO swarm (the denied
-            stack's map and planner against the plans other drones broadcast,
-            heading along travel; the EGO-Swarm analogue of MP-CDE's Fig. 6;
-            settings in ``denied``; :mod:`mpcde.onboard.minco_comm`).
+        kind: the onboard stack, by its ``planner.kind`` (the registry,
+            :mod:`mpcde.stacks`: ``min_jerk_line``, the placeholder, a blind
+            straight minimum-jerk line; ``mpcde``, the communication-denied
+            MP-CDE stack, settings in ``denied``; ``dmpc``, DMPC on exchanged
+            radio plans, settings in ``dmpc``; ``auto``, DMPC falling back to
+            camera tracks and MP-CDE, settings in ``auto``; ``mlr``, MLR-DMPC;
+            ``admm``, the ADMM formation DMPC; ``minco_comm``, MP-CDE's
+            planner on radio plans; and any registered third-party stack).
         cruise_speed_mps: the swarm's speed [m/s] (MP-CDE's "target velocity"
             regimes, Sec. V-B: 0.5, 1 and 2 m/s), for every stack that flies a
             speed: the peak speed of the placeholder's and ADMM's lines, the
             speed limit of MP-CDE's optimiser (``denied.v_max_mps``, with
             ``mpcde``, ``auto`` and ``minco_comm``) and DMPC's per-axis speed limit
-            (``dmpc.qp.v_max``, with ``dmpc`` and ``auto``), derived at load
-            time (:mod:`mpcde.config.resolve`; a file that also sets one of
-            those to another value is refused). null (the default): each
-            stack's own setting (lines 1 m/s, MP-CDE 1 m/s, DMPC 2 m/s per
-            axis). ``mlr`` has no single speed and refuses it.
+            (``dmpc.qp.v_max``, with ``dmpc`` and ``auto``): each stack's
+            ``speed_fields``, derived at load time (:mod:`mpcde.config.resolve`;
+            a file that also sets one of those to another value is refused).
+            null (the default): each stack's own setting (lines 1 m/s, MP-CDE
+            1 m/s, DMPC 2 m/s per axis). A stack without ``cruise_speed``
+            (``mlr``) has no single speed and refuses it.
         start_delay_s: hover time before departure [s].
     """
 
-    kind: PlannerKind = "min_jerk_line"
+    kind: str = DEFAULT_KIND
     cruise_speed_mps: float | None = None
     start_delay_s: float = 0.5
 
@@ -215,12 +202,12 @@ class PlannerConfig:
         return self.LINE_SPEED_MPS if self.cruise_speed_mps is None else float(self.cruise_speed_mps)
 
     def __post_init__(self) -> None:
-        if self.kind not in get_args(PlannerKind):  # from_dict checks the Literal; this catches dataclasses.replace
-            raise ConfigError("kind", self.kind, f"allowed: {', '.join(repr(a) for a in get_args(PlannerKind))}")
+        stack = stack_for_kind(self.kind, "kind")
         if self.cruise_speed_mps is not None and not 0 < self.cruise_speed_mps <= 10:
             raise ConfigError("cruise_speed_mps", self.cruise_speed_mps, "in (0, 10] m/s, or null")
-        if self.cruise_speed_mps is not None and self.kind == "mlr":
-            raise ConfigError("cruise_speed_mps", self.cruise_speed_mps, "null for planner.kind 'mlr' (its speed limits are mlr's)")
+        if self.cruise_speed_mps is not None and not stack.cruise_speed:
+            allowed = f"null for planner.kind {self.kind!r} (its speed limits are its section's)"
+            raise ConfigError("cruise_speed_mps", self.cruise_speed_mps, allowed)
         if self.start_delay_s < 0:
             raise ConfigError("start_delay_s", self.start_delay_s, ">= 0 s")
 
@@ -253,6 +240,42 @@ class RunOptions:
             raise ConfigError("goal_tolerance_m", self.goal_tolerance_m, "> 0 m")
 
 
+class PluginSections(Mapping):
+    """The settings sections of registered third-party stacks: section name -> its frozen dataclass (immutable).
+
+    In a scenario file each is a top-level section named by its stack's
+    ``section`` (:class:`mpcde.stacks.Stack`), read into the stack's
+    ``config_type`` with the same checks and one-line errors as the built-in
+    sections; a section left out is the stack's defaults.
+    """
+
+    def __init__(self, sections: Mapping[str, Any] | None = None) -> None:
+        self._sections = dict(sorted((sections or {}).items()))
+
+    def __getitem__(self, key: str) -> Any:
+        return self._sections[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._sections)
+
+    def __len__(self) -> int:
+        return len(self._sections)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Mapping) and dict(self) == dict(other)
+
+    def __hash__(self) -> int:
+        return hash(tuple(self._sections.items()))
+
+    def __repr__(self) -> str:
+        return f"PluginSections({self._sections!r})"
+
+
+def plugin_section_types() -> dict[str, tuple[type, dict]]:
+    """Section name -> (settings dataclass, its ranges) of every registered third-party stack that has one."""
+    return {s.section: (s.config_type, s.ranges) for s in stacks() if s.section is not None and s.config_type is not None}
+
+
 @dataclass(frozen=True)
 class ScenarioConfig:
     """A complete scenario.
@@ -281,6 +304,8 @@ class ScenarioConfig:
             failures (:mod:`sim.faults`; the radio's and the sensors' own
             faults are in ``radio``, ``camera`` and ``pose_estimate``).
         run: simulation options.
+        plugins: the sections of registered third-party stacks
+            (:class:`PluginSections`; top-level sections of the file, named by each stack).
     """
 
     name: str = "scenario"
@@ -301,6 +326,7 @@ class ScenarioConfig:
     admm: AdmmAgentConfig = field(default_factory=AdmmAgentConfig)
     faults: FaultsConfig = field(default_factory=FaultsConfig)
     run: RunOptions = field(default_factory=RunOptions)
+    plugins: PluginSections = field(default_factory=PluginSections, metadata={"sections": plugin_section_types})
 
     def __post_init__(self) -> None:
         if not (isinstance(self.name, str) and 1 <= len(self.name) <= MAX_NAME_CHARS and self.name.isprintable()):
@@ -309,11 +335,12 @@ class ScenarioConfig:
             raise ConfigError("duration_s", self.duration_s, "in (0, 3600] s")
         if not 0 <= self.seed < 2**32:
             raise ConfigError("seed", self.seed, "an integer in [0, 2^32)")
-        if self.planner.kind in ("mpcde", "auto") and not self.run.cameras:
+        if not isinstance(self.plugins, PluginSections):
+            object.__setattr__(self, "plugins", PluginSections(self.plugins))
+        stack = stack_for_kind(self.planner.kind)
+        if stack.uses.cameras == "required" and not self.run.cameras:
             allowed = f"must be true for planner.kind {self.planner.kind!r}: it sees only through its camera (drop --no-cameras)"
             raise ConfigError("run.cameras", self.run.cameras, allowed)
-        if self.planner.kind in ("dmpc", "auto") and abs(self.dmpc.qp.step_s * self.radio.rate_hz - 1.0) > 1e-6:
-            raise ConfigError("dmpc.qp.step_s", self.dmpc.qp.step_s, f"must equal 1 / radio.rate_hz = {1.0 / self.radio.rate_hz:g} s (one DMPC round per step)")
         if self.run.cameras and (self.camera.width_px % 16 or self.camera.height_px % 16):
             bad = "width_px" if self.camera.width_px % 16 else "height_px"
             allowed = "a multiple of 16 px with run.cameras: true (the detector's stride-16 level)"
@@ -324,11 +351,8 @@ class ScenarioConfig:
             self.faults.check_drones(len(starts))
         except ConfigError as e:
             raise e.under("faults") from None
-        check_flight_levels(self, starts, goals)
-        if self.planner.kind == "mlr":
-            check_mlr(self, starts, goals)
-        if self.planner.kind == "admm":
-            check_admm(self, starts, goals)
+        if stack.check is not None:  # the stack's own load-time rules (mpcde/stacks/builtin.py)
+            stack.check(self, starts, goals)
 
 
 def _require_inside_arena(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> None:
@@ -437,9 +461,9 @@ def _refuse_ignored(data: dict) -> None:
     denied = data.get("denied")
     yaw = denied.get("yaw") if isinstance(denied, dict) else None
     if isinstance(yaw, dict) and denied.get("active_yaw") is False:
-        from mpcde.config.resolve import DERIVED  # the yaw fields resolve() sets are written to every run folder
+        from mpcde.config.resolve import COMMON  # the yaw fields resolve() sets are written to every run folder
 
-        derived = {target.rpartition(".")[2] for target, *_ in DERIVED if target.startswith("denied.yaw.")}
+        derived = {d.target.rpartition(".")[2] for d in COMMON if d.target.startswith("denied.yaw.")}
         for key in sorted(set(yaw) - derived, key=str):
             if isinstance(key, str) and key in {f.name for f in dataclasses.fields(YawPlannerConfig)} and not _is_default(YawPlannerConfig, key, yaw[key]):
                 raise ConfigError(f"denied.yaw.{key}", yaw[key], "read only with denied.active_yaw: true (it is false): set it true or leave the field out")

@@ -1,7 +1,8 @@
-"""The cross-field rules of the stacks that fly without obstacles in a fixed box: ``mlr`` and ``admm``.
+"""The cross-field rules of the DMPC family: the DMPC round's step, and the stacks that fly without obstacles
+in a fixed box (``mlr``, ``admm``).
 
-:meth:`mpcde.config.scenario.ScenarioConfig.__post_init__` calls
-:func:`check_mlr` or :func:`check_admm` for the scenario's ``planner.kind``.
+Each is a registry entry's ``check`` (:mod:`mpcde.stacks.builtin`), which
+:meth:`mpcde.config.scenario.ScenarioConfig.__post_init__` calls for the scenario's stack.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from mpcde.errors import ConfigError
 if TYPE_CHECKING:
     from mpcde.config.scenario import ScenarioConfig, WorldConfig
 
-__all__ = ["check_admm", "check_mlr"]
+__all__ = ["check_admm", "check_dmpc_round", "check_mlr"]
 
 
 def _refuse_obstacles(world: WorldConfig, kind: str, why: str) -> None:
@@ -39,6 +40,13 @@ def _require_inside_box(starts: np.ndarray, goals: np.ndarray, planner: Any, box
             box = f"[{', '.join(f'{v:g}' for v in lo)}] to [{', '.join(f'{v:g}' for v in hi)}] m"
             allowed = f"inside {box_name} {box} (the arena less {section}.arena_margin_m, {section}.altitude_range_m)"
             raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], allowed)
+
+
+def check_dmpc_round(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> None:
+    """ConfigError unless the DMPC QP's step is one radio round (``dmpc`` and ``auto``: one DMPC round per step)."""
+    step, rate = cfg.dmpc.qp.step_s, cfg.radio.rate_hz
+    if abs(step * rate - 1.0) > 1e-6:
+        raise ConfigError("dmpc.qp.step_s", step, f"must equal 1 / radio.rate_hz = {1.0 / rate:g} s (one DMPC round per step)")
 
 
 def check_mlr(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> None:

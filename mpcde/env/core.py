@@ -3,7 +3,7 @@
 :class:`EnvCore` builds the session of a scenario
 (:func:`mpcde.flight.loop.open_session`) with an
 :class:`mpcde.env.external.ExternalDrone` for every learner-flown drone and the
-scenario's own stack (:func:`mpcde.onboard.factory.make_agent`) for the others,
+scenario's own stack (:func:`mpcde.stacks.build.make_agent`) for the others,
 so the world, cameras, detector, radio, faults and metrics are those of
 ``mpcde fly``: there is no second simulator. A control step holds each
 learner's action (:mod:`mpcde.env.actions`) and runs physics ticks until
@@ -41,11 +41,9 @@ def load_env_scenario(scenario: str | Path | ScenarioConfig, mode: str | None = 
 
     if isinstance(scenario, ScenarioConfig):
         if mode is not None:
-            from mpcde.config.modes import MODES
+            from mpcde.stacks import get_stack
 
-            if mode not in MODES:
-                raise ConfigError("mode", mode, f"one of {', '.join(MODES)}")
-            scenario = replace(scenario, planner=replace(scenario.planner, kind=MODES[mode]))
+            scenario = replace(scenario, planner=replace(scenario.planner, kind=get_stack(mode).kind))
         return scenario if duration_s is None else replace(scenario, duration_s=duration_s)
     return load_scenario(scenario, mode=mode, duration_s=duration_s)
 
@@ -85,7 +83,9 @@ class EnvCore:
         if not options.cameras:
             cfg = replace(cfg, run=replace(cfg.run, cameras=False))
             if learners is None:  # no stack flies; the scenario's may need cameras (mpcde, auto) and would be refused
-                cfg = replace(cfg, planner=replace(cfg.planner, kind="min_jerk_line"))
+                from mpcde.stacks import get_stack
+
+                cfg = replace(cfg, planner=replace(cfg.planner, kind=get_stack("placeholder").kind))
         elif not cfg.run.cameras:
             raise ConfigError("env.cameras", True, "the scenario has run.cameras: false; pass cameras=False")
         self.cfg = cfg

@@ -33,7 +33,9 @@ class EnvOptions:
             The SE(3) controller tracks either (:mod:`mpcde.env.actions`).
         observe: the observation's entries, a subset of :data:`OBSERVATIONS`
             (:mod:`mpcde.env.observations`); ``camera``, ``detections`` and
-            ``tracks`` need cameras.
+            ``tracks`` need cameras. None (the default) follows ``cameras``:
+            ``pose``, ``goal``, ``camera``, ``tracks`` with cameras, ``pose``,
+            ``goal`` without.
         cameras: render the drones' RGB-D frames (False: the no-camera world
             for fast training; then only ``pose``, ``goal`` and ``radio``).
         track_slots: neighbour-track slots in the ``tracks`` entry.
@@ -66,7 +68,7 @@ class EnvOptions:
 
     control_hz: float = 25.0
     action: str = "velocity"
-    observe: tuple[str, ...] = ("pose", "goal", "camera", "tracks")
+    observe: tuple[str, ...] | None = None
     cameras: bool = True
     track_slots: int = 8
     detection_slots: int = 8
@@ -86,6 +88,8 @@ class EnvOptions:
     arrival_bonus: float = 10.0
 
     def __post_init__(self) -> None:
+        if self.observe is None and isinstance(self.cameras, bool):  # the default follows the cameras
+            object.__setattr__(self, "observe", ("pose", "goal", "camera", "tracks") if self.cameras else ("pose", "goal"))
         object.__setattr__(self, "observe", tuple(self.observe) if isinstance(self.observe, (list, tuple)) else self.observe)
         require_in("env.control_hz", self.control_hz, 1.0, 1000.0)
         if self.action not in ACTION_MODES:

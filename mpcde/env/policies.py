@@ -1,7 +1,7 @@
 """The package's own stacks as policies over the environments' observations.
 
 :class:`StackPolicy` runs one onboard agent of a stack (``denied``,
-``comm``, ``auto``, ``placeholder``; :func:`mpcde.onboard.factory.make_agent`)
+``comm``, ``auto``, ``placeholder``; :func:`mpcde.stacks.build.make_agent`)
 per learner and feeds it from the observation only:
 
 * ``pose`` -> ``on_pose_estimate`` whenever the estimate's time changes;
@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from mpcde.config.modes import MODES
+from mpcde.stacks import get_stack, stacks
 from mpcde.errors import ConfigError
 from perception.types import Detection
 from sim.types import PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
@@ -59,8 +59,8 @@ class StackPolicy:
     """A stack flying an environment's learners from their observations.
 
     Args:
-        mode: the stack (a key of :data:`mpcde.config.modes.MODES`; not
-            ``mlr`` or ``admm``, whose drones compute together).
+        mode: the stack (a registered name, :func:`mpcde.stacks.stacks`; not
+            one whose drones compute together, ``uses.joint``: ``mlr``, ``admm``).
         env: a :class:`mpcde.env.SwarmParallelEnv` or
             :class:`mpcde.env.SingleDroneEnv` with ``action="reference"``;
             the policy reads the scenario from it, and rebuilds its agents at
@@ -71,8 +71,9 @@ class StackPolicy:
     """
 
     def __init__(self, mode: str, env: Any) -> None:
-        if mode not in MODES or mode in ("mlr", "admm"):
-            raise ConfigError("policy.mode", mode, "one of placeholder, denied, comm, auto")
+        alone = [s.name for s in stacks() if not s.uses.joint]
+        if mode not in alone:
+            raise ConfigError("policy.mode", mode, f"one of {', '.join(alone)}")
         core = getattr(env, "unwrapped", env).core
         if core.options.action != "reference":
             raise ConfigError("env.action", core.options.action, "reference (a stack policy outputs a flat-output reference)")
@@ -84,10 +85,10 @@ class StackPolicy:
     def _start(self) -> None:
         """Fresh agents for the episode the env has just started."""
         from mpcde.onboard.budget import ComputeBudget
-        from mpcde.onboard.factory import make_agent
+        from mpcde.stacks.build import make_agent
 
         p = self.core.prepared
-        cfg = replace(p.config, planner=replace(p.config.planner, kind=MODES[self.mode]))
+        cfg = replace(p.config, planner=replace(p.config.planner, kind=get_stack(self.mode).kind))
         budget = ComputeBudget()
         self.agents = {a: make_agent(cfg, i, p.goals, p.obstacles, budget) for a, i in self.core.index.items()}
         self.seen = {a: {"pose": None, "frame": None, "next_radio": 0.0, "plans": {}} for a in self.agents}

@@ -7,9 +7,11 @@
     obs, info = env.reset(seed=0)
 
 The learner flies drone ``learner`` (default 0); the others fly the stack
-``neighbours`` names (a key of :data:`mpcde.config.modes.MODES` whose drones
-plan each on their own: ``placeholder``, ``denied``, ``comm``, ``auto``), for
-example a learner among five MP-CDE drones. The world, spaces, reward,
+``neighbours`` names (a registered stack whose drones plan each on their own,
+:func:`neighbour_modes`: ``placeholder``, ``denied``, ``comm``, ``auto``,
+``minco_comm`` and any such third-party stack), for example a learner among
+five MP-CDE drones. By default they fly ``denied`` with cameras and ``comm``
+without (``denied`` sees only through its camera). The world, spaces, reward,
 termination and truncation are those of :class:`mpcde.env.SwarmParallelEnv`
 for one agent (:mod:`mpcde.env.core`).
 """
@@ -28,10 +30,15 @@ from mpcde.env.core import EnvCore, load_env_scenario, options_from
 from mpcde.env.options import EnvOptions
 from mpcde.env.rewards import StepOutcome
 
-__all__ = ["NEIGHBOUR_MODES", "SingleDroneEnv"]
+__all__ = ["SingleDroneEnv", "neighbour_modes"]
 
-NEIGHBOUR_MODES = ("placeholder", "denied", "comm", "auto")
-"""Stacks that can fly a learner's neighbours: each drone plans alone (MLR-DMPC's compute units and ADMM's sub-rounds need every drone)."""
+
+def neighbour_modes() -> tuple[str, ...]:
+    """Stacks that can fly a learner's neighbours: each drone plans alone (not ``uses.joint``: MLR-DMPC's compute
+    units and ADMM's sub-rounds need every drone)."""
+    from mpcde.stacks import stacks
+
+    return tuple(s.name for s in stacks() if not s.uses.joint)
 
 
 class SingleDroneEnv(gym.Env):
@@ -39,7 +46,8 @@ class SingleDroneEnv(gym.Env):
 
     Args:
         scenario: a built-in name, a YAML path or a :class:`ScenarioConfig`.
-        neighbours: the stack of the other drones (:data:`NEIGHBOUR_MODES`).
+        neighbours: the stack of the other drones (:func:`neighbour_modes`); None: ``denied`` with cameras,
+            ``comm`` without.
         learner: the learner's drone index.
         options: :class:`mpcde.env.options.EnvOptions` or a dict of its fields.
         duration_s: replaces the scenario's time limit [s].
@@ -51,17 +59,24 @@ class SingleDroneEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 25}
 
     def __init__(
-        self, scenario: str | Path | ScenarioConfig = "forest_swarm", neighbours: str = "denied", learner: int = 0,
+        self, scenario: str | Path | ScenarioConfig = "forest_swarm", neighbours: str | None = None, learner: int = 0,
         options: EnvOptions | dict | None = None, duration_s: float | None = None, render_mode: str | None = None,
         reward: Callable[[StepOutcome], dict[str, float]] | None = None, **overrides: Any,
     ) -> None:  # fmt: skip
         from mpcde.errors import ConfigError
 
-        if neighbours not in NEIGHBOUR_MODES:
-            raise ConfigError("env.neighbours", neighbours, f"one of {', '.join(NEIGHBOUR_MODES)}")
+        from mpcde.stacks import get_stack
+
         if render_mode not in (None, "rgb_array"):
             raise ConfigError("render_mode", render_mode, "rgb_array or None")
         opts = options_from(options, **overrides)
+        if neighbours is None:
+            neighbours = "denied" if opts.cameras else "comm"
+        allowed = neighbour_modes()
+        if neighbours not in allowed:
+            raise ConfigError("env.neighbours", neighbours, f"one of {', '.join(allowed)}")
+        if get_stack(neighbours).uses.cameras == "required" and not opts.cameras:
+            raise ConfigError("env.neighbours", neighbours, "a stack that flies without cameras with cameras=False (it sees only through its camera)")
         cfg = load_env_scenario(scenario, mode=neighbours, duration_s=duration_s)
         self.core = EnvCore(cfg, opts, [learner], reward)
         self.agent = self.core.names[0]

@@ -1,6 +1,6 @@
 """``mpcde compare``: one scenario flown by each onboard stack, paired by seed.
 
-What is compared: the stacks of :data:`mpcde.config.modes.MODES` (``comm``, DMPC on
+What is compared: the stacks of :func:`mpcde.stacks.stacks` (``comm``, DMPC on
 plans exchanged over the radio; ``denied``, MP-CDE on the drone's own
 perception; ``auto``, DMPC falling back to the drone's tracks and to MP-CDE
 when the radio fails; ``placeholder``, a blind straight line), each flying the same scenario with only ``planner.kind`` changed. The
@@ -67,7 +67,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from mpcde.config.modes import MODES
+from mpcde.stacks import get_stack, stacks
 from mpcde.config.scenario import SCENARIO_DIR, load_scenario
 from mpcde.config.yaml_reader import read_yaml
 from mpcde.errors import ConfigError, MpcdeError
@@ -82,7 +82,7 @@ __all__ = [
     "row_from_metrics", "run_compare", "summarize",
 ]  # fmt: skip
 
-DEFAULT_MODES = ("comm", "denied", "auto")  # those present in MODES when called
+DEFAULT_MODES = ("comm", "denied", "auto")
 ROW_KEYS = (
     "mode", "planner_kind", "seed", "success", "arrived", "n_drones", "collisions", "min_distance_m",
     "min_obstacle_clearance_m", "mission_time_s", "path_length_m", "mean_speed_mps", "tracking_pos_rmse_m",
@@ -95,18 +95,24 @@ SUMMARY_KEYS = (
 
 
 def default_modes() -> tuple[str, ...]:
-    """:data:`DEFAULT_MODES` that :data:`mpcde.config.modes.MODES` knows now (``auto`` once it exists)."""
-    return tuple(m for m in DEFAULT_MODES if m in MODES)
+    """:data:`DEFAULT_MODES`: the communicating, the denied and the switching stack."""
+    return DEFAULT_MODES
+
+
+def _kind(mode: str) -> str:
+    """The ``planner.kind`` of the registered stack ``mode``."""
+    return get_stack(mode, "--modes").kind
 
 
 def check_modes(modes: Sequence[str]) -> tuple[str, ...]:
     """``modes`` as a tuple; raises ConfigError("--modes", ...) if empty, unknown or repeated."""
     modes = tuple(modes)
-    allowed = f"allowed: {', '.join(MODES)}"
+    names = [s.name for s in stacks()]
+    allowed = f"allowed: {', '.join(names)}"
     if not modes:
         raise ConfigError("--modes", [], f"at least one mode; {allowed}")
     for m in modes:
-        if m not in MODES:
+        if m not in names:
             raise ConfigError("--modes", m, allowed)
     if len(set(modes)) != len(modes):
         raise ConfigError("--modes", list(modes), f"each mode at most once; {allowed}")
@@ -141,7 +147,7 @@ def row_from_metrics(mode: str, seed: int, metrics: dict[str, Any]) -> dict[str,
     m = metrics
     return {
         "mode": mode,
-        "planner_kind": MODES[mode],
+        "planner_kind": _kind(mode),
         "seed": int(seed),
         "success": bool(m["success"]),
         "arrived": int(m["arrived"]),
@@ -169,7 +175,7 @@ def summarize(rows: Sequence[dict[str, Any]], modes: Sequence[str]) -> list[dict
         paths = [r["path_length_m"] for r in rs if r["path_length_m"] is not None]
         out.append({
             "mode": mode,
-            "planner_kind": MODES[mode],
+            "planner_kind": _kind(mode),
             "runs": len(rs),
             "success_rate": sum(r["success"] for r in rs) / len(rs) if rs else None,
             "collisions": int(sum(r["collisions"] for r in rs)),
@@ -250,7 +256,7 @@ def _plot(path: Path, flights: dict[str, RunResult], seed: int) -> None:
             ax.plot(*r.goals[i, :2], "x", color=colour, ms=5)
         sx, sy = r.config.world.arena_size_m
         ax.set(xlim=(-sx / 2, sx / 2), ylim=(-sy / 2, sy / 2), aspect="equal", xlabel="x [m]", ylabel="y [m]")
-        ax.set_title(f"{mode} ({MODES[mode]}): {r.metrics['collisions']} collisions", fontsize=9)
+        ax.set_title(f"{mode} ({_kind(mode)}): {r.metrics['collisions']} collisions", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
 
@@ -270,7 +276,7 @@ def compare_sweep(scenario: str | Path, modes: Sequence[str], seeds: Sequence[in
         load_scenario(p)  # raises the loader's one line for an empty or non-mapping file
     base.setdefault("name", p.stem)
     overrides = {} if duration_s is None else {"duration_s": float(duration_s)}
-    return SweepSpec(base, str(scenario), tuple(seeds), overrides, (("planner.kind", tuple(MODES[m] for m in modes)),))
+    return SweepSpec(base, str(scenario), tuple(seeds), overrides, (("planner.kind", tuple(_kind(m) for m in modes)),))
 
 
 def run_compare(
@@ -299,7 +305,7 @@ def run_compare(
             ``results.jsonl`` + ``sweep.json`` (:mod:`mpcde.sweep.store`) and
             ``runs/<mode>-seed<seed>/``.
         scenario: scenario YAML path or built-in name.
-        modes: keys of :data:`mpcde.config.modes.MODES`; default :func:`default_modes`.
+        modes: keys of :func:`mpcde.stacks.stacks`; default :func:`default_modes`.
         seeds: one flight per seed and mode; the same seed gives every mode the same draw.
         duration_s: override the scenario's time limit [s].
         progress: a progress bar and one line per flight.
@@ -360,7 +366,7 @@ def run_compare(
         if o.error is not None:
             raise MpcdeError(f"compare: the {mode} flight of seed {seed} failed: {o.error}")
         outcomes[o.key] = o
-        store.append(flight_row(cell_of[mode], {"planner.kind": MODES[mode]}, seed, o, version, revision))
+        store.append(flight_row(cell_of[mode], {"planner.kind": _kind(mode)}, seed, o, version, revision))
         row = row_from_metrics(mode, seed, o.metrics)
         bar.update(1)
         if progress:

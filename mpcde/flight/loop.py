@@ -19,7 +19,7 @@ from mpcde.flight.run_types import PreparedRun, RunLog, RunResult
 from mpcde.flight.session import FlightSession, FrameSink
 from mpcde.onboard.base import OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
-from mpcde.onboard.factory import make_agent
+from mpcde.stacks.build import make_agent
 from sim.rendering.pool_keeper import PoolKeeper
 
 __all__ = ["PreparedRun", "RunLog", "RunResult", "open_session", "pose_error_m", "prepare_run", "run_scenario"]

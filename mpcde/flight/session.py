@@ -358,9 +358,10 @@ def _default_workers(agents: Sequence[OnboardAgent], detects: bool) -> int:
 
 
 def _flies_formation(cfg: ScenarioConfig) -> bool:
-    """Whether the planner keeps the goals' formation (then the metrics report chi)."""
-    kind = cfg.planner.kind
-    return kind == "admm" or (kind in ("dmpc", "auto") and cfg.dmpc.formation_from_goals)
+    """Whether the planner keeps the goals' formation (then the metrics report chi; its registry entry says)."""
+    from mpcde.stacks import stack_of
+
+    return bool(stack_of(cfg).flies_formation(cfg))
 
 
 def _detect(detector: BatchedDetector | None, frames: list[RgbdFrame], agents: list, failed: np.ndarray) -> list:

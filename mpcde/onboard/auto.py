@@ -31,7 +31,7 @@ its MINCO trajectory as a plan, so neighbours that hear it can use it.
 
 The radio is remembered for ``plan_memory_s`` after the switch: the denied
 half plans (and aims its camera) against the neighbours' last plans fused with
-its tracks (:meth:`AutoAgent._denied_neighbours`), so a neighbour flying beside
+its tracks (:class:`RadioMemory`, the denied half's neighbour source), so a neighbour flying beside
 it, which its camera has not seen, is not forgotten the moment the radio goes.
 
 What each half knows of static obstacles is what it knows alone: the comm
@@ -57,9 +57,49 @@ from perception.types import Detection, NeighborPrediction
 from planners.dmpc import DmpcPlan
 from sim.types import FlatOutputReference, PlanMessage, PoseEstimate, RadioMessage, RgbdFrame
 
-__all__ = ["AutoAgent", "AutoAgentConfig"]
+__all__ = ["AutoAgent", "AutoAgentConfig", "RadioMemory"]
 
 COMM, DENIED = "comm", "denied"
+
+
+class RadioMemory:
+    """What the ``auto`` stack's denied half plans, maps and points its camera against: tracks plus radio memory.
+
+    Called as the denied half's neighbour source (``memory(t, count)``). The
+    neighbours' last plans sent within ``plan_memory_s`` (lengthened by
+    ``extra_s`` while a halting hand-over holds and turns) are fused with the
+    tracks exactly as in comm mode (:func:`mpcde.onboard.fusion.fuse_neighbours`):
+    a plan whose drone is tracked gives way to the track, an untracked one is
+    kept (extrapolated at constant velocity past its horizon).
+
+    Args:
+        config: the scenario's ``auto:`` settings.
+        comm: the DMPC half, whose radio plans are remembered.
+        perception: the tracks both halves share.
+
+    Attributes:
+        extra_s: the memory's lengthening [s] (set by the hand-over).
+        remembered_plans: remembered radio plans used in planning calls (summed over plans).
+    """
+
+    def __init__(self, config: AutoAgentConfig, comm: DmpcAgent, perception: Any) -> None:
+        self.config, self.comm, self.perception = config, comm, perception
+        self.extra_s = 0.0
+        self.remembered_plans = 0
+
+    def __call__(self, t: float, count: bool = True) -> list[NeighborPrediction]:
+        """The neighbour predictions at ``t`` [s]; ``count``: tally the remembered plans used (planning calls; the map's are not)."""
+        tracks = self.perception.predictions(t)
+        if self.config.plan_memory_s <= 0:
+            return tracks
+        plans = self.comm.radio_predictions(t, self.config.plan_memory_s + self.extra_s)
+        if not plans:
+            return tracks
+        f = self.config.fusion
+        fused = fuse_neighbours(plans, tracks, t, f.stale_after_s, f.gate_m, self.comm.qp_config.v_max)
+        if count:  # planning calls (denied mode) only; the map asks at every frame in both modes
+            self.remembered_plans += fused.fresh_plans + fused.stale_plans
+        return fused.predictions
 
 
 class AutoAgent(OnboardAgent):
@@ -68,12 +108,15 @@ class AutoAgent(OnboardAgent):
     Args:
         config: the scenario's ``auto:`` settings.
         comm: the DMPC half, sharing ``denied.perception`` and fusing with it.
-        denied: the MP-CDE half (owns the perception and the map).
+        denied: the MP-CDE half (the perception's tracks and the map), built with ``memory`` as its neighbour source.
+        memory: the radio memory of ``comm``'s plans that the denied half plans against.
     """
 
-    def __init__(self, config: AutoAgentConfig, comm: DmpcAgent, denied: DeniedAgent) -> None:
+    def __init__(self, config: AutoAgentConfig, comm: DmpcAgent, denied: DeniedAgent, memory: RadioMemory) -> None:
         if comm.drone_id != denied.drone_id or comm.perception is not denied.perception:
             raise ValueError("AutoAgent: comm and denied halves must be the same drone and share one perception")
+        if denied.neighbour_source is not memory or memory.comm is not comm:
+            raise ValueError("AutoAgent: the denied half must plan against the radio memory of the comm half")
         self.drone_id = comm.drone_id
         self.config = config
         self.comm, self.denied = comm, denied
@@ -87,12 +130,10 @@ class AutoAgent(OnboardAgent):
         self.handovers: list[tuple[float, float]] = []  # per halting hand-over: (halt reached, turn ended) [s]
         self.mode_time_s = {COMM: 0.0, DENIED: 0.0}
         self._last_round_s: float | None = None
-        self.remembered_plans = 0  # denied-mode neighbour sets that used a remembered radio plan (summed over plans)
+        self.memory = memory
         # halting hand-over (config.handover "halt"): until _hold_until_s the drone flies its last DMPC plan to its
         # halt; the radio memory is lengthened by the hold and the turn that follow the switch
         self._hold_until_s = -np.inf
-        self._memory_extra_s = 0.0
-        denied.neighbour_source = self._denied_neighbours
 
     # inputs ------------------------------------------------------------------
     def on_pose_estimate(self, estimate: PoseEstimate) -> None:
@@ -148,7 +189,7 @@ class AutoAgent(OnboardAgent):
             plan = self._denied_plan(t)
             if plan is not None:
                 self.comm.take_over(plan, self.reference(t).yaw)
-            self._hold_until_s, self._memory_extra_s = -np.inf, 0.0
+            self._hold_until_s, self.memory.extra_s = -np.inf, 0.0
             self._switch(t, COMM)
 
     def _hand_over_to_denied(self, t: float) -> None:
@@ -170,29 +211,8 @@ class AutoAgent(OnboardAgent):
             pva = np.stack(self.comm.reference_state(t))
             turn = self.denied.take_over(t, pva, self.comm.yaw, look_around=self.config.handover == "halt")
         if turn is not None:
-            self._memory_extra_s = turn[1] - t
+            self.memory.extra_s = turn[1] - t
             self.handovers.append(turn)
-
-    def _denied_neighbours(self, t: float, count: bool = True) -> list[NeighborPrediction]:
-        """What the denied half plans, maps and points its camera against at ``t`` [s]: tracks plus radio memory.
-
-        The neighbours' last plans sent within ``plan_memory_s`` are fused with
-        the tracks exactly as in comm mode (:func:`mpcde.onboard.fusion.fuse_neighbours`):
-        a plan whose drone is tracked gives way to the track, an untracked one
-        is kept (extrapolated at constant velocity past its horizon). ``count``:
-        tally the remembered plans used (planning calls; the map's are not).
-        """
-        tracks = self.perception.predictions(t)
-        if self.config.plan_memory_s <= 0:
-            return tracks
-        plans = self.comm.radio_predictions(t, self.config.plan_memory_s + self._memory_extra_s)
-        if not plans:
-            return tracks
-        f = self.config.fusion
-        fused = fuse_neighbours(plans, tracks, t, f.stale_after_s, f.gate_m, self.comm.qp_config.v_max)
-        if count:  # planning calls (denied mode) only; the map asks at every frame in both modes
-            self.remembered_plans += fused.fresh_plans + fused.stale_plans
-        return fused.predictions
 
     def _switch(self, t: float, mode: str) -> None:
         self.mode = mode
@@ -228,7 +248,7 @@ class AutoAgent(OnboardAgent):
             "planner": "auto",
             "mode_time_s": {k: round(v, 3) for k, v in self.mode_time_s.items()},
             "mode_switches": len(self.switches),
-            "remembered_plans": self.remembered_plans,
+            "remembered_plans": self.memory.remembered_plans,
             "switches": [{"time_s": round(t, 3), "to": m} for t, m in self.switches],
             "halting_handovers": [{"halt_s": round(a, 3), "turn_end_s": round(b, 3)} for a, b in self.handovers],
             "dmpc": self.comm.extra_metrics(),

@@ -10,7 +10,7 @@ this, and tests/integration/test_fly.py checks what the loop hands an agent.
 :class:`OnboardAgent` is the interface every stack implements. The stacks:
 :mod:`mpcde.onboard.placeholder` (a blind line), :mod:`mpcde.onboard.denied` (MP-CDE),
 :mod:`mpcde.onboard.dmpc` (DMPC) and :mod:`mpcde.onboard.auto` (both, with the
-fallback between them); :mod:`mpcde.onboard.factory` picks one per ``planner.kind``.
+fallback between them); :mod:`mpcde.stacks.build` picks one per ``planner.kind``.
 """
 
 from __future__ import annotations

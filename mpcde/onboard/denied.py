@@ -106,6 +106,9 @@ class DeniedAgent(OnboardAgent):
         budget: where the compute time of tracking, mapping, ESDF and planning is booked (the run's).
         swarm_neighbours: how many other drones were launched with this one (the mission's roster, as the
             goal is the mission's; not their state): the yaw planner's ``roster_aware`` reads it.
+        neighbour_source: where planning reads the neighbours from, ``source(t, count) -> predictions``
+            (``count``: a planning use the source may tally); None: this drone's tracks. The composite
+            stacks give theirs: ``auto`` its radio memory fused with the tracks, ``minco_comm`` the radio's plans.
     """
 
     def __init__(
@@ -113,6 +116,7 @@ class DeniedAgent(OnboardAgent):
         perception: NeighbourPerception | None = None,
         budget: ComputeBudget | None = None,
         swarm_neighbours: int = 0,
+        neighbour_source: Callable[[float, bool], list[NeighborPrediction]] | None = None,
     ) -> None:
         self.drone_id = drone_id
         self.swarm_neighbours = swarm_neighbours
@@ -143,9 +147,7 @@ class DeniedAgent(OnboardAgent):
         self.perception, self.detector_request = onboard_perception(c.perceive_neighbours, perception_config, perception)
         self.search = PathSearchConfig()
         self.levels: FlightLevels | None = None  # config.flight_level_spacing_m: this drone's level, fixed by its first estimate
-        # where plan_step reads the neighbours from (None: this drone's tracks); the auto agent adds its radio memory
-        # (t, count) -> predictions; count: whether the call is a planning use the source may tally
-        self.neighbour_source: Callable[[float, bool], list[NeighborPrediction]] | None = None
+        self.neighbour_source = neighbour_source
         # look before moving (denied.fresh_path_age_s): the corridor check's state, every t_y
         self.fresh_path = FreshPathWatch(c, c.yaw.period_s, 2.0 * c.map.voxel_m)
 

@@ -68,8 +68,7 @@ class MincoCommAgent(OnboardAgent):
             config, perceive_neighbours=False, active_yaw=False, flight_level_spacing_m=float("inf"),
             map=replace(config.map, neighbour_exclusion_m=max(config.map.neighbour_exclusion_m, EXCLUSION_M)),
         )  # fmt: skip
-        self.denied = DeniedAgent(drone_id, goal_world, own, None, budget=budget)
-        self.denied.neighbour_source = self._neighbours
+        self.denied = DeniedAgent(drone_id, goal_world, own, None, budget=budget, neighbour_source=self._neighbours)
         self.counters = AgentCounters()
         self.detector_request = None
         self.perception = None

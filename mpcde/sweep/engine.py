@@ -229,7 +229,7 @@ def _warm(keep_pools: bool = True) -> None:
     its next queued flight).
     """
     import mpcde.flight.loop  # noqa: F401
-    import mpcde.onboard.factory  # noqa: F401
+    import mpcde.onboard.admm, mpcde.onboard.auto, mpcde.onboard.minco_comm, mpcde.onboard.mlr  # noqa: F401, E401 (the agents)
     from mpcde.errors import Terminated
 
     global _IN_POOL, _KEEPER

@@ -7,7 +7,7 @@ import pytest
 from mpcde.config.scenario import load_scenario
 from mpcde.flight.loop import prepare_run, run_scenario
 from mpcde.onboard import denied as agent_denied
-from mpcde.onboard import factory as agents
+from mpcde.onboard import denied as agents
 from perception.types import Detection
 from sim.types import RgbdFrame
 

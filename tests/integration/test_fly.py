@@ -235,7 +235,7 @@ def test_closing_a_pool_with_an_uncollected_batch_and_idle_workers_returns():
 
 def test_open_session_flies_the_given_agents_and_the_scenarios_own_for_the_rest():
     from mpcde.flight.loop import open_session
-    from mpcde.onboard.factory import make_agent
+    from mpcde.stacks.build import make_agent
 
     prepared = prepare_run(short("crossing", 0.5, cameras=False))
     mine = SpyAgent(1, prepared.goals[1], 1.0, 0.0)

@@ -30,7 +30,7 @@ RULES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 }
 ONBOARD = RULES["mpcde/onboard"][0]
 for _file in ("mpcde/env/external.py", "mpcde/env/actions.py", "mpcde/env/policies.py"):
-    RULES[_file] = (ONBOARD + ("mpcde.env.actions",), ("pybullet",))
+    RULES[_file] = (ONBOARD + ("mpcde.env.actions", "mpcde.stacks"), ("pybullet",))
 
 
 def imports_of(path: Path) -> list[tuple[int, str]]:

@@ -11,7 +11,7 @@ import yaml
 import mpcde
 from mpcde.cli import main
 from mpcde.config.io import from_dict
-from mpcde.config.resolve import DERIVED, resolve
+from mpcde.config.resolve import derivations, resolve
 from mpcde.config.scenario import ScenarioConfig, load_scenario
 from mpcde.errors import ConfigError
 
@@ -34,9 +34,9 @@ def test_every_derived_field_equals_its_source_after_loading(tmp_path):
     cfg = load_scenario(p)
     assert cfg.perception.backprojection.pose_pos_std_m == 0.05 and cfg.perception.backprojection.pose_yaw_std_rad == 0.02
     assert (cfg.denied.yaw.v_max_mps, cfg.denied.yaw.t_hold_s, cfg.denied.yaw.fov_h_deg) == (1.5, 0.8, 80.0)
-    for target, _, derive, applies in DERIVED:
-        if applies(cfg):
-            assert _get(cfg, target) == derive(cfg), target
+    for d in derivations(cfg):
+        if d.applies(cfg):
+            assert _get(cfg, d.target) == d.derive(cfg), d.target
     assert resolve(cfg) == cfg  # idempotent
 
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from mpcde.config.scenario import load_scenario
 from mpcde.onboard.dmpc import DmpcAgent
-from mpcde.onboard.factory import make_agent
+from mpcde.stacks.build import make_agent
 
 
 def crossing_dmpc_agent(goals: np.ndarray, **dmpc) -> DmpcAgent:

@@ -18,7 +18,7 @@ from mpcde.config.scenario import load_scenario
 from mpcde.errors import ConfigError
 from mpcde.flight.metrics import formation_metrics
 from mpcde.onboard.admm import AdmmAgent
-from mpcde.onboard.factory import make_agent
+from mpcde.stacks.build import make_agent
 from planners.dmpc.admm.formation import AdmmFormationAgent, solve_admm_round
 from planners.dmpc.admm.local_qp import AdmmLocalQpError
 from planners.dmpc.admm.types import AdmmBundle

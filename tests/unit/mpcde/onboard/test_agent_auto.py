@@ -9,7 +9,7 @@ from test_agent_denied_tracks import GOAL, NEIGHBOUR, START, _frame
 from mpcde.config.scenario import load_scenario
 from mpcde.errors import ConfigError
 from mpcde.onboard.auto import AutoAgent
-from mpcde.onboard.factory import make_agent
+from mpcde.stacks.build import make_agent
 from sim.types import PlanMessage, PoseEstimate, RadioMessage
 
 ROUND = 0.2  # radio period [s] (5 Hz)
@@ -116,11 +116,11 @@ def test_in_denied_mode_an_untracked_neighbour_is_remembered_from_the_radio_for_
     # drone 2 was never seen: the planner and the yaw planner know it only from its last plan
     assert by_id[2].source == "radio"
     np.testing.assert_allclose(by_id[2].position(t), BEHIND)
-    assert agent.remembered_plans >= 2
+    assert agent.memory.remembered_plans >= 2
     later = agent.denied.neighbours(0.4 + memory + 0.01)  # the plans are forgotten: the tracks alone
     assert [p.source for p in later] == ["perception"]
     # no memory: only what the camera tracks (the pure MP-CDE neighbour set)
-    agent.config = replace(agent.config, plan_memory_s=0.0)
+    agent.config = agent.memory.config = replace(agent.config, plan_memory_s=0.0)  # the memory reads its own copy
     assert [p.source for p in agent.denied.neighbours(t)] == ["perception"]
 
 

@@ -18,7 +18,7 @@ import pytest
 from mpcde.config.mlr import MlrAgentConfig
 from mpcde.config.scenario import load_scenario
 from mpcde.errors import ConfigError
-from mpcde.onboard.factory import make_agent
+from mpcde.stacks.build import make_agent
 from mpcde.onboard.mlr import MlrAgent
 from planners.dmpc.collision import ellipsoidal_distance
 from planners.dmpc.mlr.types import MlrBundle
@@ -212,9 +212,9 @@ def test_make_agent_builds_an_mlr_agent_per_drone_with_cus_on_the_first_drones()
 
 def test_mlr_is_a_mode_of_fly_and_compare() -> None:
     from mpcde.cli import build_parser
-    from mpcde.config.modes import MODES
     from mpcde.evals.compare import check_modes
+    from mpcde.stacks import get_stack
 
-    assert MODES["mlr"] == "mlr" and check_modes(["comm", "mlr"]) == ("comm", "mlr")
+    assert get_stack("mlr").kind == "mlr" and check_modes(["comm", "mlr"]) == ("comm", "mlr")
     args = build_parser().parse_args(["fly", "antipodal", "--mode", "mlr", "--out", "x"])
-    assert MODES[args.mode] == "mlr"
+    assert get_stack(args.mode).kind == "mlr"

@@ -451,7 +451,7 @@ def test_without_roster_aware_the_roster_changes_no_yaw():
 def test_the_agent_factory_gives_each_denied_drone_its_roster():
     import mpcde
     from mpcde.flight.loop import prepare_run
-    from mpcde.onboard.factory import make_agent
+    from mpcde.stacks.build import make_agent
 
     for name, mode, roster in (("forest_swarm", "denied", 5), ("crossing", "auto", 1)):
         prepared = prepare_run(mpcde.load_scenario(name, mode=mode))

@@ -1,0 +1,151 @@
+"""The seven stacks this package ships, as registry entries (:mod:`mpcde.stacks.registry`).
+
+Each entry's factory imports its agent when it first builds one, so reading a
+scenario (which asks the registry for ``planner.kind``) loads no planner. The
+composite stacks get their parts through constructors: ``auto`` builds one
+perception, its DMPC half on it, the radio memory the MP-CDE half plans
+against (:class:`mpcde.onboard.auto.RadioMemory`), then the MP-CDE half with
+that memory as its neighbour source; ``minco_comm`` builds its radio plan
+memory first and hands it to the MP-CDE planner it wraps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from mpcde.config.level_rules import check_flight_levels
+from mpcde.config.stack_rules import check_admm, check_dmpc_round, check_mlr
+from mpcde.stacks.registry import AgentContext, Derivation, Stack, Uses
+
+__all__ = ["BUILTIN", "DEFAULT_KIND"]
+
+
+def _placeholder(ctx: AgentContext) -> Any:
+    from mpcde.onboard.placeholder import Agent
+
+    p = ctx.config.planner
+    return Agent(ctx.drone_id, np.asarray(ctx.goal_world, float), p.line_speed_mps, p.start_delay_s)
+
+
+def _denied(ctx: AgentContext) -> Any:
+    from mpcde.onboard.denied import DeniedAgent
+
+    cfg = ctx.config
+    roster = len(ctx.goals_world) - 1  # the other drones launched with this one (the yaw planner's roster_aware)
+    return DeniedAgent(ctx.drone_id, ctx.goal_world, cfg.denied, cfg.perception, budget=ctx.budget, swarm_neighbours=roster)
+
+
+def _dmpc_agent(ctx: AgentContext, dmpc: Any, perception: Any = None, fusion: Any = None) -> Any:
+    """The DMPC agent of ``ctx``'s drone with settings ``dmpc`` (formation offsets from the goals when configured)."""
+    from mpcde.onboard.dmpc import DmpcAgent
+
+    cfg, i = ctx.config, ctx.drone_id
+    goals = np.asarray(ctx.goals_world, float)
+    offsets = {j: goals[j] - goals[i] for j in range(len(goals)) if j != i} if dmpc.formation_from_goals else None
+    return DmpcAgent(
+        i, goals[i], dmpc, cfg.planner.start_delay_s, offsets, ctx.obstacles, cfg.physics.quadrotor.robot_radius_m,
+        cfg.perception, perception, fusion, ctx.budget,
+    )  # fmt: skip
+
+
+def _dmpc(ctx: AgentContext) -> Any:
+    return _dmpc_agent(ctx, ctx.config.dmpc)
+
+
+def _auto(ctx: AgentContext) -> Any:
+    from mpcde.onboard.auto import AutoAgent, RadioMemory
+    from mpcde.onboard.denied import DeniedAgent
+    from mpcde.onboard.perception import onboard_perception
+
+    cfg = ctx.config
+    # one perception for both halves; denied.perceive_neighbours: false turns it off for both
+    perception, _ = onboard_perception(cfg.denied.perceive_neighbours, cfg.perception)
+    comm = _dmpc_agent(ctx, replace(cfg.dmpc, perceive_neighbours=perception is not None), perception, cfg.auto.fusion)
+    memory = RadioMemory(cfg.auto, comm, perception)
+    denied = DeniedAgent(
+        ctx.drone_id, ctx.goal_world, cfg.denied, cfg.perception, perception, ctx.budget, len(ctx.goals_world) - 1,
+        neighbour_source=memory,
+    )  # fmt: skip
+    return AutoAgent(cfg.auto, comm, denied, memory)
+
+
+def _mlr(ctx: AgentContext) -> Any:
+    from mpcde.onboard.mlr import MlrAgent
+
+    cfg = ctx.config
+    planner = cfg.mlr.planner_config(len(ctx.goals_world), cfg.world.arena_size_m)
+    return MlrAgent(ctx.drone_id, ctx.goals_world, planner, cfg.planner.start_delay_s, cfg.mlr.ignore_message_loss)
+
+
+def _admm(ctx: AgentContext) -> Any:
+    from mpcde.onboard.admm import AdmmAgent
+
+    cfg, p = ctx.config, ctx.config.planner
+    return AdmmAgent(ctx.drone_id, ctx.goals_world, cfg.admm, cfg.world.arena_size_m, p.start_delay_s, p.line_speed_mps)
+
+
+def _minco_comm(ctx: AgentContext) -> Any:
+    from mpcde.onboard.minco_comm import MincoCommAgent
+
+    return MincoCommAgent(ctx.drone_id, ctx.goal_world, ctx.config.denied, budget=ctx.budget)
+
+
+def _checks(*rules: Any) -> Any:
+    """One load-time check running ``rules`` in order."""
+
+    def check(cfg: Any, starts: np.ndarray, goals: np.ndarray) -> None:
+        for rule in rules:
+            rule(cfg, starts, goals)
+
+    return check
+
+
+def _dmpc_formation(cfg: Any) -> bool:
+    return bool(cfg.dmpc.formation_from_goals)
+
+
+BUILTIN: tuple[Stack, ...] = (
+    Stack(
+        "placeholder", _placeholder, "a blind minimum-jerk straight line to the goal", kind="min_jerk_line",
+    ),
+    Stack(
+        "denied", _denied, "MP-CDE without radio: own detector, tracks, active yaw, A* + MINCO", kind="mpcde",
+        uses=Uses(cameras="required"), section="denied", check=check_flight_levels, speed_fields=("denied.v_max_mps",),
+    ),
+    Stack(
+        "comm", _dmpc, "distributed MPC (OSQP) on the plans neighbours broadcast, known obstacles", kind="dmpc",
+        uses=Uses(cameras="optional", radio=True, known_obstacles=True), section="dmpc", check=check_dmpc_round,
+        speed_fields=("dmpc.qp.v_max",), flies_formation=_dmpc_formation,
+    ),
+    Stack(
+        "auto", _auto, "comm, with tracks for stale plans; denied when the radio falls silent",
+        uses=Uses(cameras="required", radio=True, known_obstacles=True), section="auto",
+        check=_checks(check_dmpc_round, check_flight_levels), speed_fields=("denied.v_max_mps", "dmpc.qp.v_max"),
+        flies_formation=_dmpc_formation,
+    ),
+    Stack(
+        "mlr", _mlr, "MLR-DMPC: compute units on the first drones, message-loss recovery; no obstacles",
+        uses=Uses(radio=True, joint=True), section="mlr", check=check_mlr, cruise_speed=False,
+    ),
+    Stack(
+        "admm", _admm, "formation DMPC solved by ADMM across neighbours; no obstacles",
+        uses=Uses(radio=True, joint=True), section="admm", check=check_admm, flies_formation=lambda cfg: True,
+        derived=(
+            Derivation(
+                "radio.rate_hz", "2 admm.l_max / admm.step_s (admm.radio_rate_from_step: true)",
+                lambda c: c.admm.radio_rate_hz, lambda c: c.admm.radio_rate_from_step,
+            ),
+        ),
+    ),
+    Stack(
+        "minco_comm", _minco_comm, "the denied planner on radio plans, heading along travel (EGO-Swarm analogue)",
+        uses=Uses(cameras="optional", radio=True), section="denied", speed_fields=("denied.v_max_mps",),
+    ),
+)  # fmt: skip
+"""The built-in stacks, in the order ``--help`` lists them."""
+
+DEFAULT_KIND = BUILTIN[0].kind
+"""The ``planner.kind`` of a scenario that names none."""
