@@ -34,3 +34,25 @@ def unpack_kept_store() -> Callable[[str, Path], Path]:
         return folder
 
     return unpack
+
+
+ORCA_EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "orca_stack"
+"""The worked third-party stack's source (its own pyproject.toml; docs/stacks.md)."""
+
+
+@pytest.fixture(scope="session")
+def orca_site(tmp_path_factory) -> Path:
+    """A folder with examples/orca_stack installed into it, as ``pip install --target`` installs any package
+    (no dependencies: mpcde is the running one). Put it on ``sys.path`` or ``PYTHONPATH`` to have the stack.
+
+    The build runs in a copy of the source, so the checkout gets no build/ or egg-info folder.
+    """
+    import subprocess
+    import sys
+
+    root = tmp_path_factory.mktemp("orca")
+    source, site = root / "source", root / "site"
+    shutil.copytree(ORCA_EXAMPLE, source, ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__"))
+    cmd = [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation", "--target", str(site), str(source)]
+    subprocess.run(cmd, check=True, capture_output=True, timeout=300)
+    return site

@@ -338,6 +338,8 @@ class ScenarioConfig:
         if not isinstance(self.plugins, PluginSections):
             object.__setattr__(self, "plugins", PluginSections(self.plugins))
         stack = stack_for_kind(self.planner.kind)
+        if stack.config_type is not None and stack.section not in self.plugins:  # its defaults, written to config.yaml
+            object.__setattr__(self, "plugins", PluginSections({**self.plugins, stack.section: stack.config_type()}))
         if stack.uses.cameras == "required" and not self.run.cameras:
             allowed = f"must be true for planner.kind {self.planner.kind!r}: it sees only through its camera (drop --no-cameras)"
             raise ConfigError("run.cameras", self.run.cameras, allowed)
