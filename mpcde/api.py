@@ -38,7 +38,7 @@ def load_scenario(
     Args:
         scenario: the file, or the name of one in ``data/scenarios/``.
         mode: onboard stack replacing the file's ``planner.kind``, by its
-            registry name (:func:`mpcde.stacks`: ``"placeholder"``, ``"denied"``,
+            registry name (:func:`mpcde.all_stacks`: ``"placeholder"``, ``"denied"``,
             ``"comm"``, ``"auto"``, ``"mlr"``, ``"admm"``, ``"minco_comm"`` or a
             registered third-party stack); None keeps the file's.
         seed: replaces the file's ``seed``.
