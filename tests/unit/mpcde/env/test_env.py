@@ -121,6 +121,21 @@ def test_bad_options_are_refused_in_one_line(kwargs, message):
     assert str(e.value) == message
 
 
+def test_the_defaults_follow_cameras_false_instead_of_refusing_it():
+    """Observations without camera entries, neighbours on the radio: both envs build with cameras=False alone."""
+    swarm = SwarmParallelEnv("crossing", cameras=False, duration_s=1.0)
+    assert swarm.core.options.observe == ("pose", "goal")
+    obs, _ = swarm.reset(seed=0)
+    assert set(obs["drone_0"]) == {"time_s", "pose", "goal"}
+    single = SingleDroneEnv("crossing", cameras=False, duration_s=1.0)
+    assert single.core.cfg.planner.kind == "dmpc" and single.core.options.observe == ("pose", "goal")
+    assert SwarmParallelEnv("crossing", duration_s=1.0).core.options.observe == ("pose", "goal", "camera", "tracks")
+    with pytest.raises(ConfigError, match=r"^env\.neighbours='denied': a stack that flies without cameras"):
+        SingleDroneEnv("crossing", neighbours="denied", cameras=False)
+    with pytest.raises(ConfigError, match=r"^env\.observe=.*only with cameras"):
+        SwarmParallelEnv("crossing", cameras=False, observe=("pose", "camera"))
+
+
 def test_bad_environment_arguments_are_refused_before_a_world_is_built():
     with pytest.raises(ConfigError, match=r"^env\.neighbours='mlr': one of placeholder, denied, comm, auto, minco_comm$"):
         SingleDroneEnv("crossing", neighbours="mlr")
