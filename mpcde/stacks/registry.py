@@ -249,22 +249,22 @@ def stacks() -> tuple[Stack, ...]:
     return tuple(_BY_NAME.values())
 
 
+def _lookup(table: dict[str, Stack], key: Any, field: str, allowed: str) -> Stack:
+    _load()
+    stack = table.get(key) if isinstance(key, str) else None
+    if stack is None:
+        raise ConfigError(field, key, allowed.format(", ".join(table), ", ".join(repr(k) for k in table)))
+    return stack
+
+
 def get_stack(name: str, field: str = "mode") -> Stack:
     """The stack called ``name`` (the ``--mode`` word); ConfigError naming ``field`` if there is none."""
-    _load()
-    stack = _BY_NAME.get(name) if isinstance(name, str) else None
-    if stack is None:
-        raise ConfigError(field, name, f"one of {', '.join(_BY_NAME)}")
-    return stack
+    return _lookup(_BY_NAME, name, field, "one of {0}")
 
 
 def stack_for_kind(kind: str, field: str = "planner.kind") -> Stack:
     """The stack whose ``planner.kind`` is ``kind``; ConfigError naming ``field`` if there is none."""
-    _load()
-    stack = _BY_KIND.get(kind) if isinstance(kind, str) else None
-    if stack is None:
-        raise ConfigError(field, kind, f"allowed: {', '.join(repr(k) for k in _BY_KIND)}")
-    return stack
+    return _lookup(_BY_KIND, kind, field, "allowed: {1}")
 
 
 def stack_of(cfg: "ScenarioConfig") -> Stack:

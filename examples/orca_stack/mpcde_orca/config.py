@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from mpcde import ConfigError
+from sim.checks import require_non_negative, require_positive
 
 __all__ = ["OrcaConfig"]
 
@@ -41,12 +41,8 @@ class OrcaConfig:
     max_accel_mps2: float = 3.0
     yaw_rate_max_radps: float = 1.5
 
-    def __post_init__(self) -> None:
+    def __post_init__(self) -> None:  # each refusal a one-line mpcde.ConfigError naming the field
         for name in ("horizon_s", "max_speed_mps", "vertical_gain_per_s", "max_climb_mps", "arrive_s", "max_accel_mps2", "yaw_rate_max_radps"):
-            value = getattr(self, name)
-            if not value > 0:
-                raise ConfigError(name, value, "> 0")
+            require_positive(name, getattr(self, name))
         for name in ("radius_margin_m", "sigma_scale"):
-            value = getattr(self, name)
-            if not value >= 0:
-                raise ConfigError(name, value, ">= 0")
+            require_non_negative(name, getattr(self, name))
