@@ -358,7 +358,7 @@ class DmpcProblem:
         self._x_last, self._y_last = res.x, res.y
         return self._result(
             res, x0, goal, float(t_now_s), e, form_targets, n_coll, conflict_time_s,
-            t_solve - t_start, t_end - t_solve, n_obs,
+            t_solve - t_start, t_end - t_solve, n_obs, "Ax" in update or "Px" in update,
         )  # fmt: skip
 
     def _run_osqp(self, update: dict[str, np.ndarray], x_ws: np.ndarray, y_ws: np.ndarray) -> SimpleNamespace:
@@ -413,7 +413,7 @@ class DmpcProblem:
 
     def _result(
         self, res, x0: np.ndarray, goal: np.ndarray, t_now_s: float, e: np.ndarray, form_targets: np.ndarray,
-        n_coll: int, conflict_time_s: float, t_update: float, t_solve: float, n_obs: int = 0,
+        n_coll: int, conflict_time_s: float, t_update: float, t_solve: float, n_obs: int = 0, refactorised: bool = False,
     ) -> DmpcResult:  # fmt: skip
         """Unpack OSQP's result ``res`` into a :class:`DmpcResult` (states rolled out, J evaluated term by term).
 
@@ -446,5 +446,5 @@ class DmpcProblem:
             inputs=inputs.copy(), cost=float(cost), iterations=int(res.info.iter), status=str(res.info.status),
             solve_time_s=t_solve, osqp_solve_time_s=float(res.info.solve_time), update_time_s=t_update,
             n_collision_constraints=int(n_coll), conflict_time_s=conflict_time_s, slack=slack,
-            n_obstacle_rows=int(n_obs),
+            n_obstacle_rows=int(n_obs), refactorised=bool(refactorised),
         )  # fmt: skip

@@ -78,6 +78,10 @@ class DmpcResult:
             conflict that was constrained (NaN if none, and always for bvc).
         slack: (n_collision_constraints,) on-demand slacks s = -alpha [m] (empty for bvc).
         n_obstacle_rows: obstacle half-space rows kept this round (after culling).
+        refactorised: whether this round changed A or P, so that OSQP
+            refactorised its KKT system (Ruiz equilibration included) before
+            solving; a round with the same constraint matrix as the last solve
+            reuses the factorisation and pays only the iterations.
     """
 
     plan: DmpcPlan
@@ -95,3 +99,4 @@ class DmpcResult:
     conflict_time_s: float
     slack: np.ndarray
     n_obstacle_rows: int = 0
+    refactorised: bool = False

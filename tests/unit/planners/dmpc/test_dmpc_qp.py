@@ -168,6 +168,20 @@ def test_sparsity_pattern_is_fixed_across_rounds() -> None:
         np.testing.assert_array_equal(a0.indptr, a1.indptr)
 
 
+def test_a_round_reports_whether_it_refactorised() -> None:
+    # on demand: no conflict twice leaves A as sent, no refactorisation; a new conflict plane changes A
+    problem = DmpcProblem(DmpcConfig(collision_mode="on_demand", max_neighbours=3))
+    x0 = _x0(problem.config, vel=(0.0, 0.0, 0.0))
+    problem.solve(x0, [4.0, 0, 1.5], [], None, t_now_s=0.0)
+    assert not problem.solve(x0, [4.0, 0, 1.5], [], None, t_now_s=0.0).refactorised
+    assert problem.solve(x0, [4.0, 0, 1.5], [_hover_neighbour([0.3, 0.0, 1.5])], None, t_now_s=0.0).refactorised
+    # BVC: a plane per neighbour and step, which moves with the previous plans
+    bvc = DmpcProblem(DmpcConfig(collision_mode="bvc", max_neighbours=3))
+    previous = DmpcPlan.hover(0.0, 0.2, 15, x0[:3])
+    bvc.solve(x0, [4.0, 0, 1.5], [_hover_neighbour([2.0, 0.0, 1.5])], previous, t_now_s=0.0)
+    assert bvc.solve(x0, [4.0, 0, 1.5], [_hover_neighbour([1.5, 0.5, 1.5])], previous, t_now_s=0.0).refactorised
+
+
 def test_infeasible_problem_raises_with_the_problem_attached() -> None:
     cfg = DmpcConfig()
     problem = DmpcProblem(cfg)
