@@ -9,7 +9,10 @@ square formation through static obstacles; ``antipodal``: 8 drones swap across
 a circle), flown by the real :class:`mpcde.onboard.dmpc.DmpcAgent` (carrot goal,
 obstacle half-spaces, formation offsets, plans over an ideal radio) but
 kinematically: no physics, each drone is exactly at its plan's state one round
-later, so a run takes seconds and both methods see comparable rounds. The two
+later, so a run takes seconds and both methods see comparable rounds. Both
+methods replan every round without a halting terminal constraint
+(:meth:`mpcde.config.dmpc.DmpcAgentConfig.replanning`), so they differ in
+their constraints only. The two
 methods are interleaved per seed in the same process (same machine load).
 Seeds perturb the start positions by 2 cm.
 
@@ -51,8 +54,8 @@ def fly_kinematic(
 ) -> dict:
     """One kinematic flight of ``scenario`` with ``mode`` and obstacle mode ``obstacles``; per-round QP figures (and the floor if asked)."""
     cfg = load_scenario(scenario, {"seed": seed})
-    qp = replace(cfg.dmpc.qp, collision_mode=mode, obstacle_avoidance=obstacles)
-    cfg = replace(cfg, planner=replace(cfg.planner, kind="dmpc"), dmpc=replace(cfg.dmpc, qp=qp))
+    dmpc = cfg.dmpc.replanning(mode)  # the paper's DMPC (no commit, no halt), as mpcde eval-dmpc flies it
+    cfg = replace(cfg, planner=replace(cfg.planner, kind="dmpc"), dmpc=replace(dmpc, qp=replace(dmpc.qp, obstacle_avoidance=obstacles)))
     prepared = prepare_run(cfg)
     rng = np.random.default_rng(seed)
     starts = prepared.starts + rng.normal(0.0, 0.02, prepared.starts.shape)

@@ -68,8 +68,8 @@ class AutoAgentConfig:
             round there at the yaw-rate limit, so that the neighbours about it
             become tracks, and only then plans; the radio memory
             (``plan_memory_s``) is lengthened by the time from the switch to
-            the end of the turn. A plan that does not end at rest (no
-            ``commit_when_unheard``) is replaced by the denied half's
+            the end of the turn. A plan that does not end at rest
+            (``dmpc.qp.terminal_halt: false``) is replaced by the denied half's
             stopping piece. Chosen: ``halt`` (radio_outage, seeds 0-39, paired:
             0 flights with a collision against 4 for ``continue``, mission time
             +1.5 s; docs/results/radio_outage.md).

@@ -12,7 +12,7 @@ import math
 from mpcde.config.admm import AdmmAgentConfig
 from mpcde.config.auto import AutoAgentConfig, FusionConfig
 from mpcde.config.denied import DeniedAgentConfig
-from mpcde.config.dmpc import DmpcAgentConfig
+from mpcde.config.dmpc import CommQpConfig, DmpcAgentConfig
 from mpcde.config.mlr import MlrAgentConfig
 from perception.backprojection_config import BackprojectionConfig
 from perception.map_config import MapConfig
@@ -148,3 +148,4 @@ RANGES: dict[type, dict[str, B]] = {
     },
 }
 """Settings class -> field -> its range."""
+RANGES[CommQpConfig] = RANGES[DmpcConfig]  # the dmpc.qp section: DmpcConfig with the comm stack's defaults

@@ -25,6 +25,12 @@ DESIGN.md section 3) the loop first hands the agent its inbox
    offsets when configured and half-spaces of the known static obstacles,
 4. broadcasts the new plan as a :class:`sim.types.PlanMessage`.
 
+The QP is flown as ``dmpc.qp`` sets it: the agent replaces neither its
+collision mode nor its halt. The scheme is the configuration's explicit choice
+(:mod:`mpcde.config.dmpc`): committing when unheard (``commit_when_unheard``,
+which the configuration accepts only with buffered Voronoi planes, halting
+plans and every-step obstacle rows) or replanning every round.
+
 If OSQP fails (:class:`planners.dmpc.DmpcSolveError`) the agent keeps flying
 its previous plan shifted to t (a *fallback*). :meth:`DmpcAgent.reference`
 samples the current plan (position, velocity, acceleration feed-forward) for
@@ -81,6 +87,8 @@ class DmpcRoundStats:
         iterations: per solved round, OSQP iterations.
         collision_rows: per solved round, active collision constraints.
         obstacle_rows: per solved round, obstacle rows in the QP (after culling; on demand: conflicts).
+        refactorisations: solved rounds whose constraint or cost matrix changed, so that OSQP
+            refactorised (:attr:`planners.dmpc.DmpcResult.refactorised`).
         statuses: count per OSQP status (failures included).
         fallbacks: rounds flown on the previous plan because OSQP failed.
         commits: rounds flown on the previous plan because a near neighbour sent nothing new
@@ -100,6 +108,7 @@ class DmpcRoundStats:
     iterations: list[int] = field(default_factory=list)
     collision_rows: list[int] = field(default_factory=list)
     obstacle_rows: list[int] = field(default_factory=list)
+    refactorisations: int = 0
     statuses: dict[str, int] = field(default_factory=dict)
     fallbacks: int = 0
     commits: int = 0
@@ -154,17 +163,11 @@ class DmpcAgent(SampledPlanAgent):
         self.goal_world = np.asarray(goal_world, float).reshape(3)
         self.config = config
         self.obstacles = tuple(obstacles)
-        # Its planes are vertical (obstacle_half_spaces), so the QP may drop their z columns.
+        # The QP flies as configured: collision mode, halt and obstacle rows are never replaced here.
+        # DmpcAgentConfig refuses commit_when_unheard with a QP that breaks its promise (on-demand rows,
+        # no halt, on-demand obstacle rows). Only the obstacle-plane slots follow the scenario: none without
+        # obstacles, and vertical planes (obstacle_half_spaces) so that the QP may drop their z columns.
         qp = replace(config.qp, vertical_obstacle_planes=True) if self.obstacles else replace(config.qp, max_obstacle_planes=0)
-        if config.commit_when_unheard:
-            # DMPC-Swarm's promise rests on three pieces together: every broadcast plan ends in a halt
-            # (Eq. 13e); the drone-drone constraints are buffered Voronoi planes between the previous plans
-            # (Eq. 14-15), which both drones of a pair compute alike, so plans solved in the same round stay
-            # apart (on-demand rows do not: docs/results/comm_safety.md); and no replanning while unheard.
-            # The obstacle rows follow BVC to every step (``obstacle_avoidance: auto``): a plan flown to its
-            # halt without replanning must clear the obstacles over its whole horizon, not only at its
-            # first predicted conflict as on-demand rows promise.
-            qp = replace(qp, terminal_halt=True, collision_mode="bvc")
         self.qp_config = qp
         self.problem = DmpcProblem(qp)
         self.start_delay_s = float(start_delay_s)
@@ -324,6 +327,7 @@ class DmpcAgent(SampledPlanAgent):
             self.stats.iterations.append(res.iterations)
             self.stats.collision_rows.append(res.n_collision_constraints)
             self.stats.obstacle_rows.append(res.n_obstacle_rows)
+            self.stats.refactorisations += int(res.refactorised)
             self._solved_last = True
             self.plan = res.plan
         return self._message(time_s, self.plan)
@@ -340,11 +344,12 @@ class DmpcAgent(SampledPlanAgent):
     def _stuck(self, x0: np.ndarray, dist_to_goal: float) -> bool:
         """Whether the own plan has stalled short of the goal: it ends within 0.1 m of x0 while the goal is farther than 0.5 m.
 
-        Buffered Voronoi planes (``commit_when_unheard``) let drones that face each other
-        symmetrically stop at their planes for good (the deadlock of BVC; DMPC-Swarm resolves it
-        apart); the right-hand rule breaks the symmetry.
+        Buffered Voronoi planes (``qp.collision_mode: bvc``, committing or not) let drones that
+        face each other symmetrically stop at their planes for good (the deadlock of BVC;
+        DMPC-Swarm resolves it apart); the right-hand rule breaks the symmetry. On-demand rows
+        are soft and do not deadlock so, and the rule is off with them.
         """
-        if not self.config.commit_when_unheard or self.config.deadlock_turn_deg == 0 or self.plan is None:
+        if self.qp_config.collision_mode != "bvc" or self.config.deadlock_turn_deg == 0 or self.plan is None:
             return False
         if self.plan.t0_s < self.start_delay_s - 1e-9 or not self._solved_last:  # held the start, or committed / fell back
             return False
@@ -370,8 +375,12 @@ class DmpcAgent(SampledPlanAgent):
 
         ``qp_solve_ms`` is the list of every solved round's OSQP time [ms]
         (update + solve), so an evaluation can pool rounds across drones.
+        ``collision_mode``, ``obstacle_avoidance`` (resolved; None without
+        obstacle planes) and ``terminal_halt`` are read from the QP the agent
+        built, and ``commit_when_unheard`` from its settings: what it flew.
         """
         s = self.stats
+        flown = self.problem.config
         solve_ms = np.asarray(s.qp_solve_s) * 1e3
 
         def stat(values: np.ndarray, q: float) -> float | None:
@@ -380,8 +389,10 @@ class DmpcAgent(SampledPlanAgent):
         return {
             "drone_id": self.drone_id,
             "planner": "dmpc",
-            "collision_mode": self.qp_config.collision_mode,
-            "obstacle_avoidance": self.qp_config.obstacle_mode if self.qp_config.max_obstacle_planes else None,
+            "collision_mode": flown.collision_mode,
+            "obstacle_avoidance": flown.obstacle_mode if flown.max_obstacle_planes else None,
+            "terminal_halt": flown.terminal_halt,
+            "commit_when_unheard": self.config.commit_when_unheard,
             "rounds": len(s.qp_solve_s) + s.fallbacks,
             "solves": len(s.qp_solve_s),
             "fallbacks": s.fallbacks,
@@ -402,6 +413,7 @@ class DmpcAgent(SampledPlanAgent):
             "mean_collision_rows": float(np.mean(s.collision_rows)) if s.collision_rows else None,
             "mean_obstacle_rows": float(np.mean(s.obstacle_rows)) if s.obstacle_rows else None,
             "obstacle_row_rounds": int(np.count_nonzero(s.obstacle_rows)),
+            "refactorisations": s.refactorisations,
             "qp_solve_ms": [round(float(v), 5) for v in solve_ms],
             **(self.perception.counts.metrics() if self.perception is not None else {}),
         }

@@ -38,7 +38,7 @@ def test_eight_drone_swap_with_ideal_radio_arrives_without_collision(record_prop
 @pytest.mark.slow
 def test_plain_dmpc_swap_replans_every_round_without_fallback():
     cfg = load_scenario("antipodal", {"duration_s": 20.0, "seed": 0})
-    cfg = replace(cfg, planner=replace(cfg.planner, kind="dmpc"), run=replace(cfg.run, cameras=False), dmpc=replace(cfg.dmpc, commit_when_unheard=False))
+    cfg = replace(cfg, planner=replace(cfg.planner, kind="dmpc"), run=replace(cfg.run, cameras=False), dmpc=cfg.dmpc.replanning())
     m = run_scenario(prepare_run(cfg)).metrics
     assert m["arrived"] == 8 and m["collisions"] == 0
     assert sum(a["fallbacks"] for a in m["agents"]) == 0 and sum(a["commits"] + a["deadlock_turns"] for a in m["agents"]) == 0
@@ -59,8 +59,8 @@ def test_single_drone_through_the_formation_obstacles_touches_none(obstacles, re
     # formation_square's obstacle field, one drone on the centre line (through the box and past two trees).
     drones = {"layout": "explicit", "starts": [[-9.8, 0.0, 1.5]], "goals": [[9.8, 0.0, 1.5]]}
     cfg = load_scenario("formation_square", {"duration_s": 25.0, "seed": 0, "drones": drones})
-    qp = replace(cfg.dmpc.qp, obstacle_avoidance=obstacles)
-    cfg = replace(cfg, dmpc=replace(cfg.dmpc, qp=qp), run=replace(cfg.run, cameras=False))
+    dmpc = cfg.dmpc.replanning() if obstacles == "on_demand" else cfg.dmpc  # committing needs every-step rows
+    cfg = replace(cfg, dmpc=replace(dmpc, qp=replace(dmpc.qp, obstacle_avoidance=obstacles)), run=replace(cfg.run, cameras=False))
     m = run_scenario(prepare_run(cfg)).metrics
     record_property("min_obstacle_clearance_m", m["min_obstacle_distance_m"])
     assert m["arrived"] == 1 and m["drone_obstacle_collisions"] == 0

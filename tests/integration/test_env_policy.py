@@ -65,7 +65,7 @@ def test_the_comm_policy_flies_the_crossing_over_the_env_radio():
     # plain DMPC: the env broadcasts each learner's held action as a plan, which does not halt, so the
     # committing comm stack's promise (dmpc.commit_when_unheard) does not carry over to the env's radio
     cfg = mpcde.load_scenario("crossing", mode="comm", duration_s=14.0)
-    cfg = replace(cfg, dmpc=replace(cfg.dmpc, commit_when_unheard=False))
+    cfg = replace(cfg, dmpc=cfg.dmpc.replanning())
     env = SwarmParallelEnv(cfg, cameras=False, action="reference", observe=("pose", "goal", "radio"))
     policy = StackPolicy("comm", env)
     obs, _ = env.reset(seed=0)

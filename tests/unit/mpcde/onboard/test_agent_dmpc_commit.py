@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from dmpc_crossing_agent import crossing_dmpc_agent  # tests/unit/mpcde/onboard/dmpc_crossing_agent.py
 
+from mpcde.config.scenario import load_scenario
 from mpcde.onboard.dmpc import HALT_TOLERANCE_MPS, DmpcAgent
 from sim.types import PlanMessage, PoseEstimate, RadioMessage
 
@@ -14,6 +15,11 @@ START, GOAL = np.array([-4.0, 0.0, 1.5]), np.array([4.0, 0.0, 1.5])
 
 def _agent(**dmpc) -> DmpcAgent:
     return crossing_dmpc_agent(np.stack([GOAL, np.array([0.0, 4.0, 1.5])]), **dmpc)
+
+
+def _plain(**dmpc) -> DmpcAgent:
+    """The on-demand paper's plain DMPC (replanning every round, on-demand rows, no halt), stated in full."""
+    return _agent(commit_when_unheard=False, qp=load_scenario("crossing").dmpc.replanning().qp, **dmpc)
 
 
 def _message(t: float, pos: np.ndarray, sender: int = 1) -> RadioMessage:
@@ -60,7 +66,7 @@ def test_a_far_unheard_neighbour_does_not_freeze_and_the_plain_dmpc_never_does()
     agent = _agent(commit_range_m=2.0)
     _fly(agent, 10, lambda k: k < 3, np.array([0.0, 8.0, 1.5]))
     assert agent.stats.commits == 0
-    plain = _agent(commit_when_unheard=False)
+    plain = _plain()
     msgs = _fly(plain, 10, lambda k: k < 3, np.array([0.0, 3.0, 1.5]))
     assert plain.stats.commits == 0 and np.abs(msgs[-1].vel_world[-1]).max() > HALT_TOLERANCE_MPS
 
@@ -69,6 +75,6 @@ def test_a_halted_plan_is_kept_past_the_timeout_and_a_moving_one_is_dropped():
     agent = _agent(plan_timeout_s=0.5)
     _fly(agent, 8, lambda k: k == 0, np.array([0.0, 3.0, 1.5]))
     assert agent.stats.dropped_plans == 0 and agent.stats.commits == 7
-    plain = _agent(plan_timeout_s=0.5, commit_when_unheard=False)
+    plain = _plain(plan_timeout_s=0.5)
     _fly(plain, 8, lambda k: k == 0, np.array([0.0, 3.0, 1.5]))
     assert plain.stats.dropped_plans > 0
