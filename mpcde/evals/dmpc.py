@@ -60,6 +60,7 @@ from mpcde.config.scenario import load_scenario
 from mpcde.evals.text_table import cell
 from mpcde.flight.loop import prepare_run, run_scenario
 from mpcde.flight.run_folder import staged_output
+from mpcde.stacks import get_stack
 
 __all__ = ["FLOWN_KEYS", "ROW_KEYS", "format_table", "formation_error", "run_eval_dmpc", "table1"]
 
@@ -109,7 +110,7 @@ def _fly(scenario: str, method: str, obstacles: str, seed: int, duration_s: floa
     dmpc = cfg.dmpc.replanning(method)  # the paper's DMPC; the two methods differ in their constraints only
     cfg = replace(
         cfg,
-        planner=replace(cfg.planner, kind="dmpc"),
+        planner=replace(cfg.planner, kind=get_stack("comm").kind),
         dmpc=replace(dmpc, qp=replace(dmpc.qp, obstacle_avoidance=obstacles)),
         run=replace(cfg.run, cameras=False),
     )
