@@ -55,6 +55,13 @@ the physics rate, a silent radio, detections for the env's scored tracker, no ea
 wide enough for any reference the stack flies (one read-only image copy per frame: 240 Hz steps)."""
 
 
+def solo_modes() -> tuple[str, ...]:
+    """The registered stacks whose drones each plan alone (not ``uses.joint``: MLR-DMPC's compute units and ADMM's
+    sub-rounds need every drone), so that they can fly some of an environment's drones: a policy's learners, or
+    the neighbours of :class:`mpcde.env.SingleDroneEnv`."""
+    return tuple(s.name for s in stacks() if not s.uses.joint)
+
+
 class StackPolicy:
     """A stack flying an environment's learners from their observations.
 
@@ -71,7 +78,7 @@ class StackPolicy:
     """
 
     def __init__(self, mode: str, env: Any) -> None:
-        alone = [s.name for s in stacks() if not s.uses.joint]
+        alone = solo_modes()
         if mode not in alone:
             raise ConfigError("policy.mode", mode, f"one of {', '.join(alone)}")
         core = getattr(env, "unwrapped", env).core

@@ -34,11 +34,10 @@ __all__ = ["SingleDroneEnv", "neighbour_modes"]
 
 
 def neighbour_modes() -> tuple[str, ...]:
-    """Stacks that can fly a learner's neighbours: each drone plans alone (not ``uses.joint``: MLR-DMPC's compute
-    units and ADMM's sub-rounds need every drone)."""
-    from mpcde.stacks import stacks
+    """Stacks that can fly a learner's neighbours (:func:`mpcde.env.policies.solo_modes`)."""
+    from mpcde.env.policies import solo_modes
 
-    return tuple(s.name for s in stacks() if not s.uses.joint)
+    return solo_modes()
 
 
 class SingleDroneEnv(gym.Env):
