@@ -47,7 +47,7 @@ def check_flight_levels(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarr
     n = len(starts)
     lo, hi = LEVEL_ALTITUDES_M
     lowest, highest = flight_level_m(centres[0], 0, n, spacing), flight_level_m(centres[0], n - 1, n, spacing)
-    if n > 1 and not (lowest >= lo and highest <= hi):
+    if n > 1 and not (lowest >= lo - 1e-9 and highest <= hi + 1e-9):  # a level on the floor is allowed: 1.5 - 3 x 0.4 is 0.2999... in floats
         largest = min(centres[0] - lo, hi - centres[0]) / (0.5 * (n - 1))
         allowed = (
             f"<= {largest:.3g} m for {n} drones about {centres[0]:.3g} m (levels from "

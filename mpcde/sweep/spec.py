@@ -2,6 +2,7 @@
 
     base: forest_swarm            # a built-in scenario, or a YAML path (relative to this file)
     seeds: 20                     # seeds 0..19; every cell flies every seed
+                                  # or {first: 1000, count: 50}: seeds 1000..1049 (a held-out split)
     overrides:                    # optional: dotted scenario fields set in every cell
       duration_s: 30
     axes:                         # dotted scenario fields and their values; the cells are the product
@@ -42,6 +43,7 @@ MAX_CELLS = 10_000
 MAX_VALUES = 1_000
 _KEYS = {"base", "seeds", "overrides", "axes", "keep"}
 _KEEP = {"run_folders", "videos"}
+_SEED_KEYS = {"first", "count"}
 
 
 def cell_label(values: dict[str, Any]) -> str:
@@ -139,9 +141,7 @@ def sweep_from_dict(data: dict[str, Any], folder: Path = Path(".")) -> SweepSpec
     if not isinstance(base_name, str) or not base_name:
         raise ConfigError("base", base_name, "a built-in scenario name or a YAML path")
     base = _read_base(base_name, folder)
-    seeds = data.get("seeds")
-    if isinstance(seeds, bool) or not isinstance(seeds, int) or not 1 <= seeds <= MAX_SEEDS:
-        raise ConfigError("seeds", seeds, f"an integer in [1, {MAX_SEEDS}] (seeds 0..N-1)")
+    seeds = _seeds(data.get("seeds"))
     overrides = _mapping(data.get("overrides"), "overrides")
     axes_in = _mapping(data.get("axes"), "axes")
     axes = []
@@ -164,7 +164,7 @@ def sweep_from_dict(data: dict[str, Any], folder: Path = Path(".")) -> SweepSpec
             raise ConfigError(f"keep.{k}", v, "true or false")
     if keep.get("videos") and not keep.get("run_folders"):
         raise ConfigError("keep.videos", True, "needs keep.run_folders: true (the video is written into the run folder)")
-    spec = SweepSpec(base, base_name, tuple(range(seeds)), overrides, tuple(axes), bool(keep.get("run_folders")), bool(keep.get("videos")))
+    spec = SweepSpec(base, base_name, seeds, overrides, tuple(axes), bool(keep.get("run_folders")), bool(keep.get("videos")))
     cells = 1
     for _, values in spec.axes:
         cells *= len(values)
@@ -180,6 +180,23 @@ def sweep_from_dict(data: dict[str, Any], folder: Path = Path(".")) -> SweepSpec
                 raise ConfigError(f"axes.{field}[{i}]", cell.values[field], f"{e.allowed} (cell {cell.label})") from None
             raise ConfigError(e.field, e.value, f"{e.allowed} (cell {cell.label})") from None
     return spec
+
+
+def _seeds(value: Any) -> tuple[int, ...]:
+    """``N`` (seeds 0 .. N-1) or ``{first: F, count: N}`` (seeds F .. F+N-1, a split disjoint from 0 .. F-1)."""
+    if isinstance(value, dict):
+        unknown = sorted(set(value) - _SEED_KEYS, key=str)
+        if unknown:
+            raise ConfigError(f"seeds.{unknown[0]}", value[unknown[0]], "unknown key; allowed keys: count, first")
+        first, count = value.get("first"), value.get("count")
+        if isinstance(first, bool) or not isinstance(first, int) or not 0 <= first <= 2**31 - MAX_SEEDS:
+            raise ConfigError("seeds.first", first, f"an integer in [0, {2**31 - MAX_SEEDS}]")
+        if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= MAX_SEEDS:
+            raise ConfigError("seeds.count", count, f"an integer in [1, {MAX_SEEDS}]")
+        return tuple(range(first, first + count))
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_SEEDS:
+        raise ConfigError("seeds", value, f"an integer in [1, {MAX_SEEDS}] (seeds 0..N-1) or {{first: F, count: N}}")
+    return tuple(range(value))
 
 
 def _names(error_field: str, axis: str) -> bool:

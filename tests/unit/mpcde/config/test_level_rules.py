@@ -20,6 +20,16 @@ def test_levels_that_fit_load_and_the_largest_spacing_is_named_when_they_do_not(
     assert load_scenario("forest_swarm", {"planner": {"kind": "dmpc"}, "denied": {"flight_level_spacing_m": 0.5}})
 
 
+def test_a_level_exactly_on_the_floor_loads():
+    # 7 drones 0.4 m apart about 1.5 m: the lowest level is 1.5 - 3 x 0.4 = 0.3 m, the floor itself
+    # (0.29999999999999982 in floats, which an exact comparison refused)
+    ring7 = {"drones": {"layout": "antipodal", "count": 7, "radius_m": 5.0, "altitude_m": 1.5}}
+    cfg = load_scenario("antipodal", {**MPCDE, **ring7, "denied": {"flight_level_spacing_m": 0.4}})
+    assert cfg.denied.flight_level_spacing_m == 0.4
+    with pytest.raises(ConfigError, match=r"^denied\.flight_level_spacing_m=0\.41: <= 0\.4 m for 7 drones"):
+        load_scenario("antipodal", {**MPCDE, **ring7, "denied": {"flight_level_spacing_m": 0.41}})
+
+
 def test_levels_need_one_mission_altitude():
     two_altitudes = {
         "drones": {"layout": "explicit", "starts": [[-4.0, 0.0, 1.5], [0.0, -4.0, 2.0]], "goals": [[4.0, 0.0, 1.5], [0.0, 4.0, 2.0]]},

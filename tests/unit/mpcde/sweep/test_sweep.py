@@ -43,12 +43,23 @@ def test_cells_are_the_product_of_the_axes_and_every_cell_flies_every_seed(tiny)
     assert (b.planner.kind, b.seed, b.run.cameras) == ("dmpc", 1, False)
 
 
+def test_a_held_out_split_is_its_own_seed_range(tmp_path):
+    path = tmp_path / "held_out.yaml"
+    path.write_text(TINY.replace("seeds: 2", "seeds: {first: 1000, count: 3}"))
+    spec = load_sweep(path)
+    assert spec.seeds == (1000, 1001, 1002)
+    assert spec.scenario(spec.cells()[0], 1002).seed == 1002
+
+
 @pytest.mark.parametrize(
     "text, field",
     [
         ("base: crossing\nseeds: 2\naxis: {}\n", "axis"),
         ("base: nowhere\nseeds: 2\n", "base"),
         ("base: crossing\nseeds: 0\n", "seeds"),
+        ("base: crossing\nseeds: {first: 1000}\n", "seeds.count"),
+        ("base: crossing\nseeds: {first: -1, count: 5}\n", "seeds.first"),
+        ("base: crossing\nseeds: {first: 10, count: 5, step: 2}\n", "seeds.step"),
         ("base: crossing\nseeds: 2\naxes: {planner.kind: dmpc}\n", "axes.planner.kind"),
         ("base: crossing\nseeds: 2\naxes: {planner.kind: [dmpc, dmpc]}\n", "axes.planner.kind"),
         ("base: crossing\nseeds: 2\naxes: {planner.kind: [dmpc, teleport]}\n", "axes.planner.kind[1]"),
