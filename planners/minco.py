@@ -7,7 +7,8 @@ A trajectory of ``M`` pieces ``p_i(t) = c_i^T beta(t)``, ``t in [0, T_i]``,
 the control effort ``J = int ||p'''(t)||^2 dt`` that passes through the inner
 points ``q_1..q_{M-1}`` at the joints and meets the head and tail position,
 velocity and acceleration. Its coefficients ``c = M(q, T)`` solve ``A(T) c = b(q)``
-with ``A`` banded (lower and upper bandwidth 6), so the map costs O(M):
+with ``A`` banded (lower and upper bandwidth 6), so the map costs O(M)
+(:mod:`planners.banded_system`):
 
 * rows 0..2: head p, v, a;
 * per joint i (between piece i and i+1): continuity of jerk and snap, position
@@ -34,65 +35,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from planners.banded_system import BANDWIDTH, band_lu, band_solve, band_solve_adj
+
 __all__ = ["MincoS3", "MincoTrajectory", "minco_s3"]
 
-_BW = 6  # lower and upper bandwidth of A
-
-
-@njit(cache=True)
-def _band_lu(ab):
-    """In-place LU (no pivoting) of a banded matrix, ``A[i, j]`` stored at ``ab[i, j - i + 6]``."""
-    n = ab.shape[0]
-    for k in range(n):
-        piv = ab[k, _BW]
-        i_max = min(k + _BW, n - 1)
-        j_max = min(k + _BW, n - 1)
-        for i in range(k + 1, i_max + 1):
-            if ab[i, k - i + _BW] != 0.0:
-                ab[i, k - i + _BW] /= piv  # L[i, k] = A[i, k] / U[k, k]
-        for j in range(k + 1, j_max + 1):
-            akj = ab[k, j - k + _BW]
-            if akj != 0.0:
-                for i in range(k + 1, i_max + 1):
-                    lik = ab[i, k - i + _BW]
-                    if lik != 0.0:
-                        ab[i, j - i + _BW] -= lik * akj  # A[i, j] -= L[i, k] U[k, j]
-
-
-@njit(cache=True)
-def _eliminate(b, i, k, factor):
-    """Row operation of the triangular solves: ``b[i] -= factor b[k]`` on (n, 3) ``b`` (skipped for a zero factor)."""
-    if factor != 0.0:
-        for d in range(3):
-            b[i, d] -= factor * b[k, d]
-
-
-@njit(cache=True)
-def _band_solve(ab, b):
-    """Solve ``A x = b`` in place on ``b`` (n, 3) with the factors from :func:`_band_lu`."""
-    n = ab.shape[0]
-    for i in range(n):  # L y = b (unit lower)
-        for k in range(max(0, i - _BW), i):
-            _eliminate(b, i, k, ab[i, k - i + _BW])  # L[i, k]
-    for i in range(n - 1, -1, -1):  # U x = y
-        for k in range(i + 1, min(n, i + _BW + 1)):
-            _eliminate(b, i, k, ab[i, k - i + _BW])  # U[i, k]
-        for d in range(3):
-            b[i, d] /= ab[i, _BW]
-
-
-@njit(cache=True)
-def _band_solve_adj(ab, b):
-    """Solve ``A^T x = b`` in place on ``b`` (n, 3): ``U^T z = b`` then ``L^T x = z``."""
-    n = ab.shape[0]
-    for i in range(n):  # U^T z = b (lower triangular, diagonal of U)
-        for k in range(max(0, i - _BW), i):
-            _eliminate(b, i, k, ab[k, i - k + _BW])  # U[k, i]
-        for d in range(3):
-            b[i, d] /= ab[i, _BW]
-    for i in range(n - 1, -1, -1):  # L^T x = z (unit upper)
-        for k in range(i + 1, min(n, i + _BW + 1)):
-            _eliminate(b, i, k, ab[k, i - k + _BW])  # L[k, i]
+_BW = BANDWIDTH  # lower and upper bandwidth of A (planners.banded_system)
 
 
 @njit(cache=True)
@@ -167,8 +114,8 @@ def _set_parameters(head, tail, q, T):
         b[n - 3, d] = tail[0, d]
         b[n - 2, d] = tail[1, d]
         b[n - 1, d] = tail[2, d]
-    _band_lu(ab)
-    _band_solve(ab, b)
+    band_lu(ab)
+    band_solve(ab, b)
     return b, ab
 
 
@@ -229,7 +176,7 @@ def _propagate_grad(ab, coeffs, T, gdc, gdt):
     m = T.shape[0]
     n = 6 * m
     adj = gdc.copy()
-    _band_solve_adj(ab, adj)  # G = A^{-T} dK/dc
+    band_solve_adj(ab, adj)  # G = A^{-T} dK/dc
     gq = np.empty((m - 1, 3))
     for i in range(m - 1):
         for d in range(3):
