@@ -29,10 +29,10 @@ kept (on demand: nearest at the conflict; BVC: nearest over the horizon).
 Written for OSQP as  min 1/2 z^T P z + q^T z  s.t.  l <= A z <= u.
 
 Build, then solve: :class:`DmpcProblem` sets OSQP up once with a FIXED sparsity
-pattern sized for every row it may need (:mod:`planners.dmpc.qp_layout`; an unused
-row keeps its entries at 0 with bounds (-inf, inf)). Each round updates only ``q``,
-``l``, ``u`` and ``Ax`` (``Px`` when the number of formation neighbours changes) and
-warm-starts from the previous primal and dual solution shifted by one step.
+pattern sized for every row it may need (:mod:`planners.dmpc.sparse_qp.qp_layout`;
+an unused row keeps its entries at 0 with bounds (-inf, inf)). Each round updates only
+``q``, ``l``, ``u`` and ``Ax`` (``Px`` when the number of formation neighbours changes)
+and warm-starts from the previous primal and dual solution shifted by one step.
 
 Speed. On-demand rows change only in rounds with a conflict, and an unused
 slot (neighbour or obstacle) keeps its last coefficients with bounds
@@ -45,8 +45,8 @@ price 0 (same optimum; otherwise its bound carries the multiplier xi of the
 linear price and slows ADMM). The QP stays condensed (dense in U); obstacle
 rows that the velocity and input limits already imply are culled
 (:meth:`DmpcProblem._fill_obstacles`); OSQP's Python wrapper is bypassed
-(:mod:`planners.dmpc.osqp_core`); ``osqp_scaling = 4`` because OSQP re-runs its
-Ruiz equilibration in every refactorisation.
+(:mod:`planners.dmpc.sparse_qp.osqp_core`); ``osqp_scaling = 4`` because OSQP
+re-runs its Ruiz equilibration in every refactorisation.
 Measured, with the alternatives tried: docs/results/dmpc_qp.md.
 """
 
@@ -65,11 +65,11 @@ from planners.dmpc.collision import bvc_planes, ellipsoidal_distance, on_demand_
 from planners.dmpc.config import DmpcConfig
 from planners.dmpc.model import fine_position_matrices, prediction_matrices, stacked_state_matrices
 from planners.dmpc.obstacle import ObstacleConflicts, obstacle_rows
-from planners.dmpc.osqp_core import solver_core
-from planners.dmpc.pattern import SparsePattern
-from planners.dmpc.qp_layout import qp_rows
-from planners.dmpc.qp_result import DmpcResult, DmpcSolveError, QpSnapshot
 from planners.dmpc.sampling import hermite_positions, sample_predictions
+from planners.dmpc.sparse_qp.osqp_core import solver_core
+from planners.dmpc.sparse_qp.pattern import SparsePattern
+from planners.dmpc.sparse_qp.qp_layout import qp_rows
+from planners.dmpc.sparse_qp.qp_result import DmpcResult, DmpcSolveError, QpSnapshot
 from planners.dmpc.types import DmpcPlan
 
 __all__ = ["DmpcProblem", "DmpcResult", "DmpcSolveError", "QpSnapshot"]
@@ -362,7 +362,7 @@ class DmpcProblem:
         )  # fmt: skip
 
     def _run_osqp(self, update: dict[str, np.ndarray], x_ws: np.ndarray, y_ws: np.ndarray) -> SimpleNamespace:
-        """Update OSQP's data, warm-start and solve (:mod:`planners.dmpc.osqp_core`); returns ``x``, ``y`` (copies) and ``info``."""
+        """Update OSQP's data, warm-start and solve (:mod:`planners.dmpc.sparse_qp.osqp_core`); returns ``x``, ``y`` (copies) and ``info``."""
         core = self._core
         core.update_data_vec(q=update["q"], l=update["l"], u=update["u"])
         if "Ax" in update or "Px" in update:

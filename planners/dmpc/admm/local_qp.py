@@ -35,7 +35,7 @@ import scipy.sparse as sp
 
 from planners.dmpc.admm.config import AdmmFormationConfig
 from planners.dmpc.admm.ocp import DroneLayout, own_bounds, own_constraint_matrix, own_cost
-from planners.dmpc.osqp_core import solver_core
+from planners.dmpc.sparse_qp.osqp_core import solver_core
 
 __all__ = ["AdmmLocalQpError", "LocalAdmmQp", "LocalSolve"]
 

@@ -74,7 +74,7 @@ from planners.dmpc.mlr.tracker import InformationTrackers, TrackerUpdate
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId, positions_at_each
 from planners.dmpc.mlr.trigger import consensus, event_set, quantize, raw_priorities, selected_uav
 from planners.dmpc.mlr.types import CuTrajectoryMessage, RecoveryReply, RecoveryRequest, UavStateMessage
-from planners.dmpc.qp_result import DmpcSolveError
+from planners.dmpc.sparse_qp.qp_result import DmpcSolveError
 
 __all__ = ["ComputeUnit", "CuStepReport", "summarize_reports"]
 

@@ -45,8 +45,8 @@ import scipy.sparse as sp
 from planners.dmpc.mlr.config import MlrConfig
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
 from planners.dmpc.model import discrete_model, stacked_state_matrices
-from planners.dmpc.pattern import SparsePattern
-from planners.dmpc.qp_result import DmpcSolveError, QpSnapshot
+from planners.dmpc.sparse_qp.pattern import SparsePattern
+from planners.dmpc.sparse_qp.qp_result import DmpcSolveError, QpSnapshot
 
 __all__ = ["BvcRows", "MlrProblem", "MlrQpResult", "time_varying_bvc"]
 

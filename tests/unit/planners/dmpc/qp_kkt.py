@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from planners.dmpc.qp_result import QpSnapshot
+from planners.dmpc.sparse_qp.qp_result import QpSnapshot
 
 
 def assert_kkt(snap: QpSnapshot, tol: float = 1e-5) -> None:

@@ -10,7 +10,6 @@ import pytest
 from planners.dmpc.admm.centralized import centralized_formation_qp, formation_cost
 from planners.dmpc.admm.config import AdmmFormationConfig
 from planners.dmpc.admm.formation import AdmmFormationAgent, solve_admm_round
-from planners.dmpc.osqp_core import WrapperCore
 from planners.dmpc.admm.types import CopyMessage
 from planners.dmpc.formation_graph import (
     FormationGraph,
@@ -20,6 +19,7 @@ from planners.dmpc.formation_graph import (
     ring_edges,
 )
 from planners.dmpc.model import discrete_model
+from planners.dmpc.sparse_qp.osqp_core import WrapperCore
 
 CONFIG = AdmmFormationConfig()
 SPEED_M_S = 0.5  # the formation centre's reference speed along +x

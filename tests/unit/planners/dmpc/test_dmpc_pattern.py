@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from planners.dmpc.pattern import SparsePattern
+from planners.dmpc.sparse_qp.pattern import SparsePattern
 
 
 def _blocks():

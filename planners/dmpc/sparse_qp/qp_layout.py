@@ -14,7 +14,7 @@ lays out every row it may ever need at setup (``l <= A z <= u``, z = [U; s]):
                     (every_step) or one per slot (on_demand)
 
 A dynamic block's entries are written in CSC order through
-``coo_to_csc[entries]`` (:class:`planners.dmpc.pattern.SparsePattern`).
+``coo_to_csc[entries]`` (:class:`planners.dmpc.sparse_qp.pattern.SparsePattern`).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ import scipy.sparse as sp
 
 from planners.dmpc.config import DmpcConfig
 from planners.dmpc.model import PredictionMatrices
-from planners.dmpc.pattern import SparsePattern
+from planners.dmpc.sparse_qp.pattern import SparsePattern
 
 __all__ = ["QpRows", "qp_rows"]
 
