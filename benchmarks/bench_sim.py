@@ -33,7 +33,7 @@ from mpcde.flight.loop import prepare_run, run_scenario
 from mpcde.onboard.budget import COMPONENTS
 from sim.bullet import pb
 from sim.camera import CameraConfig
-from sim.camera_rig import CameraRig
+from sim.rendering.camera_rig import CameraRig
 from sim.rendering.raycast import RaycastRenderer
 from sim.rendering.tiny import SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw

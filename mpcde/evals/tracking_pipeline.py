@@ -3,9 +3,9 @@
 For one :class:`mpcde.evals.tracking.TrackingScenario` this renders, at every
 frame time, the observer's forward RGB-D camera (:class:`sim.camera.CameraConfig`,
 the renderer ``camera.renderer`` names, :func:`sim.rendering.pool.make_renderer`),
-applies the depth sensor model (:func:`sim.camera_rig.sensor_depth`), runs the
-shipped detector (:class:`perception.detector.detector.DroneDetector`, batched
-over ``batch_frames`` frames) on the RGB-D frame alone and back-projects every
+applies the depth sensor model (:func:`sim.rendering.camera_rig.sensor_depth`),
+runs the shipped detector (:class:`perception.detector.detector.DroneDetector`,
+batched over ``batch_frames`` frames) on the RGB-D frame alone and back-projects every
 detection (MP-CDE Eq. 7-8, :func:`perception.backprojection.backproject`) with
 the observer's *estimated* camera pose. The tracker then sees exactly what an
 onboard tracker would: world-frame positions with their covariances, misses,
@@ -44,9 +44,9 @@ from mpcde.evals.tracking_scenario import TrackingScenario, camera_pose, hover_t
 from perception.backprojection import BackprojectionConfig, backproject
 from perception.tracker import Measurement
 from sim.camera import CameraConfig
-from sim.camera_rig import CameraRig
 from sim.checks import ConfigError
 from sim.pose_estimate import PoseEstimateConfig, PoseEstimator
+from sim.rendering.camera_rig import CameraRig
 from sim.rotations import quat_xyzw_from_rotation, rotation_from_thrust_axis_and_yaw
 from sim.scene import SceneSpec
 from sim.types import ObstacleSpec

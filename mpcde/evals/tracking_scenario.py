@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.camera import CameraConfig
-from sim.camera_rig import CameraRig
 from sim.ground_truth import TrueState
+from sim.rendering.camera_rig import CameraRig
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 
 __all__ = [

@@ -46,11 +46,11 @@ from mpcde.onboard.base import OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
 from mpcde.onboard.detection import BatchedDetector, frame_detector
 from perception.types import Detection
-from sim.camera_rig import CameraRig
 from sim.faults import FaultInjector
 from sim.ground_truth import TrueState
 from sim.pose_estimate import PoseEstimator
 from sim.radio import Radio
+from sim.rendering.camera_rig import CameraRig
 from sim.rendering.pool import RenderPool
 from sim.rendering.pool_keeper import PoolKeeper
 from sim.rotations import yaw_from_rotation

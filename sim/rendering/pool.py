@@ -12,8 +12,8 @@ main process keeps stepping physics, so rendering overlaps with it. With
 
 Renders are deterministic. When asked (``sensor``), the workers also
 apply the depth sensor model, seeded per (seed, drone, frame index) by
-:func:`sim.camera_rig.sensor_depth`, so results do not depend on the worker
-count and the noise costs the main process nothing.
+:func:`sim.rendering.camera_rig.sensor_depth`, so results do not depend on the
+worker count and the noise costs the main process nothing.
 
 A pool may also carry a *frame processor*: onboard work that needs only a
 drone's own image and depth (the detector, :func:`mpcde.onboard.detection.frame_detector`).
@@ -36,7 +36,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from sim.camera import CameraConfig
-from sim.camera_rig import sensor_depth
+from sim.rendering.camera_rig import sensor_depth
 from sim.rendering.raycast import RaycastRenderer
 from sim.rendering.tiny import RawRender, SceneRenderer
 from sim.scene import RenderStyle, SceneSpec

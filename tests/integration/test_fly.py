@@ -68,7 +68,7 @@ def test_workers_run_the_detector_on_the_frames_asked_for_as_the_main_process_wo
     from mpcde.config.perception import DetectorRequest
     from mpcde.onboard.detection import BatchedDetector, frame_detector
     from sim.camera import CameraConfig
-    from sim.camera_rig import CameraRig
+    from sim.rendering.camera_rig import CameraRig
     from sim.rendering.pool import RenderPool
     from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
     from sim.scene import SceneSpec
@@ -108,7 +108,7 @@ def test_a_render_does_not_depend_on_what_the_client_rendered_before():
     Found in ``radio_outage`` (seed 0 layout; drones near their starts): camera 2 rendered
     right after camera 0 differed from camera 2 rendered first (sim/rendering/tiny.py docstring).
     """
-    from sim.camera_rig import CameraRig
+    from sim.rendering.camera_rig import CameraRig
     from sim.rendering.tiny import SceneRenderer
     from sim.rotations import rotation_from_quat_xyzw
     from sim.scene import SceneSpec

@@ -11,7 +11,7 @@ from perception.detector.decode import decode_outputs_reference
 from perception.detector.model import DetectorNet, ModelConfig, fold_batchnorm
 from sim.checks import ConfigError
 from sim.camera import CameraConfig, apply_depth_sensor_model, intrinsics
-from sim.camera_rig import CameraRig
+from sim.rendering.camera_rig import CameraRig
 from sim.rendering.tiny import PARKED_POS, SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
 from sim.scene import RenderStyle, SceneSpec

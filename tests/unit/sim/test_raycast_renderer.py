@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sim.camera import CameraConfig
-from sim.camera_rig import CameraRig
+from sim.rendering.camera_rig import CameraRig
 from sim.rendering.raycast import BOX, CYLINDER, RaycastRenderer, drone_primitives
 from sim.rendering.tiny import SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
