@@ -32,12 +32,12 @@ from mpcde.config.scenario import load_scenario
 from mpcde.flight.loop import prepare_run, run_scenario
 from mpcde.onboard.budget import COMPONENTS
 from sim.bullet import pb
+from sim.bullet.scene import SceneSpec
 from sim.camera import CameraConfig
 from sim.rendering.camera_rig import CameraRig
 from sim.rendering.raycast import RaycastRenderer
 from sim.rendering.tiny import SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
-from sim.scene import SceneSpec
 from sim.types import FlatOutputReference
 from sim.world import World
 

@@ -19,9 +19,9 @@ from typing import Sequence
 import numpy as np
 
 from sim.bullet import pb
+from sim.bullet.scene import SceneSpec, build_obstacles, load_drones
 from sim.ground_truth import TrueState
 from sim.rotations import quat_xyzw_from_yaw
-from sim.scene import SceneSpec, build_obstacles, load_drones
 from sim.types import FlatOutputReference
 from sim.vehicle.controller import SE3Controller
 from sim.vehicle.motors import MotorBank

@@ -43,12 +43,12 @@ import numpy as np
 from mpcde.evals.tracking_scenario import TrackingScenario, camera_pose, hover_truth, in_camera_view
 from perception.backprojection import BackprojectionConfig, backproject
 from perception.tracker import Measurement
+from sim.bullet.scene import SceneSpec
 from sim.camera import CameraConfig
 from sim.checks import ConfigError
 from sim.pose_estimate import PoseEstimateConfig, PoseEstimator
 from sim.rendering.camera_rig import CameraRig
 from sim.rotations import quat_xyzw_from_rotation, rotation_from_thrust_axis_and_yaw
-from sim.scene import SceneSpec
 from sim.types import ObstacleSpec
 from sim.vehicle.params import GRAVITY_MPS2
 

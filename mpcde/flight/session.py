@@ -46,6 +46,7 @@ from mpcde.onboard.base import OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
 from mpcde.onboard.detection import BatchedDetector, frame_detector
 from perception.types import Detection
+from sim.bullet.scene import SceneSpec
 from sim.faults import FaultInjector
 from sim.ground_truth import TrueState
 from sim.pose_estimate import PoseEstimator
@@ -54,7 +55,6 @@ from sim.rendering.camera_rig import CameraRig
 from sim.rendering.pool import RenderPool
 from sim.rendering.pool_keeper import PoolKeeper
 from sim.rotations import yaw_from_rotation
-from sim.scene import SceneSpec
 from sim.types import GroundTruthSegmentation, RgbdFrame
 from sim.world import World
 

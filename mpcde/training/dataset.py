@@ -13,7 +13,7 @@ renders ``frames_per_scene`` frames from it. Per frame it draws:
   border), with random yaw and roll/pitch within +-``drone_tilt_deg``; drones
   behind or among the obstacles end up partly occluded; drones may not touch an
   obstacle, the ground or each other;
-* the look (:class:`sim.scene.RenderStyle`): light direction, ambient, diffuse,
+* the look (:class:`sim.bullet.scene.RenderStyle`): light direction, ambient, diffuse,
   specular, ground colour and checker contrast, sky colour;
 * the depth sensor model (:func:`sim.camera.apply_depth_sensor_model`) with a
   random share of dropped pixels.
@@ -47,12 +47,12 @@ from typing import Iterator, Sequence
 import numpy as np
 
 from mpcde.errors import ConfigError
+from sim.bullet.scene import RenderStyle, SceneSpec
 from sim.camera import CameraConfig, apply_depth_sensor_model, intrinsics, rotation_camera_to_body
 from sim.obstacles import distance_to_obstacles, generate_obstacles
 from sim.rendering.pool import make_renderer
 from sim.rendering.tiny import PARKED_POS
 from sim.rotations import quat_xyzw_from_rotation
-from sim.scene import RenderStyle, SceneSpec
 from sim.spawn import main_module_hidden, sigint_ignored
 from sim.types import ObstacleSpec
 

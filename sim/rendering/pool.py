@@ -35,11 +35,11 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from sim.bullet.scene import RenderStyle, SceneSpec
 from sim.camera import CameraConfig
 from sim.rendering.camera_rig import sensor_depth
 from sim.rendering.raycast import RaycastRenderer
 from sim.rendering.tiny import RawRender, SceneRenderer
-from sim.scene import RenderStyle, SceneSpec
 from sim.spawn import main_module_hidden, sigint_ignored
 
 __all__ = ["CameraRequest", "FrameProcessor", "ProcessorSpec", "RenderPool", "make_renderer"]

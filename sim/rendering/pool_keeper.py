@@ -18,9 +18,9 @@ Measured: ``benchmarks/bench_env_reset.py``.
 
 from __future__ import annotations
 
+from sim.bullet.scene import SceneSpec
 from sim.camera import CameraConfig
 from sim.rendering.pool import ProcessorSpec, RenderPool
-from sim.scene import SceneSpec
 
 __all__ = ["PoolKeeper"]
 

@@ -35,10 +35,10 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from sim.bullet.scene import RenderStyle, SceneSpec
 from sim.camera import CameraConfig, intrinsics
 from sim.rendering.tiny import RawRender, ground_distance, ground_tile, style_lighting
 from sim.rotations import rotation_from_quat_xyzw
-from sim.scene import RenderStyle, SceneSpec
 
 __all__ = ["RaycastRenderer", "drone_primitives"]
 

@@ -32,13 +32,13 @@ import numpy as np
 from numba import njit
 
 from sim.bullet import pb
+from sim.bullet.scene import RenderStyle, SceneSpec, build_obstacles, load_drones
 from sim.camera import (
     CameraConfig,
     intrinsics,
     opengl_projection_from_intrinsics,
     opengl_view_from_camera_to_world,
 )
-from sim.scene import RenderStyle, SceneSpec, build_obstacles, load_drones
 
 __all__ = ["RawRender", "SceneRenderer", "ground_distance", "ground_tile", "style_lighting"]
 

@@ -35,10 +35,10 @@ def test_same_seed_gives_identical_metrics_and_another_seed_differs():
 
 @pytest.mark.slow
 def test_rendering_in_worker_processes_gives_the_same_frames_as_in_process():
+    from sim.bullet.scene import SceneSpec
     from sim.camera import CameraConfig
     from sim.rendering.pool import RenderPool
     from sim.rotations import quat_xyzw_from_yaw
-    from sim.scene import SceneSpec
 
     prepared = prepare_run(load_scenario("forest_swarm"))
     spec = SceneSpec(obstacles=prepared.obstacles, n_drones=6)
@@ -67,11 +67,11 @@ def test_workers_run_the_detector_on_the_frames_asked_for_as_the_main_process_wo
     the main process's detector finds in the same frame (to float rounding of the batch), None for the others."""
     from mpcde.config.perception import DetectorRequest
     from mpcde.onboard.detection import BatchedDetector, frame_detector
+    from sim.bullet.scene import SceneSpec
     from sim.camera import CameraConfig
     from sim.rendering.camera_rig import CameraRig
     from sim.rendering.pool import RenderPool
     from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
-    from sim.scene import SceneSpec
 
     prepared = prepare_run(load_scenario("forest_swarm"))
     spec = SceneSpec(obstacles=prepared.obstacles, n_drones=6)
@@ -108,10 +108,10 @@ def test_a_render_does_not_depend_on_what_the_client_rendered_before():
     Found in ``radio_outage`` (seed 0 layout; drones near their starts): camera 2 rendered
     right after camera 0 differed from camera 2 rendered first (sim/rendering/tiny.py docstring).
     """
+    from sim.bullet.scene import SceneSpec
     from sim.rendering.camera_rig import CameraRig
     from sim.rendering.tiny import SceneRenderer
     from sim.rotations import rotation_from_quat_xyzw
-    from sim.scene import SceneSpec
 
     cfg = load_scenario("radio_outage")
     prepared = prepare_run(cfg)
@@ -220,9 +220,9 @@ def test_onboard_agent_sees_only_its_frames_its_estimate_and_its_inbox(monkeypat
 
 def test_closing_a_pool_with_an_uncollected_batch_and_idle_workers_returns():
     """A run that fails mid-render must not hang in close() (one camera, two workers)."""
+    from sim.bullet.scene import SceneSpec
     from sim.camera import CameraConfig
     from sim.rendering.pool import RenderPool
-    from sim.scene import SceneSpec
 
     pool = RenderPool(SceneSpec(obstacles=(), n_drones=1), CameraConfig(width_px=32, height_px=24), 2)
     T = np.eye(4)

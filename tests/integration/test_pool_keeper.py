@@ -10,11 +10,11 @@ import pytest
 
 from mpcde.config.scenario import load_scenario
 from mpcde.flight.loop import prepare_run
+from sim.bullet.scene import SceneSpec
 from sim.camera import CameraConfig
 from sim.rendering.pool import RenderPool
 from sim.rendering.pool_keeper import PoolKeeper
 from sim.rotations import quat_xyzw_from_yaw
-from sim.scene import SceneSpec
 
 CAMERA = CameraConfig(width_px=96, height_px=72)
 

@@ -13,11 +13,11 @@ from perception.backprojection import (
 )
 from perception.tracker import Measurement
 from perception.types import Detection
+from sim.bullet.scene import SceneSpec
 from sim.camera import CameraConfig, apply_depth_sensor_model, intrinsics
 from sim.rendering.camera_rig import CameraRig
 from sim.rendering.tiny import SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
-from sim.scene import SceneSpec
 from sim.types import ObstacleSpec, RgbdFrame
 
 K = intrinsics(CameraConfig())

@@ -9,12 +9,12 @@ import torch
 from perception.detector import DEFAULT_WEIGHTS, DroneDetector, box_iou_xyxy, decode_outputs, nms_xyxy
 from perception.detector.decode import decode_outputs_reference
 from perception.detector.model import DetectorNet, ModelConfig, fold_batchnorm
+from sim.bullet.scene import RenderStyle, SceneSpec
 from sim.checks import ConfigError
 from sim.camera import CameraConfig, apply_depth_sensor_model, intrinsics
 from sim.rendering.camera_rig import CameraRig
 from sim.rendering.tiny import PARKED_POS, SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
-from sim.scene import RenderStyle, SceneSpec
 from sim.types import GroundTruthSegmentation, ObstacleSpec, RgbdFrame
 
 

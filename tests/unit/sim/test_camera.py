@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
+from sim.bullet.scene import SceneSpec
 from sim.camera import CameraConfig, apply_depth_sensor_model, depth_buffer_to_depth_m, intrinsics
 from sim.rendering.camera_rig import CameraRig
 from sim.rendering.tiny import SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
-from sim.scene import SceneSpec
 from sim.types import ObstacleSpec
 
 

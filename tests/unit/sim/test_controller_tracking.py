@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from sim.scene import SceneSpec
+from sim.bullet.scene import SceneSpec
 from sim.types import FlatOutputReference
 from sim.world import World
 

@@ -5,9 +5,9 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
+from sim.bullet.scene import DRONE_URDF, SceneSpec
 from sim.vehicle.motors import MotorBank, allocation_matrix
 from sim.vehicle.params import GRAVITY_MPS2, QuadrotorParams
-from sim.scene import DRONE_URDF, SceneSpec
 from sim.types import FlatOutputReference
 from sim.world import World
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sim.bullet.scene import DRONE_URDF, SceneSpec
 from sim.camera import CameraConfig
 from sim.rendering.camera_rig import CameraRig
 from sim.rendering.raycast import BOX, CYLINDER, RaycastRenderer, drone_primitives
 from sim.rendering.tiny import SceneRenderer
 from sim.rotations import quat_xyzw_from_yaw, rotation_from_quat_xyzw
-from sim.scene import DRONE_URDF, SceneSpec
 from sim.types import ObstacleSpec
 
 OBSTACLES = (

@@ -5,9 +5,9 @@ from __future__ import annotations
 import multiprocessing
 from multiprocessing import shared_memory
 
+from sim.bullet.scene import SceneSpec
 from sim.camera import CameraConfig
 from sim.rendering.pool import SLOT_BYTES_PER_PX, _send, _worker_main
-from sim.scene import SceneSpec
 
 
 def test_send_reports_a_closed_pipe_instead_of_raising() -> None:

@@ -5,6 +5,9 @@ stderr (file descriptor 2, from C, so ``sys.stderr`` cannot catch it). A user
 who gets one line for an error must not get that line too, so every module of
 ours imports PyBullet from here: the first import runs with descriptor 2
 pointed at the null device, and later ones find it in ``sys.modules``.
+
+:mod:`sim.bullet.scene` is what every PyBullet client of ours (the physics
+world and each render client) builds its bodies from.
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ from sim.types import ObstacleSpec
 
 __all__ = ["DRONE_URDF", "RenderStyle", "SceneSpec", "build_obstacles", "load_drones"]
 
-DRONE_URDF = Path(__file__).resolve().parents[1] / "data" / "quadrotor.urdf"
+DRONE_URDF = Path(__file__).resolve().parents[2] / "data" / "quadrotor.urdf"
 
 
 @dataclass(frozen=True)
