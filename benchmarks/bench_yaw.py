@@ -235,7 +235,7 @@ def main() -> None:
     # the denied agent's look before moving (denied.fresh_path_age_s), checked at the same t_y beside plan(): its
     # corridor over the default 1.3 m at 1 m/s, every voxel fresh, so no early exit (the most it costs)
     from mpcde.config.denied import DeniedAgentConfig
-    from mpcde.onboard.fresh_path import first_stale_point
+    from mpcde.onboard.denied.look import first_stale_point
     from planners.minco import minco_s3
 
     agent_cfg = DeniedAgentConfig(fresh_path_age_s=1.0)

@@ -17,7 +17,7 @@ import argparse
 
 import numpy as np
 
-import mpcde.onboard.denied as denied
+import mpcde.onboard.denied.agent as denied
 from mpcde.flight.loop import open_session, prepare_run
 from mpcde.sweep.spec import load_sweep
 from perception.types import OccupancySnapshot

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from perception.map_config import MapConfig
 from planners.yaw.config import YawPlannerConfig
-from sim.checks import ConfigError, require_at_least, require_boolean, require_instance, require_non_negative, require_positive
+from sim.checks import require_at_least, require_boolean, require_instance, require_non_negative, require_positive
 
 __all__ = ["DeniedAgentConfig"]
 
@@ -31,20 +29,6 @@ class DeniedAgentConfig:
         perceive_neighbours: run the detector and tracker (False: map only, blind to other drones);
             their settings are the scenario's ``perception:`` section.
         active_yaw: plan the heading with MP-CDE's active yaw planner (False: heading along travel).
-        look_around: before the first departure, hover and turn the camera through one full
-            revolution at ``yaw_rate_max_radps`` (2 pi / 2 rad/s = 3.1 s), so that every neighbour
-            in range is detected and becomes a track the yaw planner keeps looking for (Alg. 1
-            line 8 looks only for neighbours it has tracked). Not in MP-CDE. Why, and what it has
-            done so far: docs/results/safety.md. Off by default until that sweep measures it.
-        altitude_band_m: half-height [m] of the layer the trajectory is held in: the optimiser
-            penalises leaving [min(z_start, z_goal) - b, max(z_start, z_goal) + b] (z_start: the
-            drone's first pose estimate; cubic penalty, weight 1e5, added to its obstacle term) and
-            the front-end search keeps to the same layer. Not in MP-CDE. Why: a neighbour passing
-            more than about 0.55 d above or below is outside the camera's +-29 deg vertical view at
-            distance d, and in 6 of the forest sweep's 13 "never in view" collisions at 0.5 and 1 m/s
-            the two drones were 0.55-0.85 m apart in height. inf (default): no band, the paper's free
-            altitude; on 39 flights of the fixed-seed forest sweep b = 0.2 m added collisions (3
-            flights against none on the same seeds) and 15-20 % mission time (docs/results/safety.md).
         flight_level_spacing_m: s, vertical spacing [m] of the flight levels: drone k of a mission of N
             cruises at z_k = z_c + (k - (N - 1) / 2) s, z_c the mean of its own start and goal altitudes
             (its first pose estimate and its goal), held within s / 8 of it by the altitude penalty of the
@@ -57,8 +41,7 @@ class DeniedAgentConfig:
             other from the camera's view and closed unseen (docs/results/safety.md); drones on levels
             s apart cannot touch (contact is 2 robot radii, 0.2 m) while both hold their levels, seen
             or not. The id and N are the mission's assignment, as the goal is: no neighbour's state
-            is read. inf (default): no levels, the paper's free altitude. Exclusive with
-            ``altitude_band_m``.
+            is read. inf (default): no levels, the paper's free altitude.
         flight_level_release_m: horizontal distance [m] from the goal at which a drone on flight
             levels leaves its level for the goal's altitude.
         fresh_path_age_s: look before moving: free space of the corridor ahead last seen by the camera
@@ -103,8 +86,6 @@ class DeniedAgentConfig:
     conflict_horizon_s: float = 1.2
     perceive_neighbours: bool = True
     active_yaw: bool = True
-    look_around: bool = False
-    altitude_band_m: float = float("inf")
     flight_level_spacing_m: float = float("inf")
     flight_level_release_m: float = 1.0
     fresh_path_age_s: float = float("inf")
@@ -125,8 +106,6 @@ class DeniedAgentConfig:
         for name, unit in units.items():
             require_positive(name, getattr(self, name), unit)
         require_non_negative("start_delay_s", self.start_delay_s, "s")
-        require_boolean("look_around", self.look_around)
-        require_positive("altitude_band_m", self.altitude_band_m, "m", inf_means="no altitude band")
         require_positive("flight_level_spacing_m", self.flight_level_spacing_m, "m", inf_means="no flight levels")
         require_non_negative("flight_level_release_m", self.flight_level_release_m, "m")
         require_positive("fresh_path_age_s", self.fresh_path_age_s, "s", inf_means="no look before moving")
@@ -135,10 +114,6 @@ class DeniedAgentConfig:
         require_positive("fresh_path_rest_s", self.fresh_path_rest_s, "s")
         require_positive("fresh_path_glance_age_s", self.fresh_path_glance_age_s, "s", inf_means="no glances")
         require_non_negative("fresh_path_glance_distance_m", self.fresh_path_glance_distance_m, "m")
-        if np.isfinite(self.altitude_band_m) and np.isfinite(self.flight_level_spacing_m):
-            raise ConfigError(
-                "flight_level_spacing_m", self.flight_level_spacing_m, "allowed only with altitude_band_m unset (inf): both set the layer"
-            )
         require_at_least("swarm_z_scale", self.swarm_z_scale, 1.0)
         require_boolean("perceive_neighbours", self.perceive_neighbours)
         require_boolean("active_yaw", self.active_yaw)

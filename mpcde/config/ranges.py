@@ -87,7 +87,7 @@ RANGES: dict[type, dict[str, B]] = {
         "v_max_mps": B(0, 10, "m/s"), "a_max_mps2": B(0, 50, "m/s^2"), "clearance_m": B(0, 5, "m"),
         "front_end_clearance_m": B(0, 5, "m"), "replan_period_s": B(0.02, 10, "s"), "yaw_rate_max_radps": B(0, 20, "rad/s"),
         "start_delay_s": B(0, 60, "s"), "swarm_clearance_m": B(0, 10, "m"), "swarm_z_scale": B(0.1, 10),
-        "conflict_horizon_s": B(0, 30, "s"), "altitude_band_m": B(0.05, 20, "m", inf="no altitude band"),
+        "conflict_horizon_s": B(0, 30, "s"),
         "flight_level_spacing_m": B(0.05, 5, "m", inf="no flight levels"), "flight_level_release_m": B(0, 50, "m"),
         "fresh_path_age_s": B(0.01, 60, "s", inf="no look before moving"), "fresh_path_half_width_m": B(0, 5, "m"),
         "fresh_path_near_m": B(0, 10, "m"), "fresh_path_distance_m": B(0, 20, "m"), "fresh_path_rest_s": B(0.01, 60, "s"),

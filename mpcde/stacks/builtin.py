@@ -34,8 +34,7 @@ def _denied(ctx: AgentContext) -> Any:
     from mpcde.onboard.denied import DeniedAgent
 
     cfg = ctx.config
-    roster = len(ctx.goals_world) - 1  # the other drones launched with this one (the yaw planner's roster_aware)
-    return DeniedAgent(ctx.drone_id, ctx.goal_world, cfg.denied, cfg.perception, budget=ctx.budget, swarm_neighbours=roster)
+    return DeniedAgent(ctx.drone_id, ctx.goal_world, cfg.denied, cfg.perception, budget=ctx.budget, swarm_size=len(ctx.goals_world))
 
 
 def _dmpc_agent(ctx: AgentContext, dmpc: Any, perception: Any = None, fusion: Any = None) -> Any:
@@ -66,7 +65,7 @@ def _auto(ctx: AgentContext) -> Any:
     comm = _dmpc_agent(ctx, replace(cfg.dmpc, perceive_neighbours=perception is not None), perception, cfg.auto.fusion)
     memory = RadioMemory(cfg.auto, comm, perception)
     denied = DeniedAgent(
-        ctx.drone_id, ctx.goal_world, cfg.denied, cfg.perception, perception, ctx.budget, len(ctx.goals_world) - 1,
+        ctx.drone_id, ctx.goal_world, cfg.denied, cfg.perception, perception, ctx.budget, swarm_size=len(ctx.goals_world),
         neighbour_source=memory,
     )  # fmt: skip
     return AutoAgent(cfg.auto, comm, denied, memory)

@@ -150,53 +150,6 @@ class YawPlannerConfig:
             shortest period at which a 60 deg swing turns within the 2 rad/s
             limit, 4 x 60 deg / 2.1 s = 1.99 rad/s, so the camera revisits
             each side every 2.1 s).
-        tracking_sweep_pattern: how the tracking-mode swing moves. ``"clock"``
-            (default): the triangle wave in absolute time above. ``"stalest"``:
-            a sweep at the full yaw rate between travel - sweep and travel +
-            sweep, reversing at each end, that on entering the tracking mode
-            turns first to the end whose direction the camera saw longest ago
-            (the yaws of the last ``window_s``; never seen counts oldest);
-            ``tracking_sweep_period_s`` is then unused. Not in MP-CDE; off: on
-            183 flights of the fixed-seed forest sweep it lost more seeds than
-            it kept at 0.5 and 2 m/s (docs/results/safety.md). Why: the clock's wave is
-            open-loop, so after observing or exploring the camera meets it
-            wherever it happens to be and may spend its first second on the
-            side it has just looked at; traced on the forest sweep (seed 54
-            at 1 m/s), a drone observed a neighbour abeam on its left, explored
-            to its right, and then swung right of travel for the 1.3 s before
-            the neighbour hit it (docs/results/safety.md).
-        observing_sweep: the observing mode swings the camera too, the same
-            triangle wave (``tracking_sweep_deg``, ``tracking_sweep_period_s``)
-            about Eq. 6's bearing. Not in MP-CDE; off by default (not yet
-            measured on a fixed-seed sweep). Why: Eq. 6 points the camera at
-            the recently seen neighbours and at nothing else, for as long as
-            S(0) stays high; a drone the swarm has not yet seen, converging
-            slowly from the other side, is never looked at (logged on the
-            forest sweep: docs/results/yaw_planner.md). With the swing the
-            observed neighbours leave the frame for part of each period, well
-            within the tracker's t_hold.
-        roster_aware: the set A of Alg. 1 counts the roster, not only the
-            tracks (the roster: how many other drones were launched with this
-            one, a fact of the mission like its goal, not their state; given
-            to :class:`planners.yaw.planner.YawPlanner` as ``swarm_neighbours``
-            by the agent factory). Alg. 1 observes (Eq. 6) when every
-            neighbour in A was seen within t_hold, |V| = |A|, and takes A to be
-            the tracks. A neighbour the drone has never detected is in no
-            track, so a drone tracking two of its five neighbours "sees every
-            neighbour" and stares at those two. With ``roster_aware``, while
-            fewer neighbours than the roster's are tracked, some neighbour is
-            unaccounted for and the planner explores instead (Eq. 3-5: the
-            coverage reward turns the camera to sectors not seen within the
-            window W, where such a neighbour can be). Not in MP-CDE; off by
-            default: on 139 flights of the fixed-seed forest sweep it changed
-            no success rate and cost tracking accuracy (docs/results/safety.md).
-            Why it was tried: in that sweep every collision at 0.5 and 1 m/s
-            was between drones that never had each other in view, several of
-            them while both observed other neighbours
-            (docs/results/yaw_planner.md). Limits: it counts tracks, so a
-            false or split track can stand for a neighbour never seen; and a
-            neighbour that has failed and fallen is never tracked again, so
-            after its track is pruned the survivors no longer observe.
         still_speed_mps: in tracking mode, below this horizontal speed the
             direction of travel is undefined and the yaw is held [m/s]
             (chosen: 0.1 m/s).
@@ -208,39 +161,11 @@ class YawPlannerConfig:
             paper's "ours w/o tracking mode": the planner never turns the
             camera to the direction of travel for safety; whatever S(0) says,
             it observes or explores (the regime is still computed and reported).
-        method: ``"mpcde"`` (default) or ``"zhou"``, MP-CDE's comparison [26]
-            in Table III: Zhou et al.'s perception-aware yaw planning (RAPTOR,
-            T-RO 2021, and FUEL, RA-L 2021: after the position trajectory, a
-            graph search over candidate yaws at its waypoints for the most
-            unknown space in view, under the yaw-rate limit). Implemented as
-            the same lattice (n, m, rate limit, turn penalty) whose edge reward
-            is only the unknown area in view (Eq. 3 without the coverage window
-            W), always: the safety metric chooses no mode (no tracking or
-            observing mode), no neighbour visibility term. S(0) is still
-            computed, with ``free_distance``'s reading, for the replanning
-            trigger of Alg. 1 line 13, which the agent applies to every method
-            (so Zhou's replans as often as ours would at the same S(0)).
-            ``"spin"`` (not in MP-CDE): the camera
-            turns counter-clockwise at ``yaw_rate_max_radps`` in every
-            situation, whatever the map, the tracks or S(0) say (mode
-            ``"spinning"``; S(0) is still computed for Alg. 1 line 13's
-            trigger). Every direction is in the horizontal view for
-            fov_h / yaw_rate_max of each revolution of 2 pi / yaw_rate_max
-            (0.74 s of 3.14 s by default, 18 frames at 25 Hz), so a neighbour
-            in range is seen at least once a revolution wherever it is,
-            where the three modes may leave a side unwatched for as long as
-            they choose; the price is that the direction of travel is also
-            in view only that fraction of the time. A track must outlive a
-            revolution to be held between views: pair it with
-            ``perception.tracker.t_drop_s`` above 2 pi / yaw_rate_max. Why it
-            exists: every collision of the forest sweep is between drones that
-            did not have each other in view in the 2 s before contact, most of
-            them neighbours tracked and dropped seconds earlier
-            (docs/results/safety.md). Off: on the first 40 fixed seeds of
-            the forest sweep at 1 m/s it failed 3 against 1, trading
-            drone-drone contacts for obstacle contacts (the trunks ahead are
-            seen less often), with 10 % longer missions
-            (docs/results/safety.md).
+        method: ``"mpcde"`` (default, :class:`planners.yaw.planner.YawPlanner`)
+            or ``"zhou"`` (:class:`planners.yaw.zhou.ZhouYawPlanner`), MP-CDE's
+            comparison [26] in Table III: Zhou et al.'s perception-aware yaw
+            planning, the lattice whose only reward is the unknown area in
+            view, in every situation.
     """
 
     period_s: float = 0.1
@@ -272,9 +197,6 @@ class YawPlannerConfig:
     still_speed_mps: float = 0.1
     tracking_sweep_deg: float = 60.0
     tracking_sweep_period_s: float = 2.1
-    tracking_sweep_pattern: str = "clock"
-    observing_sweep: bool = False
-    roster_aware: bool = False
     exploring_mode: bool = True
     tracking_mode: bool = True
     method: str = "mpcde"
@@ -300,9 +222,8 @@ class YawPlannerConfig:
         if self.alpha + self.beta <= 0.0:
             raise ConfigError("beta", self.beta, f"allowed alpha + beta > 0 (alpha={self.alpha!r})")
         require_positive("free_max_age_s", self.free_max_age_s, inf_means="free space never ages")
-        require_one_of("method", self.method, ("mpcde", "zhou", "spin"))
+        require_one_of("method", self.method, ("mpcde", "zhou"))
         require_one_of("free_distance", self.free_distance, ("horizontal", "voxel", "occupied"))
-        require_one_of("tracking_sweep_pattern", self.tracking_sweep_pattern, ("clock", "stalest"))
         require_integer_at_least("n_steps", self.n_steps, 1)
         require_integer_at_least("n_rays", self.n_rays, 2)
         m_min = math.ceil(2.0 * math.pi / (self.yaw_rate_max_radps * self.period_s) - 1e-9)
@@ -318,8 +239,8 @@ class YawPlannerConfig:
             allowed = f"allowed < 360 - yaw_rate_max * t_y = {360.0 - math.degrees(self.max_step_rad):.1f} deg (a turn must not wrap the sector onto itself)"
             raise ConfigError("fov_h_deg", self.fov_h_deg, allowed)
         require_positive("tracking_sweep_period_s", self.tracking_sweep_period_s)
-        require_boolean("observing_sweep", self.observing_sweep)
-        require_boolean("roster_aware", self.roster_aware)
+        require_boolean("exploring_mode", self.exploring_mode)
+        require_boolean("tracking_mode", self.tracking_mode)
         require_non_negative("tracking_sweep_deg", self.tracking_sweep_deg)
         if not self.tracking_sweep_deg < 90.0:
             raise ConfigError("tracking_sweep_deg", self.tracking_sweep_deg, "allowed 0 <= sweep < 90 (the camera never looks behind the drone)")

@@ -20,9 +20,8 @@ import numpy as np
 
 __all__ = ["MODES", "SafetyMargin", "TrajectoryView", "YawPlan"]
 
-MODES = ("tracking", "exploring", "observing", "spinning")
-"""The values of :attr:`YawPlan.mode`: the three modes of MP-CDE Alg. 1, and ``"spinning"``, the constant
-turn of ``method: spin`` (not in the paper)."""
+MODES = ("tracking", "exploring", "observing")
+"""The values of :attr:`YawPlan.mode`: the three modes of MP-CDE Alg. 1."""
 
 
 @dataclass(frozen=True)
@@ -100,7 +99,7 @@ class YawPlan:
     """A planned yaw sequence (MP-CDE Alg. 1).
 
     Attributes:
-        mode: ``"tracking"``, ``"exploring"`` or ``"observing"`` (Alg. 1), or ``"spinning"`` (``method: spin``).
+        mode: ``"tracking"``, ``"exploring"`` or ``"observing"`` (Alg. 1).
         times_s: (n + 1,) absolute times [s]: now, now + t_y, ..., now + n t_y.
         yaws: (n + 1,) yaw [rad] at ``times_s``, unwrapped (continuous) from
             ``yaws[0]``, the current yaw as given; consecutive values differ by

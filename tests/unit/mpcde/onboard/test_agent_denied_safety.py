@@ -20,10 +20,10 @@ def _line(start: np.ndarray, velocity: np.ndarray, duration_s: float = 1.0, t0_s
 def test_a_stop_under_way_is_kept_not_restarted_at_every_failed_replan():
     agent = DeniedAgent(0, GOAL, DeniedAgentConfig())
     agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([2.0, 0.0, 0.0]), 3.0)
-    agent._brake(0.0)
+    agent.brake(0.0)
     committed = agent.trajectory
     for k in range(1, 13):  # a failed replan at every 25 Hz frame for half a second
-        agent._brake(0.04 * k)
+        agent.brake(0.04 * k)
     assert agent.trajectory is committed and agent.stats.brakes == 1
     v_kept = np.linalg.norm(agent.state_at(0.5)[1])
 
@@ -41,24 +41,20 @@ def test_a_stop_under_way_is_kept_not_restarted_at_every_failed_replan():
 def test_a_successful_replan_ends_the_stop_and_the_next_brake_starts_a_new_one():
     agent = DeniedAgent(0, GOAL, DeniedAgentConfig())
     agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([2.0, 0.0, 0.0]), 3.0)
-    agent._brake(0.0)
+    agent.brake(0.0)
     agent.trajectory, agent.braking = _line(np.array([1.0, 0.0, 1.5]), np.array([1.0, 0.0, 0.0]), 3.0, 1.0), False
-    agent._brake(1.2)
+    agent.brake(1.2)
     assert agent.stats.brakes == 2 and agent.trajectory.t0_s == 1.2
 
 
-def test_the_altitude_band_is_set_from_the_first_pose_estimate_and_the_goal():
+def test_without_flight_levels_the_first_pose_estimate_sets_no_layer():
     from sim.types import PoseEstimate
 
     free = DeniedAgent(0, np.array([6.0, 0.0, 2.0]), DeniedAgentConfig())
-    banded = DeniedAgent(0, np.array([6.0, 0.0, 2.0]), DeniedAgentConfig(altitude_band_m=0.2))
-    for agent in (free, banded):
-        for z in (1.5, 1.8):  # only the first estimate fixes the layer
-            agent.on_pose_estimate(PoseEstimate(0.0, np.array([0.0, 0.0, z]), np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3)))
+    for z in (1.5, 1.8):
+        free.on_pose_estimate(PoseEstimate(0.0, np.array([0.0, 0.0, z]), np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3)))
     assert free.optimizer.altitude_band_m == (-np.inf, np.inf) and free.search.max_altitude_m == np.inf
-    assert banded.optimizer.altitude_band_m == pytest.approx((1.3, 2.2))
-    voxel = banded.config.map.voxel_m
-    assert (banded.search.min_altitude_m, banded.search.max_altitude_m) == pytest.approx((1.3 - voxel, 2.2 + voxel))
+    assert free.levels is None
 
 
 def test_a_drone_handed_over_inside_the_obstacle_band_may_leave_it_no_closer_than_it_was():
@@ -66,12 +62,12 @@ def test_a_drone_handed_over_inside_the_obstacle_band_may_leave_it_no_closer_tha
     band, half_voxel = 0.75 * agent.config.clearance_m, 0.5 * agent.config.map.voxel_m
     at = lambda d: (lambda p: np.full(len(p), d))  # noqa: E731  a map whose every point is d [m] from obstacles
     here = np.zeros(3)
-    assert agent._escape_floor(at(0.2), here) is None  # a drone that entered the band in flight: the band holds
+    assert agent.escape.floor(at(0.2), here, band) is None  # a drone that entered the band in flight: the band holds
     agent.look_around_at(1.0, np.array([0.0, 0.0, 1.5]), 0.0)
-    assert agent._escape_floor(at(0.2), here) == pytest.approx(0.2 - half_voxel)
-    assert agent._escape_floor(at(0.15), here) == pytest.approx(0.2 - half_voxel)  # fixed: no ratchet inwards
-    assert agent._escape_floor(at(band), here) is None  # out of the band: the rule ends for good
-    assert agent._escape_floor(at(0.2), here) is None
+    assert agent.escape.floor(at(0.2), here, band) == pytest.approx(0.2 - half_voxel)
+    assert agent.escape.floor(at(0.15), here, band) == pytest.approx(0.2 - half_voxel)  # fixed: no ratchet inwards
+    assert agent.escape.floor(at(band), here, band) is None  # out of the band: the rule ends for good
+    assert agent.escape.floor(at(0.2), here, band) is None
 
 
 def test_a_stop_that_ends_inside_the_obstacle_band_begins_an_escape_no_closer_than_where_it_rests(monkeypatch):
@@ -80,27 +76,27 @@ def test_a_stop_that_ends_inside_the_obstacle_band_begins_an_escape_no_closer_th
     clearance = {"d": 0.2}
     monkeypatch.setattr(agent.map, "clearance", lambda p: np.full(len(p), clearance["d"]))
     agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([1.0, 0.0, 0.0]), 3.0)
-    assert not agent._resting_in_band(5.0)  # a plan, not a stop: whatever its end, no escape
-    agent._brake(0.0)
+    assert not agent.escape.resting_in_band(agent, 5.0)  # a plan, not a stop: whatever its end, no escape
+    agent.brake(0.0)
     stop = agent.trajectory
     end = stop.t0_s + stop.total_duration
-    assert not agent._resting_in_band(end - 0.04)  # still stopping
-    assert agent._resting_in_band(end)
+    assert not agent.escape.resting_in_band(agent, end - 0.04)  # still stopping
+    assert agent.escape.resting_in_band(agent, end)
     clearance["d"] = band
-    assert not agent._resting_in_band(end)  # at rest outside the band: the band holds
+    assert not agent.escape.resting_in_band(agent, end)  # at rest outside the band: the band holds
     clearance["d"] = 0.2
     # the first frame at rest: the camera turns once round where the drone rests (nothing planned), then the escape
-    from mpcde.onboard.heading import ActiveYaw
+    from mpcde.onboard.denied.heading import ActiveYaw
 
-    agent.heading = ActiveYaw(agent.yaw_config, True, 0.3, agent.config.swarm_clearance_m, agent.config.swarm_z_scale, 0)
-    assert agent._escape_from_rest(end) and agent.stats.rest_escapes == 1
+    agent.heading = ActiveYaw(agent.yaw_config, True, 0.3, agent.config.swarm_clearance_m, agent.config.swarm_z_scale)
+    assert agent.escape.holds(agent, end) and agent.stats.rest_escapes == 1
     turn = 2.0 * np.pi / agent.config.yaw_rate_max_radps
-    assert agent._scan == pytest.approx((end, 0.3, end + turn))
+    assert agent.escape.turn == pytest.approx((end, 0.3, end + turn))
     np.testing.assert_allclose(agent.hover_world, stop.pos(np.array([stop.total_duration]))[0])
-    assert agent._scanning(end + turn - 0.04) and not agent._scanning(end + turn)
-    assert agent.trajectory is None and not agent._resting_in_band(end + turn + 1.0)  # one escape at a time
-    assert not agent._escape_from_rest(end + turn + 1.0) and agent.stats.rest_escapes == 1
-    floor = agent._escape_floor(agent.map.clearance, agent.state_at(end + turn)[0])
+    assert agent.escape.holds(agent, end + turn - 0.04) and not agent.escape.holds(agent, end + turn)
+    assert agent.trajectory is None and not agent.escape.resting_in_band(agent, end + turn + 1.0)  # one escape at a time
+    assert not agent.escape.holds(agent, end + turn + 1.0) and agent.stats.rest_escapes == 1
+    floor = agent.escape.floor(agent.map.clearance, agent.state_at(end + turn)[0], band)
     assert floor == pytest.approx(0.2 - half_voxel)
     assert agent._safe(stop, agent.map.clearance, end, floor)  # hovering where it rests is no longer refused
     assert not agent._safe(stop, agent.map.clearance, end)  # (it was, at every frame, before)
@@ -113,7 +109,7 @@ def test_a_stop_that_ends_inside_the_obstacle_band_begins_an_escape_no_closer_th
 def test_front_end_refusals_are_counted_by_status_and_fallbacks_counted(monkeypatch):
     from types import SimpleNamespace
 
-    import mpcde.onboard.denied as denied
+    import mpcde.onboard.denied.agent as denied
     from planners.path_search import PathSearchResult
 
     agent = DeniedAgent(0, GOAL, DeniedAgentConfig())
@@ -125,7 +121,7 @@ def test_front_end_refusals_are_counted_by_status_and_fallbacks_counted(monkeypa
     monkeypatch.setattr(denied, "search_path", lambda *a, goal_fallback: allowed.append(goal_fallback) or outcome["r"])
     assert not agent._replan(snap, [], 0.0) and not agent._replan(snap, [], 0.04)
     assert allowed == [False, False]  # flying a plan: its window moves, so no fallback point
-    agent._brake(0.04)
+    agent.brake(0.04)
     outcome["r"] = PathSearchResult("no_path", None, None, 10, np.inf, np.zeros(3), False)
     assert not agent._replan(snap, [], 0.08)
     path = np.array([[0.0, 0.0, 1.5], [4.9, 0.0, 1.5]])
@@ -147,7 +143,7 @@ def test_a_drone_at_rest_at_its_plans_end_may_fall_back(monkeypatch):
     the front end's fallback point is allowed, as for a drone stopping (2 m/s seed 41: 562 refusals over 23 s)."""
     from types import SimpleNamespace
 
-    import mpcde.onboard.denied as denied
+    import mpcde.onboard.denied.agent as denied
     from planners.path_search import PathSearchResult
 
     agent = DeniedAgent(0, GOAL, DeniedAgentConfig())
@@ -173,11 +169,11 @@ def test_flight_levels_are_spaced_by_id_about_the_mission_altitude_and_distinct(
     config = DeniedAgentConfig(flight_level_spacing_m=0.4)
     levels = []
     for k in range(6):
-        agent = DeniedAgent(k, goal, config, swarm_neighbours=5)
+        agent = DeniedAgent(k, goal, config, swarm_size=6)
         _first_estimate(agent, [-9.0, 0.0, 1.5])
         levels.append(agent.levels.level_m)
     np.testing.assert_allclose(levels, 1.5 + 0.4 * (np.arange(6) - 2.5))
-    free = DeniedAgent(0, goal, DeniedAgentConfig(), swarm_neighbours=5)
+    free = DeniedAgent(0, goal, DeniedAgentConfig(), swarm_size=6)
     _first_estimate(free, [-9.0, 0.0, 1.5])
     assert free.levels is None
     np.testing.assert_array_equal(free._level_goal(np.array([0.0, 0.0, 1.5])), goal)  # no levels: the goal, no layer
@@ -186,7 +182,7 @@ def test_flight_levels_are_spaced_by_id_about_the_mission_altitude_and_distinct(
 
 def test_a_drone_climbs_to_its_level_in_place_is_held_there_and_released_near_its_goal():
     goal = np.array([9.0, 0.0, 1.5])
-    agent = DeniedAgent(5, goal, DeniedAgentConfig(flight_level_spacing_m=0.4), swarm_neighbours=5)
+    agent = DeniedAgent(5, goal, DeniedAgentConfig(flight_level_spacing_m=0.4), swarm_size=6)
     _first_estimate(agent, [-9.0, 0.0, 1.5])
     level, b, pad = 2.5, 0.05, agent.config.map.voxel_m
     assert agent.levels.level_m == pytest.approx(level)
@@ -208,7 +204,7 @@ def test_a_drone_climbs_to_its_level_in_place_is_held_there_and_released_near_it
 
 
 def test_reaching_the_level_on_a_climb_triggers_the_replan_to_the_goal():
-    agent = DeniedAgent(0, np.array([9.0, 0.0, 1.5]), DeniedAgentConfig(flight_level_spacing_m=0.4), swarm_neighbours=1)
+    agent = DeniedAgent(0, np.array([9.0, 0.0, 1.5]), DeniedAgentConfig(flight_level_spacing_m=0.4), swarm_size=2)
     _first_estimate(agent, [-9.0, 0.0, 1.5])  # level 1.3 m
     assert not agent._climbed(0.0)  # no plan in hand
     agent.trajectory = _line(np.array([-9.0, 0.0, 1.5]), np.array([0.0, 0.0, -0.2]))
@@ -217,8 +213,7 @@ def test_reaching_the_level_on_a_climb_triggers_the_replan_to_the_goal():
     assert not agent._climbed(0.9)  # once reached, the replan period rules again
 
 
-@pytest.mark.parametrize("fields", [{"flight_level_spacing_m": 0.0}, {"flight_level_spacing_m": -1.0}, {"flight_level_release_m": -0.1},
-                                    {"flight_level_spacing_m": 0.4, "altitude_band_m": 0.2}])  # fmt: skip
+@pytest.mark.parametrize("fields", [{"flight_level_spacing_m": 0.0}, {"flight_level_spacing_m": -1.0}, {"flight_level_release_m": -0.1}])
 def test_flight_level_settings_are_checked(fields):
     from sim.checks import ConfigError
 
@@ -246,22 +241,22 @@ def test_look_before_moving_stops_turns_the_camera_to_the_stale_point_then_repla
     monkeypatch.setattr(agent, "_replan", lambda s, n, t: replans.append(t) or False)
 
     agent.plan_step(0.2)
-    assert agent.fresh_path.holds == 1 and agent.braking
+    assert agent.look.watch.holds == 1 and agent.braking
     turn_s = (np.pi / 2) / cfg.yaw_rate_max_radps  # from yaw 0 to +y
     yaw, rate = agent.reference(0.2 + 0.5 * turn_s).yaw, agent.reference(0.2 + 0.5 * turn_s).yaw_rate
     assert yaw == pytest.approx(np.pi / 4, abs=1e-6) and rate == pytest.approx(cfg.yaw_rate_max_radps)
     n_before = len(replans)
     agent.plan_step(0.2 + turn_s + 0.1)  # on the point for one t_y: still held, no replan
-    assert len(replans) == n_before and agent.fresh_path.looking
+    assert len(replans) == n_before and agent.look.watch.looking
     agent.plan_step(0.2 + turn_s + 0.2 + 1e-6)  # two t_y: released, replans at once
-    assert not agent.fresh_path.looking and replans[-1] == pytest.approx(0.2 + turn_s + 0.2 + 1e-6)
+    assert not agent.look.watch.looking and replans[-1] == pytest.approx(0.2 + turn_s + 0.2 + 1e-6)
     assert agent.reference(0.2 + turn_s + 0.3).yaw == pytest.approx(np.pi / 2, abs=0.25)
 
     agent.trajectory, agent.braking = _line(np.array([0.0, 0.0, 1.5]), np.array([0.0, 0.5, 0.0]), 6.0, t0_s=1.3), False
     agent.plan_step(1.4)  # the same point still stale after the look: the check rests instead of holding again
-    assert agent.fresh_path.holds == 1 and agent.fresh_path.unrefreshed == 1 and not agent.braking
+    assert agent.look.watch.holds == 1 and agent.look.watch.unrefreshed == 1 and not agent.braking
     agent.plan_step(1.5)
-    assert agent.fresh_path.holds == 1  # resting for fresh_path_rest_s
+    assert agent.look.watch.holds == 1  # resting for fresh_path_rest_s
     m = agent.extra_metrics()
     assert m["fresh_path_holds"] == 1 and m["fresh_path_unrefreshed"] == 1
     assert "fresh_path_holds" not in DeniedAgent(0, GOAL, DeniedAgentConfig()).extra_metrics()
@@ -288,13 +283,13 @@ def test_an_ageing_point_ahead_turns_the_camera_to_it_while_the_drone_flies_on(m
     monkeypatch.setattr(agent.heading, "update", lambda *a: yaw_plans.append(a[0]) or False)
 
     agent.plan_step(0.2)
-    assert agent.fresh_path.glances == 1 and agent.fresh_path.holds == 0 and not agent.braking
+    assert agent.look.watch.glances == 1 and agent.look.watch.holds == 0 and not agent.braking
     assert agent.reference(0.2 + np.pi / 4).yaw == pytest.approx(np.pi / 2)  # on +y after a quarter turn at 2 rad/s
     n_yaw = len(yaw_plans)
     agent.plan_step(0.8)  # glancing: no yaw plan, but the periodic replan still runs (due every 0.5 s)
     assert len(yaw_plans) == n_yaw and replans and replans[-1] == 0.8
     agent.plan_step(0.2 + np.pi / 4 + 0.2 + 1e-6)  # two t_y on the point: the yaw plan resumes
-    assert len(yaw_plans) == n_yaw + 1 and not agent.fresh_path.looking
+    assert len(yaw_plans) == n_yaw + 1 and not agent.look.watch.looking
     off = DeniedAgent(0, np.array([0.0, 6.0, 1.5]), DeniedAgentConfig(fresh_path_age_s=1.0, start_delay_s=0.0, fresh_path_glance_age_s=float("inf")))
     _first_estimate(off, np.array([0.0, 0.0, 1.5]))
     off.trajectory = agent.trajectory
@@ -302,7 +297,7 @@ def test_an_ageing_point_ahead_turns_the_camera_to_it_while_the_drone_flies_on(m
     monkeypatch.setattr(off.map, "clearance", lambda p: np.full(len(np.reshape(p, (-1, 3))), 3.0))
     monkeypatch.setattr(off, "_replan", lambda s, n, t: False)
     off.plan_step(0.2)  # without glances an ageing point does nothing until it is stale
-    assert off.fresh_path.glances == 0 and off.fresh_path.holds == 0 and not off.fresh_path.looking
+    assert off.look.watch.glances == 0 and off.look.watch.holds == 0 and not off.look.watch.looking
 
 
 def test_a_hold_ends_when_another_turn_has_replaced_its_look():
@@ -312,10 +307,12 @@ def test_a_hold_ends_when_another_turn_has_replaced_its_look():
     agent = DeniedAgent(0, np.array([0.0, 6.0, 1.5]), cfg)
     _first_estimate(agent, np.array([0.0, 0.0, 1.5]))
     agent.trajectory = _line(np.array([0.0, 0.0, 1.5]), np.array([0.0, 0.5, 0.0]), 6.0)
-    agent._begin_look(0.2, agent.fresh_path.begin(0.2, np.array([0.0, 1.0, 1.5]), stop=True))
-    assert not agent._end_look(0.3)  # still turning to the point
+    agent.look.watch.begin(0.2, np.array([0.0, 1.0, 1.5]), stop=True)
+    agent.brake(0.2)
+    agent.heading.look_toward(0.2, np.pi / 2)
+    assert agent.look.gate(agent, 0.3).hold  # still turning to the point
     agent.heading.restart(0.0, 0.4)  # what the end of the turn once round does
-    assert agent._end_look(0.5) and not agent.fresh_path.looking
+    assert agent.look.gate(agent, 0.5).released and not agent.look.watch.looking
 
 
 def test_a_glances_own_point_found_stale_rests_the_check_and_does_not_skip_the_frames_replan(monkeypatch):
@@ -338,11 +335,12 @@ def test_a_glances_own_point_found_stale_rests_the_check_and_does_not_skip_the_f
     monkeypatch.setattr(agent.map, "clearance", lambda p: np.full(len(np.reshape(p, (-1, 3))), 3.0))
     replans = []
     monkeypatch.setattr(agent, "_replan", lambda s, n, t: replans.append(t) or False)
-    agent._begin_look(0.1, agent.fresh_path.begin(0.1, point, stop=False))  # a glance at the point, under way
+    agent.look.watch.begin(0.1, point, stop=False)  # a glance at the point, under way
+    agent.heading.look_toward(0.1, np.pi / 2)
     agent.last_plan_time_s = -1.0  # a replan is due
     agent.plan_step(0.15)  # still glancing; the check finds the same point stale
-    assert agent.fresh_path.unrefreshed == 1 and agent.fresh_path.holds == 0 and not agent.braking
-    assert agent.fresh_path.looking and replans == [0.15]
+    assert agent.look.watch.unrefreshed == 1 and agent.look.watch.holds == 0 and not agent.braking
+    assert agent.look.watch.looking and replans == [0.15]
 
 
 def _fast_agent(clearance):
@@ -355,14 +353,14 @@ def _fast_agent(clearance):
 
 
 def test_a_hold_may_stop_only_where_the_straight_stop_keeps_out_of_the_obstacle_band():
-    """_can_stop: the stopping piece (straight along the velocity, about v^2 / a_max long) is checked against the map;
+    """can_stop: the stopping piece (straight along the velocity, about v^2 / a_max long) is checked against the map;
     a drone already inside the band may stop if the stop brings it no closer."""
     far = _fast_agent(lambda p: np.full(len(np.reshape(p, (-1, 3))), 3.0))
-    assert far._can_stop(0.0)
+    assert far.can_stop(0.0)
     trunk = _fast_agent(lambda p: np.where(np.reshape(p, (-1, 3))[:, 1] > 0.5, 0.05, 3.0))  # a trunk 0.5 m ahead
-    assert not trunk._can_stop(0.0)
+    assert not trunk.can_stop(0.0)
     beside = _fast_agent(lambda p: np.full(len(np.reshape(p, (-1, 3))), 0.1))  # inside the band, the stop no closer
-    assert beside.band_m > 0.1 and beside._can_stop(0.0)
+    assert beside.band_m > 0.1 and beside.can_stop(0.0)
 
 
 def test_look_before_moving_glances_instead_of_stopping_when_the_stop_is_unsafe(monkeypatch):
@@ -376,9 +374,9 @@ def test_look_before_moving_glances_instead_of_stopping_when_the_stop_is_unsafe(
     snap = lambda: OccupancySnapshot(1.0, origin, voxel, np.zeros(shape, np.int8), np.full(shape, 3.0), np.full(shape, 3.0), seen)  # noqa: E731
     monkeypatch.setattr(agent.map, "snapshot", snap)
     monkeypatch.setattr(agent, "_replan", lambda s, n, t: False)
-    monkeypatch.setattr(agent, "_can_stop", lambda t: False)
+    monkeypatch.setattr(agent, "can_stop", lambda t: False)
     plan = agent.trajectory
     agent.plan_step(0.0)
-    assert agent.fresh_path.unsafe_stops == 1 and agent.fresh_path.glances == 1 and agent.fresh_path.holds == 0
-    assert not agent.braking and agent.trajectory is plan and agent.fresh_path.looking and not agent.fresh_path.stops
+    assert agent.look.watch.unsafe_stops == 1 and agent.look.watch.glances == 1 and agent.look.watch.holds == 0
+    assert not agent.braking and agent.trajectory is plan and agent.look.watch.looking and not agent.look.watch.stops
     assert agent.extra_metrics()["fresh_path_unsafe_stops"] == 1

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mpcde.onboard.heading import ActiveYaw, trajectory_view
+from mpcde.onboard.denied.heading import ActiveYaw, trajectory_view
 from perception.types import NeighborPrediction, OccupancySnapshot
 from planners.minco import minco_s3
 from planners.yaw import YawPlannerConfig

@@ -1,10 +1,10 @@
-"""Look before moving (mpcde.onboard.fresh_path): which point of the corridor ahead is stale."""
+"""Look before moving (mpcde.onboard.denied.look): which point of the corridor ahead is stale."""
 
 import numpy as np
 import pytest
 
 from mpcde.config.denied import DeniedAgentConfig
-from mpcde.onboard.fresh_path import FreshPathWatch, first_stale_point
+from mpcde.onboard.denied.look import FreshPathWatch, first_stale_point
 from perception.types import OccupancySnapshot
 from planners.minco import minco_s3
 

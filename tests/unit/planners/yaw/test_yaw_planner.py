@@ -10,7 +10,7 @@ import pytest
 from scipy.ndimage import distance_transform_edt
 
 from perception.types import NeighborPrediction, OccupancySnapshot
-from planners.yaw import TrajectoryView, YawPlan, YawPlanner, YawPlannerConfig, mean_bearing
+from planners.yaw import TrajectoryView, YawPlan, YawPlanner, YawPlannerConfig, ZhouYawPlanner, make_yaw_planner, mean_bearing
 
 VOXEL_M = 0.2
 ORIGIN = np.array([-6.0, -6.0, 0.0])
@@ -122,33 +122,16 @@ def test_zhou_s_method_always_looks_for_the_most_unknown_space():
     snap = make_snapshot(state)
     fwd = line(np.array([1.0, 0.0, 0.0]))
     near = replace(paper_config(), method="zhou")
+    assert isinstance(make_yaw_planner(near), ZhouYawPlanner) and type(make_yaw_planner(paper_config())) is YawPlanner
     seen = neighbour((2.0, -1.0, 1.1), stamp_s=0.95)
-    plan = YawPlanner(near).plan(1.0, 0.0, fwd, uniform_snapshot(1.0), [seen])
-    assert plan.mode == "exploring"
-    plan = YawPlanner(near).plan(1.0, 0.0, fwd, snap, [seen])
+    plan = ZhouYawPlanner(near).plan(1.0, 0.0, fwd, uniform_snapshot(1.0), [seen])
+    assert plan.mode == "exploring" and plan.safety_margin_s == pytest.approx(1.0)  # S(0) still reported (line 13)
+    plan = ZhouYawPlanner(near).plan(1.0, 0.0, fwd, snap, [seen])
     assert plan.mode == "exploring" and plan.yaws[-1] > 0.5  # turned left, to the unknown
+    assert_rate_limited(plan, 0.0, near)
     assert YawPlanner(paper_config()).plan(1.0, 0.0, fwd, uniform_snapshot(1.0), [seen]).mode == "tracking"
     with pytest.raises(ValueError, match="^method='fuel'"):
         YawPlannerConfig(method="fuel")
-
-
-def test_spin_turns_counter_clockwise_at_the_rate_limit_whatever_the_situation():
-    """``method: spin``: a small margin (tracking), a large one (exploring) and a neighbour seen (observing)
-    all give the same constant turn at yaw_rate_max, one revolution every 2 pi / yaw_rate_max; S(0) is still
-    reported for Alg. 1 line 13."""
-    from dataclasses import replace
-
-    cfg = replace(paper_config(), method="spin")
-    fwd = line(np.array([1.0, 0.0, 0.0]))
-    seen = neighbour((2.0, 1.0, 1.1), stamp_s=0.95)
-    planner = YawPlanner(cfg)
-    for t, snap, nbs in ((1.0, uniform_snapshot(1.0), []), (1.1, uniform_snapshot(3.0), []), (1.2, uniform_snapshot(3.0), [seen])):
-        plan = planner.plan(t, 0.3, fwd, snap, nbs)
-        assert plan.mode == "spinning"
-        assert_rate_limited(plan, 0.3, cfg)
-        np.testing.assert_allclose(np.diff(plan.yaws), cfg.max_step_rad)  # counter-clockwise, at the limit
-    assert plan.safety_margin_s == pytest.approx(3.0)
-    assert plan.min_neighbour_distance_m < np.inf
 
 
 def test_observing_needs_every_neighbour_recently_seen():
@@ -261,22 +244,6 @@ def test_observing_points_closer_to_the_near_neighbour():
     assert expected > 0.3
     assert plan.yaws[-1] == pytest.approx(expected, abs=1e-9)
     assert_rate_limited(plan, 0.0, cfg)
-
-
-def test_observing_sweep_swings_about_the_observing_bearing_and_is_off_by_default():
-    from planners.yaw import sweep_offsets
-
-    bearing = math.radians(50)
-    seen = neighbour(DRONE + 2.0 * np.array([math.cos(bearing), math.sin(bearing), 0.0]), stamp_s=0.0, nid=0)
-    plain = YawPlanner(paper_config()).plan(0.0, bearing, HOVER, uniform_snapshot(3.0), [seen])
-    assert plain.mode == "observing" and not paper_config().observing_sweep
-    np.testing.assert_allclose(plain.yaws, bearing, atol=1e-9)  # Eq. 6 alone: held on the neighbour
-    cfg = replace(paper_config(), observing_sweep=True, tracking_sweep_deg=35.0, tracking_sweep_period_s=1.4)
-    p = YawPlanner(cfg).plan(0.0, bearing, HOVER, uniform_snapshot(3.0), [seen])
-    assert p.mode == "observing"
-    # 4 * 35 deg / 1.4 s = 100 deg/s < 2 rad/s: the yaws follow the triangle about the bearing exactly
-    np.testing.assert_allclose(p.yaws[1:] - bearing, sweep_offsets(p.times_s[1:], math.radians(35.0), 1.4), atol=1e-9)
-    assert_rate_limited(p, bearing, cfg)
 
 
 def test_circular_mean_of_bearings_near_pi_does_not_flip_to_zero():
@@ -417,100 +384,16 @@ def test_a_sweep_faster_than_the_yaw_rate_limit_is_refused():
         YawPlannerConfig(tracking_sweep_deg=60.0, tracking_sweep_period_s=1.4)
 
 
-def test_roster_aware_explores_while_a_neighbour_of_the_roster_is_untracked_and_observes_once_all_are():
-    bearing = math.radians(50)
-    seen = [
-        neighbour(DRONE + 2.0 * np.array([math.cos(b), math.sin(b), 0.0]), stamp_s=0.0, nid=k)
-        for k, b in enumerate((bearing, -bearing))
-    ]
-    paper = paper_config()  # three others fly; two are tracked, both seen now
-    assert YawPlanner(paper, swarm_neighbours=3).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen).mode == "observing"
-    roster = replace(paper, roster_aware=True)
-    short = YawPlanner(roster, swarm_neighbours=3).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen)
-    assert short.mode == "exploring" and short.n_active == 2 and short.n_recent == 2  # the third is unaccounted for
-    third = neighbour(DRONE + np.array([0.0, 3.0, 0.0]), stamp_s=0.0, nid=2)
-    assert YawPlanner(roster, swarm_neighbours=3).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen + [third]).mode == "observing"
-    unsafe = YawPlanner(roster, swarm_neighbours=3).plan(0.0, 0.0, HOVER, uniform_snapshot(0.3), seen)
-    assert unsafe.mode == "tracking"  # the safety turn comes first, as in Alg. 1
-    assert YawPlanner(roster).plan(0.0, 0.0, HOVER, uniform_snapshot(3.0), seen).mode == "observing"  # no roster: the tracks
-    with pytest.raises(ValueError, match="swarm_neighbours"):
-        YawPlanner(roster, swarm_neighbours=-1)
-
-
-def test_without_roster_aware_the_roster_changes_no_yaw():
-    """Off (the default), the planner is MP-CDE's Alg. 1 whatever the roster: the same yaws in every mode."""
-    seen = neighbour(DRONE + np.array([1.5, 1.5, 0.0]), stamp_s=0.0, nid=0)
-    lost = neighbour(DRONE + np.array([-2.0, 1.0, 0.0]), stamp_s=-5.0, nid=1)
-    for snap, preds in ((uniform_snapshot(3.0), [seen]), (uniform_snapshot(3.0), [seen, lost]), (uniform_snapshot(0.3), [seen])):
-        a = YawPlanner(paper_config()).plan(0.0, 0.2, HOVER, snap, preds)
-        b = YawPlanner(paper_config(), swarm_neighbours=5).plan(0.0, 0.2, HOVER, snap, preds)
-        assert a.mode == b.mode
-        np.testing.assert_array_equal(a.yaws, b.yaws)
-
-
-def test_the_agent_factory_gives_each_denied_drone_its_roster():
+def test_the_agent_factory_gives_each_denied_drone_the_swarm_size():
+    """The mission's size (for flight levels), not the neighbours' state."""
     import mpcde
     from mpcde.flight.loop import prepare_run
     from mpcde.stacks.build import make_agent
 
-    for name, mode, roster in (("forest_swarm", "denied", 5), ("crossing", "auto", 1)):
+    for name, mode, size in (("forest_swarm", "denied", 6), ("crossing", "auto", 2)):
         prepared = prepare_run(mpcde.load_scenario(name, mode=mode))
         agent = make_agent(prepared.config, 0, prepared.goals, prepared.obstacles)
         denied = agent if mode == "denied" else agent.denied
-        assert denied.swarm_neighbours == roster
+        assert denied.swarm_size == size
 
 
-def _stalest(**kw) -> YawPlannerConfig:
-    return YawPlannerConfig(free_distance="voxel", tracking_sweep_pattern="stalest", **kw)
-
-
-@pytest.mark.parametrize("looked", [1, -1])
-def test_the_stalest_sweep_turns_first_to_the_side_seen_longest_ago(looked):
-    """After the camera looked at one end of the swing (observing it, say), tracking turns to the other end first."""
-    cfg = _stalest()
-    heading, amp = 0.3, math.radians(cfg.tracking_sweep_deg)
-    vel = np.array([math.cos(heading), math.sin(heading), 0.0])
-    planner = YawPlanner(cfg)
-    for k in range(5):  # half a second looking at one end: the calls are what the planner remembers
-        planner._yaws.append((0.1 * k, heading + looked * amp))
-    p = planner.plan(0.5, heading, line(vel), uniform_snapshot(1.0))
-    assert p.mode == "tracking"
-    assert np.sign(p.yaws[1] - heading) == -looked  # towards the end not seen
-    assert_rate_limited(p, heading, cfg)
-    np.testing.assert_allclose(np.diff(p.yaws)[:5], -looked * cfg.max_step_rad)  # at the full rate
-
-
-def test_the_stalest_sweep_reverses_at_each_end_and_stays_within_the_swing():
-    """Consecutive tracking plans, each flown for one t_y: the camera reaches both ends and never passes them."""
-    cfg = _stalest()
-    heading, amp = -0.4, math.radians(cfg.tracking_sweep_deg)
-    vel = np.array([math.cos(heading), math.sin(heading), 0.0])
-    planner, yaw, offsets = YawPlanner(cfg), heading, []
-    t = 0.0
-    for k in range(33):  # about 4 s, plans at the frames' 0.12 s: each flown until the next, between its layers
-        p = planner.plan(t, yaw, line(vel), uniform_snapshot(1.0))
-        assert p.mode == "tracking"
-        assert_rate_limited(p, yaw, cfg)
-        t += 0.12
-        yaw = float(np.interp(t, p.times_s, p.yaws))
-        offsets.append(yaw - heading)
-    offsets = np.array(offsets)
-    assert np.all(np.abs(offsets) <= amp + 1e-9)
-    # sampled every 0.12 s, each end is met within one step: turns of 2A take 2A / yaw_rate_max = 1.05 s
-    near = np.abs(offsets) > amp - cfg.max_step_rad * 1.2
-    visits = np.sign(offsets[near])[np.diff(np.flatnonzero(near), prepend=-2) > 1]  # one sign per visit to an end
-    assert len(visits) >= 3 and np.all(visits[1:] != visits[:-1])  # it alternates between the two ends
-
-
-def test_the_stalest_sweep_starts_afresh_after_another_mode_and_the_clock_is_the_default():
-    assert YawPlannerConfig().tracking_sweep_pattern == "clock"
-    cfg = _stalest()
-    heading = 0.0
-    vel = np.array([1.0, 0.0, 0.0])
-    planner = YawPlanner(cfg)
-    planner.plan(0.0, heading, line(vel), uniform_snapshot(1.0))
-    assert planner._sweep_plan is not None
-    planner.plan(0.1, heading, line(vel), uniform_snapshot(10.0))  # safe and alone: exploring
-    assert planner._sweep_plan is None
-    with pytest.raises(Exception, match="tracking_sweep_pattern"):
-        YawPlannerConfig(tracking_sweep_pattern="random")

@@ -37,7 +37,7 @@ import numpy as np
 from perception.types import NeighborPrediction, OccupancySnapshot
 from planners.dmpc.collision import ellipsoidal_distance
 from planners.minco import MincoTrajectory
-from planners.yaw import TrajectoryView, YawPlan, YawPlanner, YawPlannerConfig, needs_replan, wrap_angle
+from planners.yaw import TrajectoryView, YawPlan, YawPlannerConfig, make_yaw_planner, needs_replan, wrap_angle
 
 __all__ = ["ActiveYaw"]
 
@@ -61,16 +61,12 @@ class ActiveYaw:
         active: plan with the active yaw planner (else heading along travel).
         initial_yaw: heading at the start [rad].
         swarm_clearance_m, swarm_z_scale: C_s [m] and c of E for Alg. 1 line 13.
-        swarm_neighbours: how many other drones were launched with this one (read with ``roster_aware``).
     """
 
-    def __init__(
-        self, config: YawPlannerConfig, active: bool, initial_yaw: float, swarm_clearance_m: float, swarm_z_scale: float,
-        swarm_neighbours: int = 0,
-    ) -> None:
+    def __init__(self, config: YawPlannerConfig, active: bool, initial_yaw: float, swarm_clearance_m: float, swarm_z_scale: float) -> None:
         self.config = config
         self.active = active
-        self.planner = YawPlanner(config, swarm_neighbours) if active else None
+        self.planner = make_yaw_planner(config) if active else None
         self.plan: YawPlan | None = None
         self.next_plan_s = -np.inf
         self.yaw = float(initial_yaw)
@@ -171,10 +167,6 @@ class ActiveYaw:
         self.yaw += step
         return self.yaw, step / dt if dt > 0 else 0.0
 
-    def _reported_modes(self) -> tuple[str, ...]:
-        """The modes whose fractions metrics.json reports: Alg. 1's three, and ``"spinning"`` under ``method: spin``."""
-        return ("exploring", "observing", "tracking") + (("spinning",) if self.config.method == "spin" else ())
-
     def metrics(self) -> dict:
         """Mode counts and planning time for metrics.json."""
         if not self.active:
@@ -182,6 +174,6 @@ class ActiveYaw:
         total = sum(self.modes.values())
         return {
             "yaw_plans": total,
-            "yaw_mode_fraction": {m: self.modes[m] / total for m in self._reported_modes()} if total else None,
+            "yaw_mode_fraction": {m: self.modes[m] / total for m in ("exploring", "observing", "tracking")} if total else None,
             "yaw_plan_ms_median": float(np.median(self.plan_ms)) if self.plan_ms else None,
         }

@@ -1,4 +1,4 @@
-"""Look before moving: the first point of the corridor ahead that the camera saw free, but not recently.
+"""Look before moving, a component of the denied agent: never move into free space the camera has not seen lately.
 
 A drone with one 85 deg camera cannot watch every neighbour; what it can do is
 never move into space it has not looked at lately. This module finds, along
@@ -6,8 +6,8 @@ the drone's own trajectory, the first point of a horizontal corridor whose
 voxel the map holds *free* but last touched by a camera ray more than
 ``max_age_s`` before the map's newest frame (the snapshot's ``seen_s``): space
 where a neighbour that the drone is not tracking may have arrived since. The
-denied agent (``denied.fresh_path_age_s``, :mod:`mpcde.onboard.denied`) stops
-short of such a point and turns its camera to it before it flies on.
+denied agent (``denied.fresh_path_age_s``) stops short of such a point and
+turns its camera to it before it flies on. Not in MP-CDE.
 
 Geometry. The trajectory is sampled every ``sample_s`` from now; a sample's
 arc length is the horizontal distance flown from the first sample. The
@@ -29,8 +29,11 @@ the tracking mode's swing): docs/results/safety.md.
 
 The rule's state lives in :class:`FreshPathWatch` (when the corridor is
 checked next, the look under way, the rest after a point the camera could not
-refresh, the counts for metrics.json); the agent acts on the looks it returns
-(a stop, the heading's turn to the point, the release).
+refresh, the counts for metrics.json); :class:`LookBeforeMoving` is the
+component the agent composes, with two verbs: :meth:`LookBeforeMoving.gate`
+(what the look under way allows this frame) and :meth:`LookBeforeMoving.look_ahead`
+(check the corridor and act on the look it begins: a stop, the heading's turn
+to the point).
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -45,7 +49,10 @@ from mpcde.config.denied import DeniedAgentConfig
 from perception.types import OccupancySnapshot
 from planners.minco import MincoTrajectory
 
-__all__ = ["FreshPathWatch", "Look", "first_stale_point"]
+if TYPE_CHECKING:
+    from mpcde.onboard.denied.agent import DeniedAgent
+
+__all__ = ["FreshPathWatch", "Gate", "Look", "LookBeforeMoving", "first_stale_point"]
 
 
 def first_stale_point(
@@ -221,3 +228,63 @@ class FreshPathWatch:
             "fresh_path_holds": self.holds, "fresh_path_glances": self.glances, "fresh_path_unrefreshed": self.unrefreshed,
             "fresh_path_unsafe_stops": self.unsafe_stops,
         }  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Gate:
+    """What the look under way allows at a frame: ``hold`` (stopped to look: no yaw plan, no replan), ``released``
+    (a hold just ended: replan now), ``glancing`` (the camera turns to a point while the drone flies on: no yaw plan)."""
+
+    hold: bool = False
+    released: bool = False
+    glancing: bool = False
+
+
+class LookBeforeMoving:
+    """Look before moving for one denied agent: the :class:`FreshPathWatch` and what the agent does with its looks.
+
+    Args:
+        config: the scenario's ``denied:`` settings.
+        period_s: t_y, how often the corridor is checked [s].
+        voxel_m: the map's voxel edge [m]; a point within two of the last look's is the same point.
+    """
+
+    def __init__(self, config: DeniedAgentConfig, period_s: float, voxel_m: float) -> None:
+        self.watch = FreshPathWatch(config, period_s, 2.0 * voxel_m)
+        self.period_s = float(period_s)
+
+    @property
+    def enabled(self) -> bool:
+        """Whether the rule is on (``fresh_path_age_s`` finite)."""
+        return self.watch.enabled
+
+    def gate(self, agent: DeniedAgent, t: float) -> Gate:
+        """End the look under way at ``t`` [s] once the commanded yaw has been on its point for two t_y
+        (at most pi / rate + 2 t_y), and say what it allows this frame."""
+        watch = self.watch
+        if not watch.looking:
+            return Gate()
+        if agent.heading.looked_since(t) >= 2.0 * self.period_s - 1e-9:
+            watch.end()
+            agent.heading.restart(agent.heading.reference(t, None)[0], t)
+            return Gate(released=watch.stops)
+        return Gate(hold=True) if watch.stops else Gate(glancing=True)
+
+    def look_ahead(self, agent: DeniedAgent, t: float, glancing: bool) -> bool:
+        """Check the corridor ahead at ``t`` [s] (every t_y while a plan is flown) and begin the look it finds: a hold
+        brakes first, then the heading turns to the point at the rate limit. Whether a hold began."""
+        if not (self.enabled and agent.trajectory is not None and not agent.braking and self.watch.due(t)):
+            return False
+        d_stop = float(np.linalg.norm(agent.state_at(t)[1])) ** 2 / agent.config.a_max_mps2
+        look = self.watch.check(agent.map.snapshot(), agent.trajectory, t, d_stop, glancing, lambda: agent.can_stop(t))
+        if look is None:
+            return False
+        if look.stop:
+            agent.brake(t)
+        pos = agent.state_at(t)[0]
+        agent.heading.look_toward(t, float(np.arctan2(look.point_world[1] - pos[1], look.point_world[0] - pos[0])))
+        return look.stop
+
+    def metrics(self) -> dict:
+        """The watch's counts for metrics.json (empty when the rule is off)."""
+        return self.watch.metrics()

@@ -1,21 +1,39 @@
-"""Flight levels for the denied agent (``denied.flight_level_spacing_m``): which goal a replan flies to, in which layer.
+"""Flight levels, a component of the denied agent (``denied.flight_level_spacing_m``): which goal a replan flies to, in which layer.
 
 With flight levels, drone k of a mission of N cruises at its own altitude
 (:func:`mpcde.config.level_rules.flight_level_m`), so that drones that cannot
 see each other do not share a layer. This module holds the rule's state for
 one drone (reached its level, released from it) and turns the drone's
-position into the goal and the altitude layer of its next replan; the agent
-(:class:`mpcde.onboard.denied.DeniedAgent`) applies the layer to its
-optimiser and front end.
+position into the goal and the altitude layer of its next replan
+(:meth:`FlightLevels.goal_and_layer`); :func:`held_in_layer` applies the layer
+to the agent's optimiser and front end. Not in MP-CDE: procedural vertical
+separation, the rule of airspace without surveillance.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FlightLevels"]
+from mpcde.config.level_rules import flight_level_m
+from planners.path_search import PathSearchConfig
+from planners.trajectory_optimizer import TrajectoryOptimizerConfig
+
+__all__ = ["FlightLevels", "held_in_layer"]
+
+
+def held_in_layer(
+    optimizer: TrajectoryOptimizerConfig, search: PathSearchConfig, lo_m: float, hi_m: float, voxel_m: float
+) -> tuple[TrajectoryOptimizerConfig, PathSearchConfig]:
+    """The optimiser (altitude penalty) and the front end's search held in altitudes [lo_m, hi_m] [m].
+
+    The search's bounds are widened by a voxel, so that the start's own voxel stays in the layer.
+    """
+    optimizer = dataclasses.replace(optimizer, altitude_band_m=(lo_m, hi_m))
+    search = dataclasses.replace(search, min_altitude_m=max(0.0, lo_m - voxel_m), max_altitude_m=hi_m + voxel_m)
+    return optimizer, search
 
 
 @dataclass
@@ -35,6 +53,15 @@ class FlightLevels:
     release_m: float
     reached: bool = False  # came within s / 8 of the level: from then on held there, for good
     released: bool = False  # left the level for the goal (within release_m of it), for good
+
+    @classmethod
+    def for_drone(
+        cls, drone_id: int, swarm_size: int, start_world: np.ndarray, goal_world: np.ndarray, spacing_m: float, release_m: float
+    ) -> FlightLevels:
+        """Drone ``drone_id`` of ``swarm_size``'s level about the mean of its start and goal altitudes
+        (:func:`mpcde.config.level_rules.flight_level_m`); the id and the size are the mission's assignment."""
+        centre = 0.5 * (float(start_world[2]) + float(goal_world[2]))
+        return cls(np.asarray(goal_world, float), flight_level_m(centre, drone_id, swarm_size, spacing_m), spacing_m, release_m)
 
     @property
     def hold_m(self) -> float:

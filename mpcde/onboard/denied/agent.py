@@ -38,31 +38,44 @@ that point starts inside the band; there the drone turns the camera once round,
 as after a halting hand-over, and then plans out of the band no closer than it
 rests (:meth:`DeniedAgent._escape_from_rest`, :meth:`DeniedAgent._escape_floor`).
 
-Yaw (MP-CDE Sec. IV-A, :mod:`mpcde.onboard.heading`): every t_y = 0.1 s of frame
+Yaw (MP-CDE Sec. IV-A, :mod:`mpcde.onboard.denied.heading`): every t_y = 0.1 s of frame
 time the active yaw planner (:mod:`planners.yaw`, Alg. 1) chooses exploring,
 observing or tracking from the safety margin S(0) and the tracks, and the
 reference follows its rate-limited yaw sequence; its line 13 (S(0) < tau_thr or
 a neighbour within C_s now) is replanning trigger (e). With ``active_yaw:
 false`` the heading follows the direction of travel (the ablation).
+
+:meth:`DeniedAgent.plan_step` is that algorithm, top to bottom. What the package
+adds to the paper is composed around it, each a component with its own module
+and its own config field, off where the field says so:
+
+* look before moving (:mod:`mpcde.onboard.denied.look`, ``fresh_path_age_s``):
+  :meth:`~mpcde.onboard.denied.look.LookBeforeMoving.gate` and
+  :meth:`~mpcde.onboard.denied.look.LookBeforeMoving.look_ahead`;
+* flight levels (:mod:`mpcde.onboard.denied.levels`, ``flight_level_spacing_m``):
+  :meth:`~mpcde.onboard.denied.levels.FlightLevels.goal_and_layer`;
+* the turn once round and the band escape (:mod:`mpcde.onboard.denied.rest_escape`):
+  after a halting hand-over or a stop inside the obstacle band;
+* in the yaw planner, the tracking swing (``yaw.tracking_sweep_deg``) and the
+  ageing of free space (``yaw.free_max_age_s``).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from mpcde.config.denied import DeniedAgentConfig
-from mpcde.config.level_rules import flight_level_m
 from mpcde.config.perception import PerceptionConfig
 from mpcde.onboard.base import AgentCounters, OnboardAgent
 from mpcde.onboard.budget import ComputeBudget
-from mpcde.onboard.flight_levels import FlightLevels
-from mpcde.onboard.fresh_path import FreshPathWatch, Look
-from mpcde.onboard.heading import ActiveYaw
+from mpcde.onboard.denied.heading import ActiveYaw
+from mpcde.onboard.denied.levels import FlightLevels, held_in_layer
+from mpcde.onboard.denied.look import LookBeforeMoving
+from mpcde.onboard.denied.rest_escape import RestEscape
+from mpcde.onboard.denied.stats import PlanningStats
 from mpcde.onboard.perception import NeighbourPerception, onboard_perception
 from perception.occupancy_map import OccupancyMap
 from perception.types import Detection, NeighborPrediction
@@ -74,23 +87,7 @@ from planners.trajectory_optimizer import TrajectoryOptimizationError, Trajector
 from sim.rotations import rotation_from_quat_xyzw, yaw_from_rotation
 from sim.types import FlatOutputReference, PoseEstimate, RadioMessage, RgbdFrame
 
-__all__ = ["DeniedAgent", "DeniedAgentConfig", "PlanningStats"]
-
-
-@dataclass
-class PlanningStats:
-    """What the agent's planner did (for metrics)."""
-
-    replans: int = 0
-    failures: int = 0
-    brakes: int = 0
-    swarm_replans: int = 0
-    yaw_replans: int = 0
-    rest_escapes: int = 0  # stops that ended inside the obstacle band and began an escape (_escape_floor)
-    front_end_failures: dict = field(default_factory=dict)  # refused front-end searches by status ("goal_blocked", "no_path", ...)
-    goal_fallbacks: int = 0  # found paths to the window's voxel nearest the goal (clipped goal blocked, no plan or stopping)
-    solve_ms: list = field(default_factory=list)
-    map_ms: list = field(default_factory=list)
+__all__ = ["DeniedAgent", "DeniedAgentConfig", "PlanningStats"]  # the config and the stats for the callers that name them here
 
 
 class DeniedAgent(OnboardAgent):
@@ -104,8 +101,8 @@ class DeniedAgent(OnboardAgent):
         perception: a perception to share (the ``auto`` agent's DMPC half reads the same tracks);
             None: the agent makes its own when ``config.perceive_neighbours``.
         budget: where the compute time of tracking, mapping, ESDF and planning is booked (the run's).
-        swarm_neighbours: how many other drones were launched with this one (the mission's roster, as the
-            goal is the mission's; not their state): the yaw planner's ``roster_aware`` reads it.
+        swarm_size: how many drones the mission launched, this one included (the mission's assignment, as the
+            goal is; not their state): flight levels space the swarm by it.
         neighbour_source: where planning reads the neighbours from, ``source(t, count) -> predictions``
             (``count``: a planning use the source may tally); None: this drone's tracks. The composite
             stacks give theirs: ``auto`` its radio memory fused with the tracks, ``minco_comm`` the radio's plans.
@@ -115,11 +112,11 @@ class DeniedAgent(OnboardAgent):
         self, drone_id: int, goal_world: np.ndarray, config: DeniedAgentConfig, perception_config: PerceptionConfig | None = None,
         perception: NeighbourPerception | None = None,
         budget: ComputeBudget | None = None,
-        swarm_neighbours: int = 0,
+        swarm_size: int = 1,
         neighbour_source: Callable[[float, bool], list[NeighborPrediction]] | None = None,
     ) -> None:
         self.drone_id = drone_id
-        self.swarm_neighbours = swarm_neighbours
+        self.swarm_size = swarm_size
         self.budget = budget if budget is not None else ComputeBudget()
         self.goal_world = np.asarray(goal_world, float)
         self.config = config
@@ -127,9 +124,7 @@ class DeniedAgent(OnboardAgent):
         self.stats = PlanningStats()
         self.map = OccupancyMap(config.map, on_esdf=lambda seconds: self.budget.add("esdf", seconds))
         self.maps_frames = True
-        self._scan: tuple[float, float, float] | None = None  # (start [s], start yaw [rad], end [s]) of the look-around turn
-        self._escaping = False  # leaving the obstacle band of a halting hand-over (_escape_floor)
-        self._escape_floor_m: float | None = None
+        self.escape = RestEscape(config.yaw_rate_max_radps, 0.5 * config.map.voxel_m)  # the turn once round, the band escape
         self.trajectory: MincoTrajectory | None = None
         self.braking = False  # whether self.trajectory is a stopping piece (committed until a replan succeeds)
         self.last_plan_time_s = -np.inf
@@ -148,8 +143,7 @@ class DeniedAgent(OnboardAgent):
         self.search = PathSearchConfig()
         self.levels: FlightLevels | None = None  # config.flight_level_spacing_m: this drone's level, fixed by its first estimate
         self.neighbour_source = neighbour_source
-        # look before moving (denied.fresh_path_age_s): the corridor check's state, every t_y
-        self.fresh_path = FreshPathWatch(c, c.yaw.period_s, 2.0 * c.map.voxel_m)
+        self.look = LookBeforeMoving(c, c.yaw.period_s, c.map.voxel_m)  # denied.fresh_path_age_s, every t_y
 
     # inputs ---------------------------------------------------------------
     def on_pose_estimate(self, estimate: PoseEstimate) -> None:
@@ -157,23 +151,13 @@ class DeniedAgent(OnboardAgent):
         self.latest_estimate = estimate
         if self.hover_world is None:
             self.hover_world = estimate.pos_world.copy()
-            band = self.config.altitude_band_m
-            if np.isfinite(band):  # the layer between the start and goal altitudes, widened by the band
-                lo = min(float(self.hover_world[2]), float(self.goal_world[2])) - band
-                hi = max(float(self.hover_world[2]), float(self.goal_world[2])) + band
-                self._hold_layer(lo, hi)
-            spacing = self.config.flight_level_spacing_m
-            if np.isfinite(spacing):
-                centre = 0.5 * (float(self.hover_world[2]) + float(self.goal_world[2]))
-                level = flight_level_m(centre, self.drone_id, self.swarm_neighbours + 1, spacing)
-                self.levels = FlightLevels(self.goal_world, level, spacing, self.config.flight_level_release_m)
-            yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
             c = self.config
-            self.heading = ActiveYaw(
-                self.yaw_config, c.active_yaw, yaw, c.swarm_clearance_m, c.swarm_z_scale, self.swarm_neighbours
-            )
-            if c.look_around:  # one revolution from the first estimate on (config.look_around)
-                self._schedule_turn(float(estimate.time_s), yaw)
+            if np.isfinite(c.flight_level_spacing_m):
+                self.levels = FlightLevels.for_drone(
+                    self.drone_id, self.swarm_size, self.hover_world, self.goal_world, c.flight_level_spacing_m, c.flight_level_release_m
+                )
+            yaw = float(yaw_from_rotation(rotation_from_quat_xyzw(estimate.quat_xyzw)))
+            self.heading = ActiveYaw(self.yaw_config, c.active_yaw, yaw, c.swarm_clearance_m, c.swarm_z_scale)
 
     def on_radio(self, messages: list[RadioMessage]) -> None:
         """Denied: the radio is not used (messages are counted only)."""
@@ -215,36 +199,31 @@ class DeniedAgent(OnboardAgent):
         The snapshot (a copy of the window; its ESDF deferred further) is taken only
         when the yaw planner or a replan reads it, not on every frame.
         """
-        if t < self.config.start_delay_s or self.latest_estimate is None or self._scanning(t) or self._escape_from_rest(t):
+        if t < self.config.start_delay_s or self.latest_estimate is None or self.escape.holds(self, t):
             return
-        released = glancing = False
-        if self.fresh_path.looking:  # the camera turning to a stale point (a hold stops for it, a glance flies on)
-            if self._end_look(t):
-                released = self.fresh_path.stops
-            elif self.fresh_path.stops:
-                return  # stopping: no yaw plan, no replan
-            else:
-                glancing = True
+        gate = self.look.gate(self, t)  # the camera turning to a stale point (a hold stops for it, a glance flies on)
+        if gate.hold:
+            return  # stopped to look: no yaw plan, no replan
         neighbours = self.neighbours(t)
         yaw_trigger = False
-        if not glancing and self.heading.due(t):  # Alg. 1 lines 1-12 every t_y; line 13's trigger is (e)
+        if not gate.glancing and self.heading.due(t):  # Alg. 1 lines 1-12 every t_y; line 13's trigger is (e)
             with self.budget.measure("yaw"):
                 yaw_trigger = self.heading.update(t, self.map.snapshot(), self.trajectory, self.hover_world, neighbours)
-        if not released and self._fresh_path_due(t) and self._look_before_moving(t, glancing):
+        if not gate.released and self.look.look_ahead(self, t, gate.glancing):
             return
         # the per-frame check reads the newest ESDF and the voxels occupied since (no transform)
         unsafe = False
         if self.trajectory is not None:  # the escape floor is read (and first fixed) only for a plan in hand
-            floor = self._escape_floor(self.map.clearance, self.state_at(t)[0]) if self._escaping else None
+            floor = self.escape.floor(self.map.clearance, self.state_at(t)[0], self.band_m)
             unsafe = not self._safe(self.trajectory, self.map.clearance, t, floor)
         conflict = self.trajectory is not None and self._swarm_conflict(self.trajectory, neighbours, t)
         due = t - self.last_plan_time_s >= self.config.replan_period_s or self._climbed(t)
-        if self.trajectory is None or unsafe or conflict or yaw_trigger or due or released:
+        if self.trajectory is None or unsafe or conflict or yaw_trigger or due or gate.released:
             replanned = self._replan(self.map.snapshot(), neighbours, t)
             self.stats.swarm_replans += int(replanned and conflict)
             self.stats.yaw_replans += int(replanned and yaw_trigger)
             if not replanned and unsafe:
-                self._brake(t)
+                self.brake(t)
 
     def neighbours(self, t: float, count: bool = True) -> list[NeighborPrediction]:
         """The neighbour predictions planned against at ``t`` [s]: ``neighbour_source``'s, else the tracks.
@@ -278,7 +257,7 @@ class DeniedAgent(OnboardAgent):
         self.trajectory = self._stopping_piece(time_s, np.asarray(pos_vel_acc, float))
         self.braking = True
         self.last_plan_time_s = -np.inf
-        self._scan, self._escaping = None, False
+        self.escape.cancel()
         if self.heading is not None:
             self.heading.restart(yaw, time_s)
         if not look_around:
@@ -298,37 +277,11 @@ class DeniedAgent(OnboardAgent):
         return self._begin_turn(time_s, pos_world, yaw)
 
     def _begin_turn(self, time_s: float, pos_world: np.ndarray, yaw: float) -> tuple[float, float]:
-        """Schedule the turn from ``time_s`` [s] at ``pos_world`` (3,) [m] from ``yaw`` [rad], with the escape from
-        the obstacle band (:meth:`_escape_floor`) after it; returns the turn's start and end [s]."""
+        """Hover at ``pos_world`` (3,) [m] and turn once round from ``time_s`` [s] and ``yaw`` [rad], with the band
+        escape after it (:class:`mpcde.onboard.denied.rest_escape.RestEscape`); returns the turn's start and end [s]."""
         self.hover_world = np.asarray(pos_world, float).copy()
-        self._escaping, self._escape_floor_m = True, None
         self.last_plan_time_s = -np.inf
-        return self._schedule_turn(time_s, yaw)
-
-    def _schedule_turn(self, time_s: float, yaw: float) -> tuple[float, float]:
-        """One revolution at the yaw-rate limit from ``time_s`` [s] and ``yaw`` [rad] (``_scan``); returns its start
-        and end [s]."""
-        t0 = float(time_s)
-        self._scan = (t0, float(yaw), t0 + 2.0 * np.pi / self.config.yaw_rate_max_radps)
-        return t0, self._scan[2]
-
-    def _scanning(self, t: float) -> bool:
-        """Whether a look-around turn (config.look_around, :meth:`look_around_at`) is due or on at ``t`` [s], so
-        that nothing is planned; when it ends, the trajectory is dropped (the drone hovers where the turn was) and
-        the heading continues from where the turn left it."""
-        if self._scan is None:
-            return False
-        t0, yaw0, t_end = self._scan
-        if t < t_end - 1e-9:
-            return True
-        self._scan = None
-        self.trajectory, self.braking = None, False
-        self.heading.restart(yaw0 + 2.0 * np.pi, t)
-        return False
-
-    def _turning(self, t: float) -> bool:
-        """Whether the look-around turn itself is on at ``t`` [s] (started, not ended; see :meth:`_scanning`)."""
-        return self._scanning(t) and t >= self._scan[0] - 1e-9
+        return self.escape.begin(time_s, yaw)
 
     # planning ---------------------------------------------------------------
     def state_at(self, t: float) -> np.ndarray:
@@ -340,7 +293,7 @@ class DeniedAgent(OnboardAgent):
     @property
     def band_m(self) -> float:
         """The obstacle band [m]: the clearance from the map's obstacles every plan keeps (0.75 clearance_m), which
-        :meth:`_safe` checks and the escapes (:meth:`_escape_floor`, :meth:`_resting_in_band`) start inside."""
+        :meth:`_safe` checks and the escapes (:class:`mpcde.onboard.denied.rest_escape.RestEscape`) start inside."""
         return 0.75 * self.config.clearance_m
 
     def _safe(
@@ -353,59 +306,11 @@ class DeniedAgent(OnboardAgent):
         :meth:`perception.occupancy_map.OccupancyMap.clearance` on the hot
         path, the fresh snapshot's ESDF for a new plan. No escape rule for a
         plan starting inside the band in flight (tried and dropped:
-        docs/results/radio_outage.md); one handed over there has :meth:`_escape_floor`.
+        docs/results/radio_outage.md); one handed over there has the escape's floor.
         """
         tau = np.linspace(max(t - traj.t0_s, 0.0), traj.total_duration, 40)
         d = distance(traj.pos(tau))
         return bool(np.min(d) >= (self.band_m if floor_m is None else floor_m))
-
-    def _escape_floor(self, distance: Callable[[np.ndarray], np.ndarray], pos_world: np.ndarray) -> float | None:
-        """The obstacle clearance [m] :meth:`_safe` asks of a plan from ``pos_world`` (3,) [m] while the drone
-        leaves the band it was handed over in or came to rest in (:meth:`_resting_in_band`); None
-        (0.75 clearance_m) otherwise.
-
-        A halting hand-over (:meth:`look_around_at`) leaves the drone where the DMPC plan halted, which may be
-        inside the denied stack's band (DMPC keeps its own, smaller obstacle margin), and no plan from there
-        keeps 0.75 clearance_m. Until the reference first leaves the band, a plan may come no closer than the
-        hover point's clearance (taken at the first plan from it), to the ESDF's resolution (half a voxel). A
-        drone that entered the band in flight gets no such rule (tried and dropped for all plans:
-        docs/results/radio_outage.md).
-        """
-        if not self._escaping:
-            return None
-        d = float(distance(np.asarray(pos_world, float)[None])[0])
-        if d >= self.band_m:
-            self._escaping = False
-            return None
-        if self._escape_floor_m is None:  # fixed at the first plan from the hover point: no ratchet inwards
-            self._escape_floor_m = d - 0.5 * self.config.map.voxel_m
-        return self._escape_floor_m
-
-    def _escape_from_rest(self, t: float) -> bool:
-        """At the first frame ``t`` [s] at rest inside the obstacle band (:meth:`_resting_in_band`): turn the camera
-        once round where the drone rests, then plan out of the band no closer than it rests (:meth:`_escape_floor`);
-        the halting hand-over's sequence (:meth:`look_around_at`), so that the neighbours about it are tracks before
-        it moves. Returns whether the turn began."""
-        if not self._resting_in_band(t):
-            return False
-        self.stats.rest_escapes += 1
-        self._begin_turn(t, self.state_at(t)[0], self.heading.yaw)
-        return True
-
-    def _resting_in_band(self, t: float) -> bool:
-        """Whether a stop (:meth:`_brake`) has ended by ``t`` [s] with the drone inside the obstacle band
-        (0.75 clearance_m on the map's newest clearance) and no escape under way.
-
-        From there every plan starts inside the band, so :meth:`_safe` refuses them all and the drone would hover
-        until the map changed (radio_outage seed 19, denied: 667 refused replans, docs/results/radio_outage.md).
-        Only a drone at rest qualifies: the same rule for plans begun inside the band in flight was tried and
-        dropped (radio_outage.md, "Tried and dropped").
-        """
-        stop = self.trajectory
-        if not self.braking or self._escaping or stop is None or t < stop.t0_s + stop.total_duration - 1e-9:
-            return False
-        rest = stop.pos(np.array([stop.total_duration]))
-        return bool(self.map.clearance(rest)[0] < self.band_m)
 
     def _swarm_conflict(self, traj: MincoTrajectory, neighbours: list[NeighborPrediction], t: float) -> bool:
         """Whether ``traj`` comes within C_s (metric E of Eq. 16) of a prediction in the next ``conflict_horizon_s``."""
@@ -453,7 +358,7 @@ class DeniedAgent(OnboardAgent):
             return False
         self.stats.solve_ms.append(1e3 * (time.perf_counter() - t0))
         esdf = lambda p: snap.distance_and_gradient(p)[0]  # noqa: E731
-        if not self._safe(result.trajectory, esdf, t, self._escape_floor(esdf, start[0])):
+        if not self._safe(result.trajectory, esdf, t, self.escape.floor(esdf, start[0], self.band_m)):
             self.stats.failures += 1
             return False
         self.trajectory = result.trajectory
@@ -464,19 +369,13 @@ class DeniedAgent(OnboardAgent):
 
     def _level_goal(self, pos_world: np.ndarray) -> np.ndarray:
         """The goal this replan from ``pos_world`` (3,) [m] flies to: the goal, or with flight levels
-        (:meth:`mpcde.onboard.flight_levels.FlightLevels.goal_and_layer`) the goal of the sequence's step, whose
-        layer is then held (``_hold_layer``: the optimiser's altitude penalty and the front end's search)."""
+        (:meth:`mpcde.onboard.denied.levels.FlightLevels.goal_and_layer`) the goal of the sequence's step, whose
+        layer the optimiser's altitude penalty and the front end's search then hold."""
         if self.levels is None:
             return self.goal_world
         goal, (lo, hi) = self.levels.goal_and_layer(pos_world)
-        self._hold_layer(lo, hi)
+        self.optimizer, self.search = held_in_layer(self.optimizer, self.search, lo, hi, self.config.map.voxel_m)
         return goal
-
-    def _hold_layer(self, lo: float, hi: float) -> None:
-        """Hold the optimiser's samples (altitude penalty) and the front end's search in altitudes [lo, hi] [m]."""
-        self.optimizer = dataclasses.replace(self.optimizer, altitude_band_m=(lo, hi))
-        pad = self.config.map.voxel_m  # the search's voxels: the start's own voxel stays in the layer
-        self.search = dataclasses.replace(self.search, min_altitude_m=max(0.0, lo - pad), max_altitude_m=hi + pad)
 
     def _climbed(self, t: float) -> bool:
         """Whether the plan in hand has just brought the drone to its flight level (replan at once for the goal)."""
@@ -484,41 +383,14 @@ class DeniedAgent(OnboardAgent):
             return False
         return self.levels.climbed(self.state_at(t)[0])
 
-    def _fresh_path_due(self, t: float) -> bool:
-        """Whether the corridor ahead is checked at ``t`` [s] (``denied.fresh_path_age_s`` finite, a plan being flown, every t_y)."""
-        return self.fresh_path.enabled and self.trajectory is not None and not self.braking and self.fresh_path.due(t)
-
-    def _look_before_moving(self, t: float, glancing: bool) -> bool:
-        """Check the corridor ahead at ``t`` [s] and act on the look it begins; whether a hold (a stop) began."""
-        d_stop = float(np.linalg.norm(self.state_at(t)[1])) ** 2 / self.config.a_max_mps2
-        look = self.fresh_path.check(self.map.snapshot(), self.trajectory, t, d_stop, glancing, lambda: self._can_stop(t))
-        if look is not None:
-            self._begin_look(t, look)
-        return look is not None and look.stop
-
-    def _can_stop(self, t: float) -> bool:
+    def can_stop(self, t: float) -> bool:
         """Whether a hold may stop at ``t`` [s]: the straight stopping piece (:meth:`_stopping_piece`, which knows no
         obstacles) keeps out of the obstacle band, or, for a drone already inside it, no closer than it is now."""
         pva = self.state_at(t)
         floor = min(self.band_m, float(self.map.clearance(pva[0][None])[0]) - 0.5 * self.config.map.voxel_m)
         return self._safe(self._stopping_piece(t, pva), self.map.clearance, t, floor)
 
-    def _begin_look(self, t: float, look: Look) -> None:
-        """Stop first if the look is a hold, then turn the camera to its point at the rate limit (``ActiveYaw.look_toward``)."""
-        if look.stop:
-            self._brake(t)
-        pos = self.state_at(t)[0]
-        self.heading.look_toward(t, float(np.arctan2(look.point_world[1] - pos[1], look.point_world[0] - pos[0])))
-
-    def _end_look(self, t: float) -> bool:
-        """Whether the look ends at ``t`` [s]: the commanded yaw has been on the point for two t_y (at most pi / rate + 2 t_y)."""
-        if self.heading.looked_since(t) < 2.0 * self.yaw_config.period_s - 1e-9:
-            return False
-        self.fresh_path.end()
-        self.heading.restart(self.heading.reference(t, None)[0], t)
-        return True
-
-    def _brake(self, t: float) -> None:
+    def brake(self, t: float) -> None:
         """Stop from the current state with a single minimum-jerk piece (no obstacle knowledge).
 
         A stop already under way is kept, not restarted: a minimum-jerk piece
@@ -545,13 +417,12 @@ class DeniedAgent(OnboardAgent):
 
     # output -----------------------------------------------------------------
     def reference(self, time_s: float) -> FlatOutputReference:
-        """Reference at ``time_s`` [s]: the current MINCO trajectory and the heading of :mod:`mpcde.onboard.heading`."""
+        """Reference at ``time_s`` [s]: the current MINCO trajectory and the heading of :mod:`mpcde.onboard.denied.heading`."""
         if self.heading is None:  # no pose estimate yet
             return FlatOutputReference.hover(np.zeros(3), 0.0)
-        if self._turning(time_s):  # config.look_around or look_around_at: hover, turning at the yaw-rate limit
-            t0, yaw0, _ = self._scan
-            rate = self.config.yaw_rate_max_radps
-            return FlatOutputReference(self.hover_world, np.zeros(3), np.zeros(3), yaw0 + rate * (time_s - t0), rate)
+        if self.escape.turning(self, time_s):  # the turn once round: hover, turning at the yaw-rate limit
+            yaw, rate = self.escape.turn_yaw(time_s)
+            return FlatOutputReference(self.hover_world, np.zeros(3), np.zeros(3), yaw, rate)
         if self.trajectory is None:
             yaw, yaw_rate = self.heading.reference(time_s, None)
             return FlatOutputReference(self.hover_world, np.zeros(3), np.zeros(3), yaw, yaw_rate)
@@ -561,20 +432,7 @@ class DeniedAgent(OnboardAgent):
 
     def extra_metrics(self) -> dict:
         """Planner statistics for metrics.json."""
-        s = self.stats
-        out = {
-            "replans": s.replans,
-            "plan_failures": s.failures,
-            "brakes": s.brakes,
-            "swarm_replans": s.swarm_replans,
-            "yaw_replans": s.yaw_replans,
-            "rest_escapes": s.rest_escapes,
-            "front_end_failures": dict(sorted(s.front_end_failures.items())),
-            "goal_fallbacks": s.goal_fallbacks,
-            **self.fresh_path.metrics(),
-            "replan_ms_median": float(np.median(s.solve_ms)) if s.solve_ms else None,
-            "map_ms_median": float(np.median(s.map_ms)) if s.map_ms else None,
-        }
+        out = self.stats.metrics(self.look.metrics())
         if self.heading is not None:
             out.update(self.heading.metrics())
         if self.perception is not None:
