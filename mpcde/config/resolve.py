@@ -31,7 +31,7 @@ field's default".
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable
+from typing import Any
 
 from mpcde.config.bounds import check_ranges
 from mpcde.config.scenario import SCENARIO_RANGES, ScenarioConfig

@@ -16,8 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from mpcde.config.level_rules import check_flight_levels
-from mpcde.config.stack_rules import check_admm, check_dmpc_round, check_mlr
+from mpcde.config.stack_rules import check_admm, check_dmpc_round, check_flight_levels, check_mlr
 from mpcde.stacks.registry import AgentContext, Derivation, Stack, Uses
 
 __all__ = ["BUILTIN", "DEFAULT_KIND"]

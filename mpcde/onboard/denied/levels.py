@@ -1,7 +1,7 @@
 """Flight levels, a component of the denied agent (``denied.flight_level_spacing_m``): which goal a replan flies to, in which layer.
 
 With flight levels, drone k of a mission of N cruises at its own altitude
-(:func:`mpcde.config.level_rules.flight_level_m`), so that drones that cannot
+(:func:`mpcde.config.stack_rules.flight_level_m`), so that drones that cannot
 see each other do not share a layer. This module holds the rule's state for
 one drone (reached its level, released from it) and turns the drone's
 position into the goal and the altitude layer of its next replan
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mpcde.config.level_rules import flight_level_m
+from mpcde.config.stack_rules import flight_level_m
 from planners.path_search import PathSearchConfig
 from planners.trajectory_optimizer import TrajectoryOptimizerConfig
 
@@ -59,7 +59,7 @@ class FlightLevels:
         cls, drone_id: int, swarm_size: int, start_world: np.ndarray, goal_world: np.ndarray, spacing_m: float, release_m: float
     ) -> FlightLevels:
         """Drone ``drone_id`` of ``swarm_size``'s level about the mean of its start and goal altitudes
-        (:func:`mpcde.config.level_rules.flight_level_m`); the id and the size are the mission's assignment."""
+        (:func:`mpcde.config.stack_rules.flight_level_m`); the id and the size are the mission's assignment."""
         centre = 0.5 * (float(start_world[2]) + float(goal_world[2]))
         return cls(np.asarray(goal_world, float), flight_level_m(centre, drone_id, swarm_size, spacing_m), spacing_m, release_m)
 
