@@ -68,7 +68,6 @@ from typing import Any
 import numpy as np
 
 from planners.dmpc.mlr.config import MlrConfig
-from planners.dmpc.mlr.make_room import MakeRoomPlanner
 from planners.dmpc.mlr.qp import MlrProblem, MlrQpResult
 from planners.dmpc.mlr.tracker import InformationTrackers, TrackerUpdate
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId, positions_at_each
@@ -141,8 +140,6 @@ class ComputeUnit:
             self.trackers.deprecate_all()
         self.targets_world = np.array(initial_targets_world, float).reshape(config.n_uavs, 3)
         self.problem = MlrProblem(config)
-        starts = np.array([t.positions_at(np.array([t.t_start_s]))[0] for t in initial])
-        self.make_room = MakeRoomPlanner(config, starts, self.targets_world) if config.make_room else None
         self._own_last: CuTrajectoryMessage | RecoveryRequest | None = None  # what this CU sent last round
         self._donate_now = False
         self._heard_requests: set[int] = set()  # CUs whose request this CU received last round
@@ -161,8 +158,6 @@ class ComputeUnit:
         replies = {m.slot_cu_id: m for m in inbox if isinstance(m, RecoveryReply)}
         for i, m in states.items():
             self.targets_world[i] = m.target_world
-        if self.make_room is not None:
-            self.make_room.observe(k, states)
         new = {
             m.uav_id: m.trajectory
             for m in cu_msgs.values()
@@ -266,8 +261,6 @@ class ComputeUnit:
         others = np.array(pos).reshape(-1, cfg.n_checks, 3)
         own = self.trackers[uav].candidates[0]
         target = self.targets_world[uav]
-        if self.make_room is not None:
-            target = self.make_room.target(uav, target)
         return self.problem.solve(own, t_start, target, others, np.array(midway, bool),
                                   TrajectoryId(k, self.cu_index))
 

@@ -134,8 +134,8 @@ class MlrConfig:
         soft_weight_quadratic: quadratic cost on the slack [1/m^2] (chosen 1.0).
         soft_max_m: upper bound of the slack [m] (chosen 0.3).
         arrived_m: a UAV this close to its target has arrived: neither
-            deadlock measure (``deadlock_trigger``, ``make_room``) counts it as
-            held or stuck [m] (chosen 0.1).
+            deadlock measure (``deadlock_trigger``) counts it as
+            held [m] (chosen 0.1).
         deadlock_trigger: Appendix A's deadlock-aware triggering: a UAV held
             away from its target by a trajectory computed within the last
             ``deadlock_rounds`` rounds (planned motion < ``deadlock_motion_m``)
@@ -144,25 +144,6 @@ class MlrConfig:
             UAV [m] (chosen 0.02).
         deadlock_rounds: how long such a trajectory lowers the priority
             [rounds] (chosen 40: 8 s, docs/results/mlr_dmpc.md).
-        make_room: run the high-level planner against deadlocks (Appendix,
-            "High-level path planner"; :mod:`planners.dmpc.mlr.make_room`):
-            while every UAV away from its target stands still, a UAV that
-            blocks one farther from its target gets an intermediate target
-            away from it. It changes only the QP's cost, never its constraints.
-            Chosen off: it frees the one swap that deadlocks on an ideal radio
-            but slows the swarm under 10 % loss (docs/results/mlr_dmpc.md).
-        make_room_progress_m: a UAV away from its target that came less than
-            this much closer to it over ``make_room_rounds`` rounds is stuck
-            [m] (chosen 0.1).
-        make_room_rounds: the window of that progress in rounds (chosen 10:
-            2 s; UAVs not yet computed after the start stand still for about
-            N / M rounds).
-        make_room_radius_m: how close UAV j must be for UAV i to make room,
-            and the half-width of j's corridor to its target [m] (chosen 1.0).
-        make_room_step_m: distance of the intermediate target from UAV i,
-            away from j [m] (chosen 0.6).
-        make_room_noise_m: norm of the random horizontal offset of the
-            intermediate target [m] (chosen 0.15).
         trigger: event trigger of Appendix A: ``"rr"`` (round-robin, A1),
             ``"db"`` (distance-based, A2) or ``"ht"`` (hybrid, A3).
         priority_scale_rr: one 8-bit priority unit of RR in rounds (chosen 1).
@@ -210,12 +191,6 @@ class MlrConfig:
     deadlock_trigger: bool = True
     deadlock_motion_m: float = 0.02
     deadlock_rounds: int = 40
-    make_room: bool = False
-    make_room_progress_m: float = 0.1
-    make_room_rounds: int = 10
-    make_room_radius_m: float = 1.0
-    make_room_step_m: float = 0.6
-    make_room_noise_m: float = 0.15
     trigger: str = "ht"
     priority_scale_rr: float = 1.0
     priority_scale_db_m: float = 0.02
@@ -258,11 +233,6 @@ class MlrConfig:
         require_boolean("deadlock_trigger", self.deadlock_trigger)
         require_positive("deadlock_motion_m", self.deadlock_motion_m)
         require_integer_at_least("deadlock_rounds", self.deadlock_rounds, 1)
-        require_boolean("make_room", self.make_room)
-        for name in ("make_room_progress_m", "make_room_radius_m", "make_room_step_m"):
-            require_positive(name, getattr(self, name))
-        require_non_negative("make_room_noise_m", self.make_room_noise_m)
-        require_integer_at_least("make_room_rounds", self.make_room_rounds, 1)
         if self.trigger not in TRIGGERS:
             raise ConfigError("trigger", self.trigger, f"one of {', '.join(TRIGGERS)}")
         for name in ("priority_scale_rr", "priority_scale_db_m", "priority_scale_ht", "osqp_eps_abs", "osqp_eps_rel"):

@@ -130,7 +130,7 @@ def _simulate(seed: int, loss: float, rounds: int, n: int = 6, m: int = 3, keep_
     """
     rng = np.random.default_rng(seed)
     cfg = MlrConfig(n_uavs=n, n_cus=m, horizon_rounds=3, trigger="rr", keep_ambiguous=keep_ambiguous,
-                    repeat_trajectory=repeat, make_room=False)
+                    repeat_trajectory=repeat)
     initial = [ReferenceTrajectory.hover(HOVER_META, 0.0, [i, 0.0, 1.0], cfg.n_inputs, cfg.input_step_s)
                for i in range(n)]
     targets = np.zeros((n, 3))
