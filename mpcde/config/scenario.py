@@ -27,7 +27,7 @@ from mpcde.config.perception import PerceptionConfig
 from mpcde.config.ranges import RANGES
 from mpcde.errors import ConfigError
 from mpcde.stacks.builtin import DEFAULT_KIND
-from mpcde.stacks.registry import stack_for_kind, stacks
+from mpcde.stacks.registry import stack_for_kind, stack_of, stacks
 from planners.yaw.config import YawPlannerConfig
 from sim.camera import CameraConfig
 from sim.faults import FaultsConfig
@@ -61,13 +61,15 @@ class PlannerConfig:
 
     Attributes:
         kind: the onboard stack, by its ``planner.kind`` (the registry,
-            :mod:`mpcde.stacks`: ``min_jerk_line``, the placeholder, a blind
+            :mod:`mpcde.stacks`; null, the default: the headline stack the
+            options allow, ``auto``, or ``dmpc`` with ``run.cameras: false``,
+            :func:`mpcde.stacks.registry.stack_of`): ``min_jerk_line``, the placeholder, a blind
             straight minimum-jerk line; ``mpcde``, the communication-denied
             MP-CDE stack, settings in ``denied``; ``dmpc``, DMPC on exchanged
             radio plans, settings in ``dmpc``; ``auto``, DMPC falling back to
             camera tracks and MP-CDE, settings in ``auto``; ``mlr``, MLR-DMPC;
             ``admm``, the ADMM formation DMPC; ``minco_comm``, MP-CDE's
-            planner on radio plans; and any registered third-party stack).
+            planner on radio plans; and any registered third-party stack.
         cruise_speed_mps: the swarm's speed [m/s] (MP-CDE's "target velocity"
             regimes, Sec. V-B: 0.5, 1 and 2 m/s), for every stack that flies a
             speed: the peak speed of the placeholder's and ADMM's lines, the
@@ -82,7 +84,7 @@ class PlannerConfig:
         start_delay_s: hover time before departure [s].
     """
 
-    kind: str = DEFAULT_KIND
+    kind: str | None = None
     cruise_speed_mps: float | None = None
     start_delay_s: float = 0.5
 
@@ -95,7 +97,7 @@ class PlannerConfig:
         return self.LINE_SPEED_MPS if self.cruise_speed_mps is None else float(self.cruise_speed_mps)
 
     def __post_init__(self) -> None:
-        stack = stack_for_kind(self.kind, "kind")
+        stack = stack_for_kind(self.kind if self.kind is not None else DEFAULT_KIND, "kind")  # null: auto or dmpc, both fly a speed
         if self.cruise_speed_mps is not None and not 0 < self.cruise_speed_mps <= 10:
             raise ConfigError("cruise_speed_mps", self.cruise_speed_mps, "in (0, 10] m/s, or null")
         if self.cruise_speed_mps is not None and not stack.cruise_speed:
@@ -230,11 +232,11 @@ class ScenarioConfig:
             raise ConfigError("seed", self.seed, "an integer in [0, 2^32)")
         if not isinstance(self.plugins, PluginSections):
             object.__setattr__(self, "plugins", PluginSections(self.plugins))
-        stack = stack_for_kind(self.planner.kind)
+        stack = stack_of(self)
         if stack.config_type is not None and stack.section not in self.plugins:  # its defaults, written to config.yaml
             object.__setattr__(self, "plugins", PluginSections({**self.plugins, stack.section: stack.config_type()}))
         if stack.uses.cameras == "required" and not self.run.cameras:
-            allowed = f"must be true for planner.kind {self.planner.kind!r}: it sees only through its camera (drop --no-cameras)"
+            allowed = f"must be true for planner.kind {stack.kind!r}: it sees only through its camera (drop --no-cameras)"
             raise ConfigError("run.cameras", self.run.cameras, allowed)
         if self.run.cameras and (self.camera.width_px % 16 or self.camera.height_px % 16):
             bad = "width_px" if self.camera.width_px % 16 else "height_px"

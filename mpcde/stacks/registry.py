@@ -268,5 +268,12 @@ def stack_for_kind(kind: str, field: str = "planner.kind") -> Stack:
 
 
 def stack_of(cfg: "ScenarioConfig") -> Stack:
-    """The stack scenario ``cfg`` flies (its ``planner.kind``)."""
-    return stack_for_kind(cfg.planner.kind)
+    """The stack scenario ``cfg`` flies: its ``planner.kind``, or where that is null the headline stack its options
+    allow (:data:`mpcde.stacks.builtin.DEFAULT_KIND`, ``auto``; with ``run.cameras`` false
+    :data:`~mpcde.stacks.builtin.DEFAULT_KIND_WITHOUT_CAMERAS`, ``dmpc``)."""
+    kind = cfg.planner.kind
+    if kind is None:
+        from mpcde.stacks.builtin import DEFAULT_KIND, DEFAULT_KIND_WITHOUT_CAMERAS
+
+        kind = DEFAULT_KIND if cfg.run.cameras else DEFAULT_KIND_WITHOUT_CAMERAS
+    return stack_for_kind(kind)
