@@ -39,8 +39,8 @@ def load_scenario(
         scenario: the file, or the name of one in ``data/scenarios/``.
         mode: onboard stack replacing the file's ``planner.kind``, by its
             registry name (:func:`mpcde.all_stacks`: ``"placeholder"``, ``"denied"``,
-            ``"comm"``, ``"auto"``, ``"mlr"``, ``"admm"``, ``"minco_comm"`` or a
-            registered third-party stack); None keeps the file's.
+            ``"mpcde_paper"``, ``"comm"``, ``"auto"``, ``"mlr"``, ``"admm"``, ``"minco_comm"`` or a
+            registered third-party stack); None keeps the file's (a file without one flies ``auto``).
         seed: replaces the file's ``seed``.
         duration_s: replaces the file's ``duration_s`` [s].
 

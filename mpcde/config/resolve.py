@@ -22,6 +22,11 @@ flight. Derived fields (target <- source):
 * a stack's own ``derived`` fields: ``radio.rate_hz`` <- ``2 admm.l_max / admm.step_s``
   with ``planner.kind: admm`` and ``admm.radio_rate_from_step``: one radio sub-round per ADMM exchange.
 
+Before the derivations, a stack's ``preset`` (:class:`mpcde.stacks.registry.Stack`) sets the
+fields the scenario leaves unset: ``planner.kind: mpcde_paper`` flies the denied agent with
+MP-CDE as published whatever the section's defaults become. A preset field the file sets is
+kept (a preset is a default, not a derivation).
+
 A target that the file (or the code building the config) sets to another
 value than its derivation is refused with one line naming both, never
 silently replaced. Without the file's mapping, "set" means "differs from the
@@ -114,6 +119,11 @@ def resolve(cfg: ScenarioConfig, written: dict | None = None) -> ScenarioConfig:
     """
     check_ranges(cfg, SCENARIO_RANGES)
     out = cfg
+    for target, value in stack_of(cfg).preset.items():  # the stack's defaults for what the file leaves unset
+        current = _get(cfg, target)
+        given = _written(written, target) if written is not None else (current if not _same(current, _default(target)) else _MISSING)
+        if given is _MISSING and not _same(current, value):
+            out = _set(out, target, value)
     for d in derivations(cfg):  # in order: a derived field may be the source of a later one
         target, source = d.target, d.source
         if not d.applies(out):

@@ -1,4 +1,4 @@
-"""The seven stacks this package ships, as registry entries (:mod:`mpcde.stacks.registry`).
+"""The stacks this package ships, as registry entries (:mod:`mpcde.stacks.registry`).
 
 Each entry's factory imports its agent when it first builds one, so reading a
 scenario (which asks the registry for ``planner.kind``) loads no planner. The
@@ -19,7 +19,7 @@ import numpy as np
 from mpcde.config.stack_rules import check_admm, check_dmpc_round, check_flight_levels, check_mlr
 from mpcde.stacks.registry import AgentContext, Derivation, Stack, Uses
 
-__all__ = ["BUILTIN", "DEFAULT_KIND", "DEFAULT_KIND_WITHOUT_CAMERAS"]
+__all__ = ["BUILTIN", "DEFAULT_KIND", "DEFAULT_KIND_WITHOUT_CAMERAS", "PAPER_PRESET"]
 
 
 def _placeholder(ctx: AgentContext) -> Any:
@@ -105,6 +105,21 @@ def _dmpc_formation(cfg: Any) -> bool:
     return bool(cfg.dmpc.formation_from_goals)
 
 
+PAPER_PRESET = {
+    "denied.fresh_path_age_s": float("inf"),
+    "denied.flight_level_spacing_m": float("inf"),
+    "denied.yaw.tracking_sweep_deg": 60.0,
+    "denied.yaw.tracking_sweep_period_s": 2.1,
+    "denied.yaw.free_max_age_s": 1.0,
+}
+"""``mpcde_paper``'s preset: MP-CDE (Alg. 1, Table I) as this package's reproductions of its Fig. 6, Table III
+and Fig. 10 fly it, pinned so that a change of the ``denied`` defaults does not move them. Off: the two safety
+mechanisms the package adds (look before moving, flight levels). Kept, and named here so that they stay what the
+reproductions flew: two readings of the paper this package made, the tracking mode's swing about the direction of
+travel (+-60 deg every 2.1 s; ``denied.yaw.tracking_sweep_deg: 0`` is the paper's straight tracking mode, in which
+two drones converging side by side never enter each other's view) and the ageing of verified-free space after 1 s
+in Eq. 1's safe segment ("temporally validated by the perception pipeline")."""
+
 BUILTIN: tuple[Stack, ...] = (
     Stack(
         "placeholder", _placeholder, "a blind minimum-jerk straight line to the goal", kind="min_jerk_line",
@@ -112,6 +127,11 @@ BUILTIN: tuple[Stack, ...] = (
     Stack(
         "denied", _denied, "MP-CDE without radio: own detector, tracks, active yaw, A* + MINCO", kind="mpcde",
         uses=Uses(cameras="required"), section="denied", check=check_flight_levels, speed_fields=("denied.v_max_mps",),
+    ),
+    Stack(
+        "mpcde_paper", _denied, "denied as MP-CDE publishes it: without look before moving or flight levels",
+        uses=Uses(cameras="required"), section="denied", check=check_flight_levels, speed_fields=("denied.v_max_mps",),
+        preset=PAPER_PRESET,
     ),
     Stack(
         "comm", _dmpc, "distributed MPC (OSQP) on the plans neighbours broadcast, known obstacles", kind="dmpc",

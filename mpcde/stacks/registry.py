@@ -151,6 +151,10 @@ class Stack:
         cruise_speed: whether it flies ``planner.cruise_speed_mps`` at all
             (False: a scenario setting one is refused).
         derived: further fields it derives at load time (:class:`Derivation`).
+        preset: {dotted field: value}: what this stack flies where the scenario does not set the field
+            (:func:`mpcde.config.resolve.resolve` applies it before the derivations), so that one
+            agent can be offered under a second name with other defaults: ``mpcde_paper`` is the
+            ``denied`` agent with MP-CDE as published; a field the file sets wins.
         flies_formation: whether, for a scenario, it keeps the goals'
             formation (the metrics then report the formation error chi).
     """
@@ -167,6 +171,7 @@ class Stack:
     speed_fields: tuple[str, ...] = ()
     cruise_speed: bool = True
     derived: tuple[Derivation, ...] = ()
+    preset: dict = field(default_factory=dict)
     flies_formation: Callable[["ScenarioConfig"], bool] = lambda cfg: False
 
     def __post_init__(self) -> None:

@@ -78,7 +78,7 @@ def test_a_planner_kind_set_in_code_is_checked_too():
     from dataclasses import replace
 
     cfg = load_scenario("crossing")
-    allowed = r"allowed: 'min_jerk_line', 'mpcde', 'dmpc', 'auto', 'mlr', 'admm', 'minco_comm'$"
+    allowed = r"allowed: 'min_jerk_line', 'mpcde', 'mpcde_paper', 'dmpc', 'auto', 'mlr', 'admm', 'minco_comm'$"
     with pytest.raises(ConfigError, match=r"^kind='denied': " + allowed):
         replace(cfg.planner, kind="denied")
     with pytest.raises(ConfigError, match=r"^planner\.kind='denied': allowed:"):
