@@ -4,7 +4,8 @@
 Flight levels (``denied.flight_level_spacing_m``): drone k of N cruises at z_k = z_c + (k - (N - 1) / 2) s,
 z_c the mean of its own start and goal altitudes (:class:`mpcde.config.denied.DeniedAgentConfig`). Two rules
 make the levels what they promise: every drone's z_c is the same, so that the levels are distinct and s apart;
-and the lowest and highest levels lie within the altitudes a layout may use (:data:`LEVEL_ALTITUDES_M`).
+and the lowest and highest levels lie within the altitudes a layout may use (:data:`LEVEL_ALTITUDES_M`), the
+lowest level's layer keeping the front end's clearance (``denied.front_end_clearance_m``) from the ground.
 
 Each is a registry entry's ``check`` (:mod:`mpcde.stacks.builtin`), which
 :meth:`mpcde.config.scenario.ScenarioConfig.__post_init__` calls for the scenario's stack.
@@ -127,12 +128,17 @@ def check_flight_levels(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarr
         )
         raise ConfigError("denied.flight_level_spacing_m", spacing, allowed)
     n = len(starts)
-    lo, hi = LEVEL_ALTITUDES_M
+    # the lowest level's layer (held within s / 8 of it) must keep the front end's clearance from the ground the
+    # camera maps below it: a level nearer the ground is one whose every search fails (the held-out ring of 7 at
+    # 0.4 m put a level on the 0.3 m floor; docs/results/denied_default.md)
+    ground_m = cfg.denied.front_end_clearance_m
+    lo, hi = max(LEVEL_ALTITUDES_M[0], ground_m + spacing / 8.0), LEVEL_ALTITUDES_M[1]
     lowest, highest = flight_level_m(centres[0], 0, n, spacing), flight_level_m(centres[0], n - 1, n, spacing)
-    if n > 1 and not (lowest >= lo - 1e-9 and highest <= hi + 1e-9):  # a level on the floor is allowed: 1.5 - 3 x 0.4 is 0.2999... in floats
-        largest = min(centres[0] - lo, hi - centres[0]) / (0.5 * (n - 1))
+    if n > 1 and not (lowest >= lo - 1e-9 and highest <= hi + 1e-9):  # to rounding: 1.5 - 2.5 x 0.4 may be 0.4999...
+        half = 0.5 * (n - 1)
+        largest = min((centres[0] - max(LEVEL_ALTITUDES_M[0], ground_m)) / (half + 0.125), (hi - centres[0]) / half)
         allowed = (
-            f"<= {largest:.3g} m for {n} drones about {centres[0]:.3g} m (levels from "
-            f"{lowest:.3g} to {highest:.3g} m; allowed {lo:g} to {hi:g} m)"
+            f"<= {largest:.3g} m for {n} drones about {centres[0]:.3g} m (levels from {lowest:.3g} to {highest:.3g} m; "
+            f"the lowest must keep denied.front_end_clearance_m + s / 8 = {lo:.3g} m above the ground, the highest <= {hi:g} m)"
         )
         raise ConfigError("denied.flight_level_spacing_m", spacing, allowed)

@@ -11,23 +11,23 @@ MPCDE = {"planner": {"kind": "mpcde"}}
 
 
 def test_levels_that_fit_load_and_the_largest_spacing_is_named_when_they_do_not():
-    cfg = load_scenario("forest_swarm", {**MPCDE, "denied": {"flight_level_spacing_m": 0.48}})  # 6 drones about 1.5 m: 0.3 to 2.7 m
-    assert cfg.denied.flight_level_spacing_m == 0.48
-    with pytest.raises(ConfigError, match=r"^denied\.flight_level_spacing_m=0\.5: <= 0\.48 m for 6 drones about 1\.5 m") as e:
+    cfg = load_scenario("forest_swarm", {**MPCDE, "denied": {"flight_level_spacing_m": 0.4}})  # 6 drones about 1.5 m: 0.5 to 2.5 m
+    assert cfg.denied.flight_level_spacing_m == 0.4
+    with pytest.raises(ConfigError, match=r"^denied\.flight_level_spacing_m=0\.5: <= 0\.4 m for 6 drones about 1\.5 m") as e:
         load_scenario("forest_swarm", {**MPCDE, "denied": {"flight_level_spacing_m": 0.5}})
     assert "\n" not in str(e.value)
     # the rule is the levels' stacks': another planner does not fly them
     assert load_scenario("forest_swarm", {"planner": {"kind": "dmpc"}, "denied": {"flight_level_spacing_m": 0.5}})
 
 
-def test_a_level_exactly_on_the_floor_loads():
-    # 7 drones 0.4 m apart about 1.5 m: the lowest level is 1.5 - 3 x 0.4 = 0.3 m, the floor itself
-    # (0.29999999999999982 in floats, which an exact comparison refused)
-    ring7 = {"drones": {"layout": "antipodal", "count": 7, "radius_m": 5.0, "altitude_m": 1.5}}
-    cfg = load_scenario("antipodal", {**MPCDE, **ring7, "denied": {"flight_level_spacing_m": 0.4}})
-    assert cfg.denied.flight_level_spacing_m == 0.4
-    with pytest.raises(ConfigError, match=r"^denied\.flight_level_spacing_m=0\.41: <= 0\.4 m for 7 drones"):
-        load_scenario("antipodal", {**MPCDE, **ring7, "denied": {"flight_level_spacing_m": 0.41}})
+def test_the_lowest_level_keeps_the_front_ends_clearance_from_the_ground():
+    # 6 drones 0.4 m apart about 1.5 m: the lowest level is 0.5 m = 0.45 m clearance + 0.4 / 8, allowed to rounding;
+    # 7 put one at 0.3 m, where every front-end search fails against the ground the camera maps (the held-out ring)
+    ring = lambda n: {"drones": {"layout": "antipodal", "count": n, "radius_m": 5.0, "altitude_m": 1.5}}  # noqa: E731
+    assert load_scenario("antipodal", {**MPCDE, **ring(6), "denied": {"flight_level_spacing_m": 0.4}}).denied.flight_level_spacing_m == 0.4
+    with pytest.raises(ConfigError, match=r"^denied\.flight_level_spacing_m=0\.4: <= 0\.336 m for 7 drones .*front_end_clearance_m \+ s / 8 = 0\.5 m"):
+        load_scenario("antipodal", {**MPCDE, **ring(7), "denied": {"flight_level_spacing_m": 0.4}})
+    assert load_scenario("antipodal", {**MPCDE, **ring(7), "denied": {"flight_level_spacing_m": 0.336}})
 
 
 def test_levels_need_one_mission_altitude():

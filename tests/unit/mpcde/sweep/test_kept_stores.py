@@ -76,7 +76,7 @@ def test_a_kept_store_is_complete_unchanged_in_its_sweep_and_reported_verbatim(
     else:  # flown before it: the CPU's own kernels, the detector's precision as "auto" resolved there
         assert all("numerics" not in r["metrics"] or r["metrics"]["numerics"]["profile"] == "native" for r in rows)
         assert {r["metrics"]["detector_precision"] for r in rows} <= {precision, None}
-    spec = load_sweep(ROOT / row["sweep"]).to_dict()
+    spec = load_sweep(ROOT / row["sweep"], check_cells=False).to_dict()  # a record: its cells were checked when flown
     kept = json.loads((folder / "sweep.json").read_text())["sweep"]
     assert (kept["axes"], kept["seeds"], kept["overrides"], kept["base_name"]) == (
         json.loads(json.dumps(spec["axes"])), spec["seeds"], spec["overrides"], spec["base_name"])  # fmt: skip

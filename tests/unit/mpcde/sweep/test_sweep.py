@@ -43,6 +43,18 @@ def test_cells_are_the_product_of_the_axes_and_every_cell_flies_every_seed(tiny)
     assert (b.planner.kind, b.seed, b.run.cameras) == ("dmpc", 1, False)
 
 
+def test_a_sweep_file_read_as_a_record_skips_the_cell_checks_only(tmp_path):
+    """A kept store's file may name a cell today's rules refuse; read as a record its keys and axes are still checked."""
+    path = tmp_path / "record.yaml"
+    path.write_text(TINY.replace("[0.5, 1.0]", "[0.5, 1.0e+300]"))
+    with pytest.raises(ConfigError, match=r"^axes\.planner\.cruise_speed_mps\[1\]"):
+        load_sweep(path)
+    assert len(load_sweep(path, check_cells=False).cells()) == 4
+    path.write_text(TINY.replace("axes:", "axis:"))
+    with pytest.raises(ConfigError, match="^axis"):
+        load_sweep(path, check_cells=False)
+
+
 def test_a_held_out_split_is_its_own_seed_range(tmp_path):
     path = tmp_path / "held_out.yaml"
     path.write_text(TINY.replace("seeds: 2", "seeds: {first: 1000, count: 3}"))
