@@ -75,8 +75,9 @@ def test_every_example_has_a_main():
 
 
 def test_example_custom_scenario_runs_headless():
-    m = _example("custom_scenario").main(duration_s=2.0)
-    assert m["collisions"] >= 0 and "success" in m
+    """The swap built in code arrives without a contact (the comm stack on a fixed seed)."""
+    m = _example("custom_scenario").main()
+    assert m["success"] is True and m["collisions"] == 0 and m["min_inter_drone_distance_m"] > 0.2
 
 
 @pytest.mark.slow
