@@ -125,8 +125,8 @@ def main() -> None:
 
     # Baseline: planners.dmpc.DmpcProblem in BVC mode on the same states.
     dcfg = DmpcConfig(model="triple", collision_mode="bvc", horizon_steps=15, step_s=0.2, terminal_halt=True,
-                      max_neighbours=15, r_min=cfg.d_hat_min_m, downwash=cfg.downwash, v_max=cfg.v_max,
-                      a_max=cfg.a_max, j_max=cfg.j_max, pos_min_world=cfg.pos_min_world,
+                      max_neighbours=15, r_min_m=cfg.d_hat_min_m, downwash=cfg.downwash, v_max_mps=cfg.v_max_mps,
+                      a_max_mps2=cfg.a_max_mps2, j_max_mps3=cfg.j_max_mps3, pos_min_world=cfg.pos_min_world,
                       pos_max_world=cfg.pos_max_world, osqp_eps_abs=cfg.osqp_eps_abs, osqp_eps_rel=cfg.osqp_eps_rel)
     problem = DmpcProblem(dcfg)
     grid = t0 + 0.2 * np.arange(16)

@@ -74,7 +74,7 @@ class DmpcAgentConfig:
         goal_lookahead_m: the QP's goal is the point this far [m] along the
             line to the real goal when the goal is farther (a carrot; 0 =
             always the real goal, the paper's form). Chosen: 4.0 m, two
-            thirds of what v_max = 2 m/s covers in the 3 s horizon. With a
+            thirds of what v_max_mps = 2 m/s covers in the 3 s horizon. With a
             far goal the terminal cost pins the plan to the speed limit at
             every step and OSQP needs many more iterations (measured:
             docs/results/dmpc_agent.md).
@@ -101,7 +101,7 @@ class DmpcAgentConfig:
             its halt unrevised must clear the obstacles over its whole horizon,
             not only at its first predicted conflict). The agent also plans
             against every obstacle the plan can reach: the range it uses is
-            max(``obstacle_range_m``, sqrt(2) v_max K h + the inflation).
+            max(``obstacle_range_m``, sqrt(2) v_max_mps K h + the inflation).
             Measured: docs/results/comm_safety.md. False: replan every round
             against shifted stale plans, with the QP as ``qp`` says
             (:meth:`replanning` gives the on-demand paper's plain DMPC).
@@ -109,8 +109,8 @@ class DmpcAgentConfig:
             as unheard.
         commit_range_m: a neighbour is near when its last plan comes within this
             [m] of the own plan at a common time over the horizon (chosen: 12 m =
-            2 v_max K h at the defaults: two drones replanning unheard can each
-            move v_max K h from where the other expects them).
+            2 v_max_mps K h at the defaults: two drones replanning unheard can each
+            move v_max_mps K h from where the other expects them).
         deadlock_turn_deg: with ``qp.collision_mode: bvc``, a drone whose solved plan has
             stalled short of its goal (it ends within 0.1 m of the start, the goal
             is farther than 0.5 m) turns its carrot this far [deg] to the right:

@@ -43,9 +43,9 @@ class MlrAgentConfig:
             2 x 0.1 m collision distance covers the motion between checks and
             the controller's tracking error).
         downwash: c >= 1 of Theta = diag(1, 1, c) (Eq. 2).
-        v_max: per-axis speed limit [m/s] (Eq. 13d).
-        a_max: per-axis acceleration limit [m/s^2] (Eq. 13d).
-        j_max: per-axis jerk limit [m/s^3] (Eq. 13c).
+        v_max_mps: per-axis speed limit [m/s] (Eq. 13d).
+        a_max_mps2: per-axis acceleration limit [m/s^2] (Eq. 13d).
+        j_max_mps3: per-axis jerk limit [m/s^3] (Eq. 13c).
         altitude_range_m: (lowest, highest) height of the flying box [m].
         arena_margin_m: the box's x and y extent is the arena shrunk by this
             on every side [m].
@@ -59,9 +59,9 @@ class MlrAgentConfig:
     horizon_rounds: int = _PLANNER.horizon_rounds
     d_hat_min_m: float = _PLANNER.d_hat_min_m
     downwash: float = _PLANNER.downwash
-    v_max: float = _PLANNER.v_max
-    a_max: float = _PLANNER.a_max
-    j_max: float = _PLANNER.j_max
+    v_max_mps: float = _PLANNER.v_max_mps
+    a_max_mps2: float = _PLANNER.a_max_mps2
+    j_max_mps3: float = _PLANNER.j_max_mps3
     altitude_range_m: tuple[float, float] = (0.3, 3.0)
     arena_margin_m: float = 0.3
     ignore_message_loss: bool = False
@@ -73,7 +73,7 @@ class MlrAgentConfig:
                 raise ConfigError(name, value, f"an integer >= {low}")
         if self.trigger not in get_args(TriggerKind):  # from_dict checks the Literal; this catches replace()
             raise ConfigError("trigger", self.trigger, f"allowed: {', '.join(repr(a) for a in get_args(TriggerKind))}")
-        units = {"round_s": "s", "d_hat_min_m": "m", "v_max": "m/s", "a_max": "m/s^2", "j_max": "m/s^3"}
+        units = {"round_s": "s", "d_hat_min_m": "m", "v_max_mps": "m/s", "a_max_mps2": "m/s^2", "j_max_mps3": "m/s^3"}
         for name, unit in units.items():
             require_positive(name, getattr(self, name), unit)
         require_at_least("downwash", self.downwash, 1.0)
@@ -105,7 +105,7 @@ class MlrAgentConfig:
             raise ConfigError("mlr.arena_margin_m", self.arena_margin_m, f"less than half the arena {arena_size_m} [m]")
         return MlrConfig(
             n_uavs=int(n_uavs), n_cus=self.num_compute_units, round_s=self.round_s, horizon_rounds=self.horizon_rounds,
-            d_hat_min_m=self.d_hat_min_m, downwash=self.downwash, v_max=self.v_max, a_max=self.a_max,
-            j_max=self.j_max, pos_min_world=tuple(float(v) for v in lo), pos_max_world=tuple(float(v) for v in hi),
+            d_hat_min_m=self.d_hat_min_m, downwash=self.downwash, v_max_mps=self.v_max_mps, a_max_mps2=self.a_max_mps2,
+            j_max_mps3=self.j_max_mps3, pos_min_world=tuple(float(v) for v in lo), pos_max_world=tuple(float(v) for v in hi),
             trigger=self.trigger,
         )  # fmt: skip

@@ -10,7 +10,7 @@ flight. Derived fields (target <- source):
   back-projection uncertainty includes its own localisation noise, what its
   VIO reports (MP-CDE Eq. 8);
 * each stack's ``speed_fields`` (``denied.v_max_mps`` with ``mpcde``,
-  ``auto`` or ``minco_comm``, ``dmpc.qp.v_max`` with ``dmpc`` or ``auto``;
+  ``auto`` or ``minco_comm``, ``dmpc.qp.v_max_mps`` with ``dmpc`` or ``auto``;
   :mod:`mpcde.stacks.builtin`) <- ``planner.cruise_speed_mps`` when it is
   set: the scenario's speed is each stack's speed limit;
 * ``denied.yaw.v_max_mps`` <- ``denied.v_max_mps``, ``denied.yaw.yaw_rate_max_radps``

@@ -75,7 +75,7 @@ class PlannerConfig:
             speed: the peak speed of the placeholder's and ADMM's lines, the
             speed limit of MP-CDE's optimiser (``denied.v_max_mps``, with
             ``mpcde``, ``auto`` and ``minco_comm``) and DMPC's per-axis speed limit
-            (``dmpc.qp.v_max``, with ``dmpc`` and ``auto``): each stack's
+            (``dmpc.qp.v_max_mps``, with ``dmpc`` and ``auto``): each stack's
             ``speed_fields``, derived at load time (:mod:`mpcde.config.resolve`;
             a file that also sets one of those to another value is refused).
             null (the default): each stack's own setting (lines 1 m/s, MP-CDE

@@ -32,7 +32,7 @@ the ACTUAL positions is below ``collision_distance_m`` at any time of a fine
 grid (``fine_steps_per_round`` per round), not only at round boundaries.
 With d̂_min = 0.45 m planned at T_c = 0.2 s and d_min = 0.25 m checked, the
 margin covers the motion between checks (Theorem 3: two UAVs at the per-axis
-speed limit v_max = 1 m/s approach by at most about 0.3 m (scaled) in half a
+speed limit v_max_mps = 1 m/s approach by at most about 0.3 m (scaled) in half a
 check interval; sqrt(0.45^2 - 0.3^2) = 0.34 m > 0.25 m).
 """
 

@@ -43,7 +43,7 @@ over :mod:`sim.radio`. Choices:
   estimate) to the goal at ``planner.cruise_speed_mps``, leaving at the first
   step at or after ``planner.start_delay_s``; before that the start itself,
   so the drones hover while the first steps warm the ADMM up. (Chosen over
-  the goal itself: a goal 10 m away would drive every drone at v_max from
+  the goal itself: a goal 10 m away would drive every drone at v_max_mps from
   the first step and leave the formation term to fight the tracking term.)
 * **Formation.** The goals are the formation: d_ij = goal_i - goal_j, the
   desired p_i - p_j (the planner's sign; DMPC's ``formation_offsets`` are

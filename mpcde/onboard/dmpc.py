@@ -175,9 +175,9 @@ class DmpcAgent(SampledPlanAgent):
         self.inflation_m = float(robot_radius_m) + config.obstacle_margin_m
         self.obstacle_range_m = config.obstacle_range_m
         if config.commit_when_unheard:
-            # a plan flown to its halt unrevised reaches sqrt(2) v_max K h horizontally: every obstacle it can
+            # a plan flown to its halt unrevised reaches sqrt(2) v_max_mps K h horizontally: every obstacle it can
             # reach must have its plane (the flight that showed it: docs/results/comm_safety.md)
-            self.obstacle_range_m = max(self.obstacle_range_m, float(np.sqrt(2.0) * qp.v_max * qp.horizon_s) + self.inflation_m)
+            self.obstacle_range_m = max(self.obstacle_range_m, float(np.sqrt(2.0) * qp.v_max_mps * qp.horizon_s) + self.inflation_m)
         self.counters = AgentCounters()
         self.stats = DmpcRoundStats()
         self.plan: DmpcPlan | None = None
@@ -245,7 +245,7 @@ class DmpcAgent(SampledPlanAgent):
         if self.fusion is None:
             return out
         f = self.fusion
-        fused = fuse_neighbours(out, self.perception.predictions(time_s), time_s, f.stale_after_s, f.gate_m, self.qp_config.v_max)
+        fused = fuse_neighbours(out, self.perception.predictions(time_s), time_s, f.stale_after_s, f.gate_m, self.qp_config.v_max_mps)
         self.stats.substituted_plans += fused.substituted
         self.stats.unknown_tracks += fused.unknown_tracks
         return fused.predictions

@@ -29,7 +29,7 @@ now, at the round time t:
 
 Gating and assignment cost are Euclidean in 3-D [m]. Nothing here sees ground truth.
 A track enters the DMPC QP like a plan: a constant-velocity prediction
-(MP-CDE Eq. 12) under the same r_min; the QP does not use its covariance.
+(MP-CDE Eq. 12) under the same r_min_m; the QP does not use its covariance.
 """
 
 from __future__ import annotations

@@ -136,12 +136,12 @@ BUILTIN: tuple[Stack, ...] = (
     Stack(
         "comm", _dmpc, "distributed MPC (OSQP) on the plans neighbours broadcast, known obstacles", kind="dmpc",
         uses=Uses(cameras="optional", radio=True, known_obstacles=True), section="dmpc", check=check_dmpc_round,
-        speed_fields=("dmpc.qp.v_max",), flies_formation=_dmpc_formation,
+        speed_fields=("dmpc.qp.v_max_mps",), flies_formation=_dmpc_formation,
     ),
     Stack(
         "auto", _auto, "comm, with tracks for stale plans; denied when the radio falls silent",
         uses=Uses(cameras="required", radio=True, known_obstacles=True), section="auto",
-        check=_checks(check_dmpc_round, check_flight_levels), speed_fields=("denied.v_max_mps", "dmpc.qp.v_max"),
+        check=_checks(check_dmpc_round, check_flight_levels), speed_fields=("denied.v_max_mps", "dmpc.qp.v_max_mps"),
         flies_formation=_dmpc_formation,
     ),
     Stack(

@@ -3,7 +3,7 @@
 Distances are ellipsoidal to account for downwash (DMPC-Swarm Eq. 2;
 on-demand DMPC Sec. 3.4 with the online_dmpc ellipsoid):
 
-    xi_ij = || Theta^-1 (p_i - p_j) ||_2,   Theta = diag(1, 1, c),   xi_ij >= r_min.
+    xi_ij = || Theta^-1 (p_i - p_j) ||_2,   Theta = diag(1, 1, c),   xi_ij >= r_min_m.
 
 Every constraint here is returned in one form, a half-space on the drone's own
 position at one horizon step k (k = 1..K, index k-1 in the arrays):
@@ -68,7 +68,7 @@ def first_conflict_step(
     Args:
         own_pos_world: (T, 3) own previous plan at T increasing check times [m].
         neighbours_pos_world: (M, T, 3) neighbours' plans at the same times [m].
-        threshold_m: r_min (+ margin) [m].
+        threshold_m: r_min_m (+ margin) [m].
         downwash: c of Theta = diag(1, 1, c).
     """
     if neighbours_pos_world.shape[0] == 0:
@@ -113,7 +113,7 @@ class OnDemandConstraints:
 def on_demand_constraints(
     own_pos_world: np.ndarray,
     neighbours_pos_world: np.ndarray,
-    r_min: float,
+    r_min_m: float,
     downwash: float,
     conflict_margin_m: float = 0.05,
     neighbourhood_factor: float = 3.0,
@@ -132,18 +132,18 @@ def on_demand_constraints(
 
         omega_ij   = Theta^-2 (p̄_i - p_j)               (gradient times xi)
         sigma_ij   = xi_ij = ||Theta^-1 (p̄_i - p_j)||
-        upsilon_ij = xi_ij (r_min - xi_ij) + omega_ij^T p̄_i
+        upsilon_ij = xi_ij (r_min_m - xi_ij) + omega_ij^T p̄_i
 
-    i.e. xi_ij + nu^T (p - p̄_i) >= r_min with nu = omega / xi. Because xi(p) is
+    i.e. xi_ij + nu^T (p - p̄_i) >= r_min_m with nu = omega / xi. Because xi(p) is
     convex, its linearisation is a lower bound, so meeting the plane with zero
     slack meets the true distance constraint. We return the *normalised* form
     (divide by sigma_ij > 0; better conditioned when xi is small)::
 
         a^T p_i[k_c] + s >= b,   a = nu = Theta^-2 (p̄_i - p_j) / xi,
-        b = r_min - xi + a^T p̄_i,   s = -alpha >= 0 in [m],
+        b = r_min_m - xi + a^T p̄_i,   s = -alpha >= 0 in [m],
 
     so ``sigma`` is 1. Constraints are built for every neighbour whose
-    distance at k_c is below ``neighbourhood_factor * r_min``.
+    distance at k_c is below ``neighbourhood_factor * r_min_m``.
 
     The paper checks at the horizon samples t_now + k h; the caller may pass a
     finer grid of check times (the QP does, ``conflict_substeps``), and then
@@ -152,10 +152,10 @@ def on_demand_constraints(
     Args:
         own_pos_world: (T, 3) own previous plan at T check times (e.g. t_now + k h, k = 1..K) [m].
         neighbours_pos_world: (M, T, 3) neighbours' plans at the same times [m].
-        r_min: minimum ellipsoidal distance [m].
+        r_min_m: minimum ellipsoidal distance [m].
         downwash: c of Theta = diag(1, 1, c).
-        conflict_margin_m: conflict when xi < r_min + margin [m].
-        neighbourhood_factor: constrain neighbours with xi < factor * r_min at k_c.
+        conflict_margin_m: conflict when xi < r_min_m + margin [m].
+        neighbourhood_factor: constrain neighbours with xi < factor * r_min_m at k_c.
         own_now_world: (3,) current own position, used for the plane direction
             when the predicted positions coincide (optional).
         neighbours_now_world: (M, 3) neighbours' current positions (same use).
@@ -172,13 +172,13 @@ def on_demand_constraints(
     empty = OnDemandConstraints(
         -1, np.zeros(0, int), np.zeros(0, int), np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0)
     )
-    threshold = r_min + conflict_margin_m
+    threshold = r_min_m + conflict_margin_m
     k_c = first_conflict_step(own_pos_world, neighbours_pos_world, threshold, downwash)
     if k_c < 0:
         return empty
     theta_inv = np.array([1.0, 1.0, 1.0 / downwash])
     dist = ellipsoidal_distance(own_pos_world[None] - neighbours_pos_world, downwash)  # (M, T)
-    close = np.flatnonzero(dist[:, k_c] < neighbourhood_factor * r_min)
+    close = np.flatnonzero(dist[:, k_c] < neighbourhood_factor * r_min_m)
     time_index = np.full(close.size, k_c)
     if linearise_at == "closest_approach":
         tail = dist[close, k_c:]  # (n, T - k_c)
@@ -195,7 +195,7 @@ def on_demand_constraints(
     fallback = _fallback_direction(close, own_now_world, neighbours_now_world) * theta_inv
     unit_scaled, _ = _safe_directions(delta * theta_inv, fallback)  # Theta^-1 (p̄_i - p_j) / xi
     normal = unit_scaled * theta_inv  # nu = Theta^-2 (p̄_i - p_j) / xi
-    offset = r_min - xi + np.einsum("nd,nd->n", normal, own_c)  # b = r_min - xi + nu^T p̄_i
+    offset = r_min_m - xi + np.einsum("nd,nd->n", normal, own_c)  # b = r_min_m - xi + nu^T p̄_i
     return OnDemandConstraints(k_c, close, time_index, normal, offset, np.ones(close.size), xi)
 
 
@@ -227,7 +227,7 @@ class BvcPlanes:
 def bvc_planes(
     own_pos_world: np.ndarray,
     neighbours_pos_world: np.ndarray,
-    r_min: float,
+    r_min_m: float,
     downwash: float,
     own_now_world: np.ndarray | None = None,
     neighbours_now_world: np.ndarray | None = None,
@@ -237,18 +237,18 @@ def bvc_planes(
     With p̄_i, p_j the previous plans at the same time (the round's shift taken)::
 
         n_ij   = Theta^-1 [p_j - p̄_i]                                  (Eq. 14)
-        n0_ij^T Theta^-1 [p_j - p_i[k]] >= (r_min + ||n_ij||) / 2       (Eq. 15, j recomputed)
+        n0_ij^T Theta^-1 [p_j - p_i[k]] >= (r_min_m + ||n_ij||) / 2       (Eq. 15, j recomputed)
 
     n0 = n / ||n||. The plane lies midway between the two previous positions in
-    the Theta-scaled space and is pushed r_min / 2 towards each drone, so if
-    both drones keep to their cells their new plans are r_min apart. The shifted
-    previous plan meets its own plane whenever ||n_ij|| >= r_min. Rewritten on
-    the free side: a = -Theta^-1 n0, b = (r_min + ||n||)/2 - n0^T Theta^-1 p_j.
+    the Theta-scaled space and is pushed r_min_m / 2 towards each drone, so if
+    both drones keep to their cells their new plans are r_min_m apart. The shifted
+    previous plan meets its own plane whenever ||n_ij|| >= r_min_m. Rewritten on
+    the free side: a = -Theta^-1 n0, b = (r_min_m + ||n||)/2 - n0^T Theta^-1 p_j.
 
     Args:
         own_pos_world: (K, 3) own previous plan at t_now + k h, k = 1..K [m].
         neighbours_pos_world: (M, K, 3) neighbours' plans at the same times [m].
-        r_min: minimum ellipsoidal distance [m].
+        r_min_m: minimum ellipsoidal distance [m].
         downwash: c of Theta = diag(1, 1, c).
         own_now_world: (3,) current own position (direction fallback, optional).
         neighbours_now_world: (M, 3) neighbours' current positions (optional).
@@ -262,6 +262,6 @@ def bvc_planes(
     n0, _ = _safe_directions(n, fallback)
     norm = np.linalg.norm(n, axis=-1)  # ||n_ij|| (0 where the plans coincide)
     normal = -n0 * theta_inv  # a = -Theta^-1 n0
-    # b = (r_min + ||n||) / 2 - n0^T Theta^-1 p_j   (Eq. 15)
-    offset = 0.5 * (r_min + norm) - np.einsum("mkd,mkd->mk", n0 * theta_inv, neighbours_pos_world)
+    # b = (r_min_m + ||n||) / 2 - n0^T Theta^-1 p_j   (Eq. 15)
+    offset = 0.5 * (r_min_m + norm) - np.einsum("mkd,mkd->mk", n0 * theta_inv, neighbours_pos_world)
     return BvcPlanes(normal, offset)

@@ -1,11 +1,11 @@
 """Configuration of the per-drone DMPC QP (:class:`DmpcConfig`).
 
 Defaults come from the on-demand DMPC paper (``papers/on-demand-dmpc-formation.txt``,
-Sec. 4: K = 15, h = 0.2 s, a_max = 4 m/s^2, r_min = 0.2 m in simulation and
+Sec. 4: K = 15, h = 0.2 s, a_max_mps2 = 4 m/s^2, r_min_m = 0.2 m in simulation and
 0.4 m in flight), from the reference implementation of on-demand DMPC by Luis,
 Vukosavljev and Schoellig (``online_dmpc``: goal weight 100 over the last 3
 steps, linear slack penalty 5e4, quadratic 1, conflict margin 0.05 m,
-neighbourhood 3 r_min, downwash ellipsoid c = 2) and from DMPC-Swarm Eq. 2
+neighbourhood 3 r_min_m, downwash ellipsoid c = 2) and from DMPC-Swarm Eq. 2
 (the downwash scaling matrix Theta). Values without a source are marked
 "chosen" and say why.
 """
@@ -63,11 +63,11 @@ class DmpcConfig:
         pos_min_world: (3,) lower corner of the position box in world [m]
             (chosen: a 40 m x 40 m arena, 0.2 m above the ground).
         pos_max_world: (3,) upper corner of the position box in world [m].
-        v_max: per-axis speed limit in [m/s] (chosen: 2.0 m/s; the paper
+        v_max_mps: per-axis speed limit in [m/s] (chosen: 2.0 m/s; the paper
             reports mean speeds below 1 m/s).
-        a_max: per-axis acceleration limit in [m/s^2] (on-demand DMPC Sec. 4: 4).
-        j_max: per-axis jerk limit in [m/s^3], triple integrator only (chosen: 20).
-        r_min: minimum ellipsoidal inter-drone distance in [m] (on-demand DMPC
+        a_max_mps2: per-axis acceleration limit in [m/s^2] (on-demand DMPC Sec. 4: 4).
+        j_max_mps3: per-axis jerk limit in [m/s^3], triple integrator only (chosen: 20).
+        r_min_m: minimum ellipsoidal inter-drone distance in [m] (on-demand DMPC
             Sec. 5 flight: 0.4 m).
         downwash: c >= 1, vertical stretch of the collision ellipsoid,
             Theta = diag(1, 1, c) (DMPC-Swarm Eq. 2; online_dmpc ``c_a = 2``);
@@ -77,10 +77,10 @@ class DmpcConfig:
             Sec. 3.4) or ``"bvc"`` (hard time-varying buffered Voronoi planes at
             every step against every neighbour; DMPC-Swarm Eq. 14-15).
         neighbourhood_factor: on-demand constraints are built only for
-            neighbours closer than ``neighbourhood_factor * r_min`` at the
+            neighbours closer than ``neighbourhood_factor * r_min_m`` at the
             conflict step (on-demand DMPC Sec. 3.4 and online_dmpc: 3).
         conflict_margin_m: a conflict is predicted when the distance is below
-            ``r_min + conflict_margin_m`` in [m] (online_dmpc ``check_horizon``: 0.05).
+            ``r_min_m + conflict_margin_m`` in [m] (online_dmpc ``check_horizon``: 0.05).
         on_demand_time: where each on-demand plane constrains the plan:
             ``"first_conflict"`` (the paper: all at the first conflict k_c) or
             ``"closest_approach"`` (chosen default: at the deepest point of each
@@ -90,8 +90,8 @@ class DmpcConfig:
             times per step and the on-demand plane constrains the position at the
             first conflicting time (exact: within a step the position is affine in
             U too). S = 1 is the paper's sample-only check. Chosen: 4, because two
-            drones at v_max = 2 m/s head-on move 0.8 m relative per step of
-            0.2 s, more than 2 r_min, so a sample-only check lets them pass
+            drones at v_max_mps = 2 m/s head-on move 0.8 m relative per step of
+            0.2 s, more than 2 r_min_m, so a sample-only check lets them pass
             through each other between samples ("tunnelling"; observed in the
             8-drone swap with S = 1).
         max_neighbours: number of neighbour slots in the QP (fixed sparsity);
@@ -150,10 +150,10 @@ class DmpcConfig:
     slack_max_m: float = 10.0
     pos_min_world: tuple[float, float, float] = (-20.0, -20.0, 0.2)
     pos_max_world: tuple[float, float, float] = (20.0, 20.0, 10.0)
-    v_max: float = 2.0
-    a_max: float = 4.0
-    j_max: float = 20.0
-    r_min: float = 0.4
+    v_max_mps: float = 2.0
+    a_max_mps2: float = 4.0
+    j_max_mps3: float = 20.0
+    r_min_m: float = 0.4
     downwash: float = 2.0
     collision_mode: str = "on_demand"
     neighbourhood_factor: float = 3.0
@@ -186,7 +186,7 @@ class DmpcConfig:
         require_positive("weight_slack_quadratic", self.weight_slack_quadratic)
         require_positive("slack_max_m", self.slack_max_m)
         require_box("pos_min_world", self.pos_min_world, "pos_max_world", self.pos_max_world)
-        for name in ("v_max", "a_max", "j_max", "r_min", "neighbourhood_factor"):
+        for name in ("v_max_mps", "a_max_mps2", "j_max_mps3", "r_min_m", "neighbourhood_factor"):
             require_positive(name, getattr(self, name))
         require_at_least("downwash", self.downwash, 1.0)
         if self.collision_mode not in _COLLISION_MODES:

@@ -9,7 +9,7 @@ P = A0_p x0 + Lambda_p U (on-demand DMPC Eq. 10, :mod:`planners.dmpc.model`)::
        + sum_{j in F} sum_{k=1}^{K} q_f ||p[k] - (p_j[k] - d_ij)||^2          (F_f, formation)
        + sum_{k=0}^{K-1} q_Theta ||u[k] - u[k-1]||^2                          (F_Theta, smoothness)
        + sum_m zeta s_m^2 + xi s_m                                            (F_v, slack)
-    s.t. p_min <= p[k] <= p_max,  |v[k]| <= v_max,  |a| <= a_max  (|j| <= j_max)   (box, per axis)
+    s.t. p_min <= p[k] <= p_max,  |v[k]| <= v_max_mps,  |a| <= a_max_mps2  (|j| <= j_max_mps3)   (box, per axis)
          on demand: a_m^T p(t_c) + s_m >= b_m,  0 <= s_m <= s_max                  (Sec. 3.4)
          bvc:       a_mk^T p[k] >= b_mk  for every neighbour m and step k            (Eq. 15)
          obstacles: n_ok^T p[k] >= c_ok  every step, or on demand only at the        (half-spaces,
@@ -254,10 +254,10 @@ class DmpcProblem:
         u[rp] = (np.asarray(cfg.pos_max_world)[None] - free_pos).ravel()
         rv = slice(self._rows.vel, self._rows.vel + 3 * K)
         free_vel = mats.A0_vel @ x0
-        l[rv], u[rv] = -cfg.v_max - free_vel, cfg.v_max - free_vel
+        l[rv], u[rv] = -cfg.v_max_mps - free_vel, cfg.v_max_mps - free_vel
         ra = slice(self._rows.acc, self._rows.acc + 3 * K)
         free_acc = mats.A0_acc @ x0
-        l[ra], u[ra] = -cfg.a_max - free_acc, cfg.a_max - free_acc
+        l[ra], u[ra] = -cfg.a_max_mps2 - free_acc, cfg.a_max_mps2 - free_acc
         if cfg.terminal_halt:  # v[K] = 0 (a[K] = 0): DMPC-Swarm Eq. 13e
             last = slice(self._rows.vel + 3 * K - 3, self._rows.vel + 3 * K)
             l[last] = u[last] = -free_vel[-3:]
@@ -266,7 +266,7 @@ class DmpcProblem:
                 l[last] = u[last] = -free_acc[-3:]
         if cfg.model == "triple":
             rj = slice(self._rows.jerk, self._rows.jerk + 3 * K)
-            l[rj], u[rj] = -cfg.j_max, cfg.j_max
+            l[rj], u[rj] = -cfg.j_max_mps3, cfg.j_max_mps3
 
         # Collision rows.
         slack_cols = np.arange(self._n_slack)
@@ -275,7 +275,7 @@ class DmpcProblem:
         l[rc], u[rc] = -_INF, _INF
         if cfg.collision_mode == "on_demand":
             cons = on_demand_constraints(
-                own_prev_fine, nb_fine, cfg.r_min, cfg.downwash, cfg.conflict_margin_m,
+                own_prev_fine, nb_fine, cfg.r_min_m, cfg.downwash, cfg.conflict_margin_m,
                 cfg.neighbourhood_factor, x0[:3], nb_now, cfg.on_demand_time,
             )  # fmt: skip
             keep = np.argsort(cons.distance_m)[:M]  # nearest first if more than the slots
@@ -304,7 +304,7 @@ class DmpcProblem:
             chosen = self._nearest(own_prev, nb_pos, M)
             coef = np.zeros((M, K, 3 * K))
             if chosen.size:
-                planes = bvc_planes(own_prev, nb_pos[chosen], cfg.r_min, cfg.downwash, x0[:3], nb_now[chosen])
+                planes = bvc_planes(own_prev, nb_pos[chosen], cfg.r_min_m, cfg.downwash, x0[:3], nb_now[chosen])
                 m = chosen.size
                 coef[:m] = np.einsum("mkd,kdc->mkc", planes.normal, self._Lambda_pos_blocks)
                 rhs = planes.offset - np.einsum("mkd,kd->mk", planes.normal, free_pos)  # b - a^T A0 x0, Eq. 15

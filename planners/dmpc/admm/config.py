@@ -72,8 +72,8 @@ class AdmmFormationConfig:
         pos_min_world: (3,) lower corner of the soft position box [m]
             (chosen: our DMPC's 40 m x 40 m arena, 0.2 m above the ground).
         pos_max_world: (3,) upper corner of the soft position box [m].
-        v_max: per-axis soft speed limit |v| <= v_max + s in [m/s] (our DMPC: 2).
-        a_max: per-axis hard input limit |u| <= a_max in [m/s^2] (our DMPC and
+        v_max_mps: per-axis soft speed limit |v| <= v_max_mps + s in [m/s] (our DMPC: 2).
+        a_max_mps2: per-axis hard input limit |u| <= a_max_mps2 in [m/s^2] (our DMPC and
             on-demand DMPC Sec. 4: 4).
         rho: ADMM penalty parameter rho (Eq. 4a, 4c), in the cost's units per
             squared decision variable (paper Sec. 5.1: 1, tuned in
@@ -120,8 +120,8 @@ class AdmmFormationConfig:
     weight_slack: float = 1.0e4
     pos_min_world: tuple[float, float, float] = (-20.0, -20.0, 0.2)
     pos_max_world: tuple[float, float, float] = (20.0, 20.0, 10.0)
-    v_max: float = 2.0
-    a_max: float = 4.0
+    v_max_mps: float = 2.0
+    a_max_mps2: float = 4.0
     rho: float = 1.0
     l_max: int = 5
     delay_compensation: bool = True
@@ -142,8 +142,8 @@ class AdmmFormationConfig:
         require_positive("weight_input", self.weight_input)
         require_positive("weight_slack", self.weight_slack)
         require_box("pos_min_world", self.pos_min_world, "pos_max_world", self.pos_max_world)
-        require_positive("v_max", self.v_max)
-        require_positive("a_max", self.a_max)
+        require_positive("v_max_mps", self.v_max_mps)
+        require_positive("a_max_mps2", self.a_max_mps2)
         require_positive("rho", self.rho)
         require_integer_at_least("l_max", self.l_max, 1)
         require_boolean("delay_compensation", self.delay_compensation)

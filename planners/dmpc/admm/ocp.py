@@ -30,15 +30,15 @@ are constants and left out).
 Local constraints Z_i (Eq. 2b-2c), rows of A_i z_i in [l_i, u_i]:
 
     x[k+1] - A x[k] - B u[k] = 0,  x[0] = (p0, v0) -> bounds of step 0     (1b, 1c)   6K rows
-    -a_max <= u[k] <= a_max   (hard; u[0] = u(t) with Remark 1)             (1e)       3K rows
+    -a_max_mps2 <= u[k] <= a_max_mps2   (hard; u[0] = u(t) with Remark 1)             (1e)       3K rows
     p[k] + s >= p_min,  p[k] - s <= p_max                                    (1d, soft) 6K rows
-    v[k] + s >= -v_max, v[k] - s <= v_max                                    (1d, soft) 6K rows
+    v[k] + s >= -v_max_mps, v[k] - s <= v_max_mps                                    (1d, soft) 6K rows
     s >= 0                                                                   (Remark 2)    1 row
 
 With Remark 1 (u[0] fixed to u(t)) the state x[1] = A x0 + B u(t) is data, not
 a decision, so the soft rows of k = 1 are left free (bounds -inf..inf, in
 every step: their type never changes). Kept, they would do two harmful things:
-a violation at k = 1 (e.g. the drone is already faster than v_max) would force
+a violation at k = 1 (e.g. the drone is already faster than v_max_mps) would force
 the ONE slack up and so relax every other state constraint of the horizon by
 as much, for free; and OSQP needed thousands of iterations for such a QP
 (measured: docs/results/admm_formation.md).
@@ -184,12 +184,12 @@ def own_bounds(
     lo[: 6 * K] = hi[: 6 * K] = 0.0
     lo[:6] = hi[:6] = A @ x0  # x[1] - B u[0] = A x0   (1c)
     r = 6 * K
-    lo[r : r + 3 * K], hi[r : r + 3 * K] = -config.a_max, config.a_max
+    lo[r : r + 3 * K], hi[r : r + 3 * K] = -config.a_max_mps2, config.a_max_mps2
     if input_now_world is not None:
         lo[r : r + 3] = hi[r : r + 3] = np.asarray(input_now_world, float).reshape(3)  # u[0] = u(t)
     r += 3 * K
     p_min, p_max = np.tile(config.pos_min_world, K), np.tile(config.pos_max_world, K)
-    for low, high in ((p_min, _INF), (-_INF, p_max), (-config.v_max, _INF), (-_INF, config.v_max)):
+    for low, high in ((p_min, _INF), (-_INF, p_max), (-config.v_max_mps, _INF), (-_INF, config.v_max_mps)):
         lo[r : r + 3 * K], hi[r : r + 3 * K] = low, high
         if input_now_world is not None:  # x[1] is data with u[0] fixed: its soft rows are left free
             lo[r : r + 3], hi[r : r + 3] = -_INF, _INF

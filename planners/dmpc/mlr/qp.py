@@ -7,8 +7,8 @@ D_i(k) (Eq. 13b). With the triple integrator stacked over the input steps,
 x_{kappa+1} = A x_kappa + B u_kappa (:mod:`planners.dmpc.model`)::
 
     min  sum_{kappa=1}^{h_s} ||x(kappa T_s) - x_target||_Q^2 + sum_{kappa=0}^{h_s-1} ||u_kappa||_R^2   (13a)
-    s.t. |u_kappa| <= j_max                                        (13c, per axis)
-         p_min <= p(kappa T_s) <= p_max, |v|, |a| <= v_max, a_max    (13d, T_b = T_s, per axis)
+    s.t. |u_kappa| <= j_max_mps3                                        (13c, per axis)
+         p_min <= p(kappa T_s) <= p_max, |v|, |a| <= v_max_mps, a_max_mps2    (13d, T_b = T_s, per axis)
          v(H T) = 0, a(H T) = 0                                     (13e, terminal halt)
          for every other UAV j, every candidate p̃_j in D_j(k), h = 1..h_c, t_h = t_0 + h T_c:
          n0^T Theta^-1 [p̃_j(t_h) - p_i(t_h)] >= (d̂ + ||n||)/2  if j in A_ET(k), else d̂   (13f, 15)
@@ -299,14 +299,14 @@ class MlrProblem:
         l, u = self._l, self._u
         l[:9] = u[:9] = self._A1 @ x0  # x_1 - B u_0 = A x_0 (13b); other dynamics rows stay 0
         l[9:self._row_state] = u[9:self._row_state] = 0.0
-        lo = np.r_[np.asarray(cfg.pos_min_world), np.full(3, -cfg.v_max), np.full(3, -cfg.a_max)]
-        hi = np.r_[np.asarray(cfg.pos_max_world), np.full(3, cfg.v_max), np.full(3, cfg.a_max)]
+        lo = np.r_[np.asarray(cfg.pos_min_world), np.full(3, -cfg.v_max_mps), np.full(3, -cfg.a_max_mps2)]
+        hi = np.r_[np.asarray(cfg.pos_max_world), np.full(3, cfg.v_max_mps), np.full(3, cfg.a_max_mps2)]
         rs = slice(self._row_state, self._row_jerk)
         l[rs], u[rs] = np.tile(lo, hs), np.tile(hi, hs)  # 13d (T_b = T_s)
         last = self._row_jerk - 6  # v, a of the last state: 13e, f̂(x(HT + T), 0) = 0
         l[last:self._row_jerk] = u[last:self._row_jerk] = 0.0
         rj = slice(self._row_jerk, self._row_bvc)
-        l[rj], u[rj] = -cfg.j_max, cfg.j_max  # 13c
+        l[rj], u[rj] = -cfg.j_max_mps3, cfg.j_max_mps3  # 13c
         rb = slice(self._row_bvc, self._row_bvc + self._max_rows_bvc)
         l[rb], u[rb] = -_INF, _INF
         n_slots = self._max_rows_bvc // hc

@@ -47,7 +47,7 @@ def test_every_derived_field_equals_its_source_after_loading(tmp_path):
         ("perception:\n  backprojection:\n    pose_pos_std_m: 0.3\n", "perception.backprojection.pose_pos_std_m", "pose_estimate.pos_noise_m"),
         ("denied:\n  yaw:\n    fov_h_deg: 90\n", "denied.yaw.fov_h_deg", "camera.hfov_deg"),
         ("planner:\n  kind: mpcde\n  cruise_speed_mps: 2.0\ndenied:\n  v_max_mps: 1.0\n", "denied.v_max_mps", "planner.cruise_speed_mps"),
-        ("planner:\n  kind: dmpc\n  cruise_speed_mps: 0.5\ndmpc:\n  qp:\n    v_max: 2.0\n", "dmpc.qp.v_max", "planner.cruise_speed_mps"),
+        ("planner:\n  kind: dmpc\n  cruise_speed_mps: 0.5\ndmpc:\n  qp:\n    v_max_mps: 2.0\n", "dmpc.qp.v_max_mps", "planner.cruise_speed_mps"),
         ("planner:\n  kind: admm\nradio:\n  rate_hz: 5.0\nworld:\n  obstacle_density_per_100m2: 0\n"
          "drones:\n  starts: [[0, 0, 1.5], [1, 0, 1.5]]\n  goals: [[3, 0, 1.5], [4, 0, 1.5]]\n", "radio.rate_hz", "2 admm.l_max"),
     ],
@@ -64,12 +64,12 @@ def test_the_cruise_speed_is_every_stack_s_speed(kind):
     the lines' peak speed); unset, each keeps its own default."""
     default = mpcde.load_scenario("forest_swarm", mode={"min_jerk_line": "placeholder", "mpcde": "denied", "dmpc": "comm", "auto": "auto"}[kind])
     assert default.planner.cruise_speed_mps is None and default.planner.line_speed_mps == 1.0
-    assert (default.denied.v_max_mps, default.dmpc.qp.v_max) == (1.0, 2.0)
+    assert (default.denied.v_max_mps, default.dmpc.qp.v_max_mps) == (1.0, 2.0)
     cfg = load_scenario("forest_swarm", {"planner": {"kind": kind, "cruise_speed_mps": 0.5}})
     assert cfg.planner.line_speed_mps == 0.5
     assert cfg.denied.v_max_mps == (0.5 if kind in ("mpcde", "auto") else 1.0)
     assert cfg.denied.yaw.v_max_mps == cfg.denied.v_max_mps
-    assert cfg.dmpc.qp.v_max == (0.5 if kind in ("dmpc", "auto") else 2.0)
+    assert cfg.dmpc.qp.v_max_mps == (0.5 if kind in ("dmpc", "auto") else 2.0)
 
 
 def test_mlr_refuses_a_cruise_speed():

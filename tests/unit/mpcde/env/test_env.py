@@ -137,7 +137,7 @@ def test_the_defaults_follow_cameras_false_instead_of_refusing_it():
 
 
 def test_bad_environment_arguments_are_refused_before_a_world_is_built():
-    with pytest.raises(ConfigError, match=r"^env\.neighbours='mlr': one of placeholder, denied, comm, auto, minco_comm$"):
+    with pytest.raises(ConfigError, match=r"^env\.neighbours='mlr': one of placeholder, denied, mpcde_paper, comm, auto, minco_comm$"):
         SingleDroneEnv("crossing", neighbours="mlr")
     with pytest.raises(ConfigError, match=r"^env\.learners=\[5\]: distinct drone indices in \[0, 1\]$"):
         SingleDroneEnv("crossing", neighbours="placeholder", learner=5, cameras=False, observe=("pose",))

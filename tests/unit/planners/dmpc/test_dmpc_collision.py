@@ -43,14 +43,14 @@ def test_a_neighbour_dead_ahead_yields_a_plane_that_separates_the_two(rule: str,
     k = cons.time_index[0]
     a, b = cons.normal[0], cons.offset[0]
     p_j = other[k]
-    # The neighbour's predicted position is strictly on the other side, by at least r_min.
+    # The neighbour's predicted position is strictly on the other side, by at least r_min_m.
     assert a @ p_j <= b - R_MIN + 1e-12
-    # Every point on the free side is at least r_min away (the linearisation is a lower bound).
+    # Every point on the free side is at least r_min_m away (the linearisation is a lower bound).
     pts = p_j + rng.uniform(-2, 2, size=(20000, 3))
     free = pts @ a >= b
     assert free.sum() > 1000
     assert ellipsoidal_distance(pts[free] - p_j, C).min() >= R_MIN - 1e-12
-    # The plane passes at distance r_min from p_j along its normal (tight).
+    # The plane passes at distance r_min_m from p_j along its normal (tight).
     foot = p_j + (b - a @ p_j) * a / (a @ a)
     assert ellipsoidal_distance(foot - p_j, C) <= R_MIN + 1e-9 + np.linalg.norm(foot - p_j) * (1 - 1 / C)
 
@@ -69,7 +69,7 @@ def test_only_neighbours_within_the_neighbourhood_are_constrained() -> None:
     own = _line([0, 0, 1.5], [1.0, 0, 0])
     conflicting = _line([3, 0.1, 1.5], [-1.0, 0, 0])
     far = _line([0, 3, 1.5], [0.0, 0, 0])  # never near
-    near = _line([1.5, 0.9, 1.5], [0.0, 0, 0])  # 0.9 m from the conflict point < 3 r_min = 1.2 m
+    near = _line([1.5, 0.9, 1.5], [0.0, 0, 0])  # 0.9 m from the conflict point < 3 r_min_m = 1.2 m
     cons = on_demand_constraints(own, np.stack([conflicting, far, near]), R_MIN, C, 0.05, 3.0)
     assert set(cons.neighbour_index.tolist()) == {0, 2}
     none = on_demand_constraints(own, far[None], R_MIN, C, 0.05, 3.0)
@@ -101,10 +101,10 @@ def test_bvc_planes_separate_both_drones_by_r_min(rng: np.random.Generator) -> N
             p_j = others[m, k] + rng.uniform(-3, 3, size=(4000, 3))
             p_i, p_j = p_i[p_i @ a_i >= b_i], p_j[p_j @ a_j >= b_j]
             n = min(len(p_i), len(p_j))
-            if n:  # any two points in the two cells are r_min apart (Eq. 15 sums to r_min)
+            if n:  # any two points in the two cells are r_min_m apart (Eq. 15 sums to r_min_m)
                 assert ellipsoidal_distance(p_i[:n] - p_j[:n], C).min() >= R_MIN - 1e-9
             gap = ellipsoidal_distance(own[k] - others[m, k], C)
-            # the previous own position is inside its cell iff the previous plans were r_min apart
+            # the previous own position is inside its cell iff the previous plans were r_min_m apart
             assert (own[k] @ a_i >= b_i - 1e-12) == (gap >= R_MIN - 1e-12)
 
 
@@ -113,5 +113,5 @@ def test_bvc_plane_is_midway_between_the_previous_positions_in_scaled_space() ->
     other = np.array([[[2.0, 0.0, 1.0]]])
     planes = bvc_planes(own, other, R_MIN, C)
     np.testing.assert_allclose(planes.normal[0, 0], [-1, 0, 0], atol=1e-12)
-    # -x >= (r_min + 2)/2 - 2  ->  x <= 1 - r_min/2
+    # -x >= (r_min_m + 2)/2 - 2  ->  x <= 1 - r_min_m/2
     np.testing.assert_allclose(-planes.offset[0, 0], 1.0 - R_MIN / 2)

@@ -61,26 +61,26 @@ def test_solution_satisfies_its_constraints_and_the_kkt_conditions(case: str) ->
     np.testing.assert_allclose(result.vel_world, states[1:, 3:6], atol=1e-9)
     # Box limits.
     tol = 1e-6
-    assert np.all(np.abs(result.vel_world) <= cfg.v_max + tol)
-    assert np.all(np.abs(result.acc_world) <= cfg.a_max + tol)
+    assert np.all(np.abs(result.vel_world) <= cfg.v_max_mps + tol)
+    assert np.all(np.abs(result.acc_world) <= cfg.a_max_mps2 + tol)
     assert np.all(result.pos_world >= np.asarray(cfg.pos_min_world) - tol)
     if cfg.model == "triple":
-        assert np.all(np.abs(result.inputs) <= cfg.j_max + tol)
+        assert np.all(np.abs(result.inputs) <= cfg.j_max_mps3 + tol)
     if cfg.terminal_halt:
         np.testing.assert_allclose(result.vel_world[-1], 0.0, atol=1e-6)
     if "obstacles" in kwargs:
         assert np.all(result.pos_world[:, 1] >= -0.3 - tol)
     if cfg.collision_mode == "bvc":
-        # Previous plans 2 m apart: the midway plane keeps every sample >= (r_min + 2) / 2 away.
+        # Previous plans 2 m apart: the midway plane keeps every sample >= (r_min_m + 2) / 2 away.
         d = ellipsoidal_distance(result.pos_world - np.array([2.0, 0.05, 1.5]), cfg.downwash)
-        assert d.min() >= (cfg.r_min + 2.0) / 2 - 1e-6
+        assert d.min() >= (cfg.r_min_m + 2.0) / 2 - 1e-6
     else:
         # Re-derive the on-demand plane independently and check the plan meets it (with its slack).
         S, K, h = cfg.conflict_substeps, cfg.horizon_steps, cfg.step_s
         t_fine = (h / S) * np.arange(1, K * S + 1)
         own_guess = x0[:3] + x0[3:6] * t_fine[:, None]
         nb = np.stack([n.position(t_fine) for n in neighbours])
-        cons = on_demand_constraints(own_guess, nb, cfg.r_min, cfg.downwash, cfg.conflict_margin_m, 3.0,
+        cons = on_demand_constraints(own_guess, nb, cfg.r_min_m, cfg.downwash, cfg.conflict_margin_m, 3.0,
                                      linearise_at=cfg.on_demand_time)  # fmt: skip
         assert cons.count == result.n_collision_constraints
         p = result.plan.position(t_fine[cons.time_index])
@@ -220,9 +220,9 @@ INVALID = [
     ("weight_slack_quadratic", 0.0),
     ("pos_min_world", (0.0, 0.0)),
     ("pos_max_world", (-30.0, 0.0, 1.0)),
-    ("v_max", 0.0),
-    ("a_max", -4.0),
-    ("r_min", 0.0),
+    ("v_max_mps", 0.0),
+    ("a_max_mps2", -4.0),
+    ("r_min_m", 0.0),
     ("downwash", 0.5),
     ("collision_mode", "voronoi"),
     ("neighbourhood_factor", 0.5),
@@ -248,10 +248,10 @@ def test_invalid_parameters_are_rejected_with_a_one_line_message(field: str, val
 
 def test_defaults_follow_the_paper() -> None:
     cfg = DmpcConfig()
-    assert (cfg.horizon_steps, cfg.step_s, cfg.a_max, cfg.neighbourhood_factor) == (15, 0.2, 4.0, 3.0)
+    assert (cfg.horizon_steps, cfg.step_s, cfg.a_max_mps2, cfg.neighbourhood_factor) == (15, 0.2, 4.0, 3.0)
     assert dataclasses.is_dataclass(cfg) and cfg.state_dim == 6 and cfg.horizon_s == pytest.approx(3.0)
     with pytest.raises(dataclasses.FrozenInstanceError):
-        cfg.r_min = 1.0  # type: ignore[misc]
+        cfg.r_min_m = 1.0  # type: ignore[misc]
 
 
 def test_more_neighbours_than_slots_keeps_the_nearest() -> None:

@@ -11,13 +11,13 @@ Distances are ellipsoidal (the constraints' metric). Two figures are checked:
 * at the round times t_now (every h), where both methods place constraints
   (BVC on every sample, DMPC-Swarm Theorem 1 with an ideal exchange; on demand
   one soft plane per close neighbour at its closest approach, checked every
-  h/4): >= r_min - 0.05 m. The 5 cm (12.5 % of r_min) cover the soft on-demand
+  h/4): >= r_min_m - 0.05 m. The 5 cm (12.5 % of r_min_m) cover the soft on-demand
   plane (its slack is priced, not forbidden) and its linearisation about a
-  neighbour that also moves; BVC meets r_min to OSQP's tolerance (checked
+  neighbour that also moves; BVC meets r_min_m to OSQP's tolerance (checked
   separately at 1 mm).
 * continuously (every h/20): no collision, i.e. >= 2 robot radii = 0.2 m
   (``sim.vehicle.params`` robot_radius_m = 0.10 m, DESIGN.md metrics).
-  Neither method constrains between its instants: at 2 v_max = 4 m/s two
+  Neither method constrains between its instants: at 2 v_max_mps = 4 m/s two
   drones move 0.8 m relative in one step of 0.2 s, so a step can cut a corner.
 
 Measured over seeds 0-4 (ideal exchange), at round times / continuous:
@@ -108,13 +108,13 @@ def test_eight_drone_swap_with_ideal_exchange_finishes_without_collision(mode: s
     outcome = run_antipodal_swap(mode)
     record_property("min_distance_m", outcome.min_distance_m)
     assert outcome.completed, outcome
-    r_min = DmpcConfig().r_min
-    assert outcome.min_sample_distance_m >= r_min - MIN_DISTANCE_TOLERANCE_M, outcome
+    r_min_m = DmpcConfig().r_min_m
+    assert outcome.min_sample_distance_m >= r_min_m - MIN_DISTANCE_TOLERANCE_M, outcome
     assert outcome.min_distance_m >= COLLISION_DISTANCE_M, outcome
     assert outcome.fallbacks <= 0.01 * outcome.solves, outcome
     if mode == "bvc" and outcome.fallbacks == 0:
-        # DMPC-Swarm Theorem 1: with ideal exchange the samples keep r_min (to OSQP's tolerance).
-        assert outcome.min_sample_distance_m >= r_min - 1e-3, outcome
+        # DMPC-Swarm Theorem 1: with ideal exchange the samples keep r_min_m (to OSQP's tolerance).
+        assert outcome.min_sample_distance_m >= r_min_m - 1e-3, outcome
 
 
 @pytest.mark.parametrize("mode", ["on_demand", "bvc"])
@@ -129,5 +129,5 @@ def test_eight_drone_swap_with_twenty_percent_message_loss_still_finishes(mode: 
 def test_triple_integrator_swap_of_four_drones_finishes_without_collision() -> None:
     outcome = run_antipodal_swap("on_demand", n_drones=4, model="triple")
     assert outcome.completed, outcome
-    assert outcome.min_sample_distance_m >= DmpcConfig().r_min - MIN_DISTANCE_TOLERANCE_M, outcome
+    assert outcome.min_sample_distance_m >= DmpcConfig().r_min_m - MIN_DISTANCE_TOLERANCE_M, outcome
     assert outcome.min_distance_m >= COLLISION_DISTANCE_M, outcome
