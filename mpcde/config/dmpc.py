@@ -70,7 +70,11 @@ class DmpcAgentConfig:
             of the robot radius (chosen: 0.25 m, a few times the controller's
             tracking error at 2 m/s).
         obstacle_range_m: obstacles whose footprint comes closer than this [m]
-            to the previous plan get a plane (chosen: 3.0 m).
+            to the previous plan get a plane (chosen: 3.0 m). With
+            ``commit_when_unheard`` it is derived at load time
+            (:mod:`mpcde.config.resolve`): max(3.0, sqrt(2) v_max_mps K h + the
+            inflation), every obstacle a plan flown to its halt unrevised can
+            reach; a file that sets another value is refused.
         goal_lookahead_m: the QP's goal is the point this far [m] along the
             line to the real goal when the goal is farther (a carrot; 0 =
             always the real goal, the paper's form). Chosen: 4.0 m, two
@@ -99,9 +103,8 @@ class DmpcAgentConfig:
             (every plan ends in a halt, Eq. 13e) and obstacle rows at every step
             (``qp.obstacle_avoidance`` ``auto`` or ``every_step``: a plan flown to
             its halt unrevised must clear the obstacles over its whole horizon,
-            not only at its first predicted conflict). The agent also plans
-            against every obstacle the plan can reach: the range it uses is
-            max(``obstacle_range_m``, sqrt(2) v_max_mps K h + the inflation).
+            not only at its first predicted conflict). It also plans against
+            every obstacle the plan can reach: ``obstacle_range_m`` is derived.
             Measured: docs/results/comm_safety.md. False: replan every round
             against shifted stale plans, with the QP as ``qp`` says
             (:meth:`replanning` gives the on-demand paper's plain DMPC).

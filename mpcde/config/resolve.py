@@ -20,7 +20,9 @@ flight. Derived fields (target <- source):
   optimiser's speed limit, turns at the heading limit, calls a track recent
   as the tracker does, and covers the camera's field of view (Alg. 1);
 * a stack's own ``derived`` fields: ``radio.rate_hz`` <- ``2 admm.l_max / admm.step_s``
-  with ``planner.kind: admm`` and ``admm.radio_rate_from_step``: one radio sub-round per ADMM exchange.
+  with ``planner.kind: admm`` and ``admm.radio_rate_from_step``: one radio sub-round per ADMM exchange;
+  ``dmpc.obstacle_range_m`` <- max(3, sqrt(2) ``dmpc.qp.v_max_mps`` K h + the inflation) with ``dmpc`` or
+  ``auto`` and ``dmpc.commit_when_unheard``: every obstacle a plan flown to its halt can reach gets its plane.
 
 Before the derivations, a stack's ``preset`` (:class:`mpcde.stacks.registry.Stack`) sets the
 fields the scenario leaves unset: ``planner.kind: mpcde_paper`` flies the denied agent with

@@ -173,11 +173,7 @@ class DmpcAgent(SampledPlanAgent):
         self.start_delay_s = float(start_delay_s)
         self.formation_offsets = formation_offsets
         self.inflation_m = float(robot_radius_m) + config.obstacle_margin_m
-        self.obstacle_range_m = config.obstacle_range_m
-        if config.commit_when_unheard:
-            # a plan flown to its halt unrevised reaches sqrt(2) v_max_mps K h horizontally: every obstacle it can
-            # reach must have its plane (the flight that showed it: docs/results/comm_safety.md)
-            self.obstacle_range_m = max(self.obstacle_range_m, float(np.sqrt(2.0) * qp.v_max_mps * qp.horizon_s) + self.inflation_m)
+        self.obstacle_range_m = config.obstacle_range_m  # derived at load under commit_when_unheard (mpcde.stacks.builtin)
         self.counters = AgentCounters()
         self.stats = DmpcRoundStats()
         self.plan: DmpcPlan | None = None

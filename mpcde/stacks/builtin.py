@@ -101,6 +101,20 @@ def _checks(*rules: Any) -> Any:
     return check
 
 
+def _commit_obstacle_range_m(cfg: Any) -> float:
+    """max(3.0, sqrt(2) v_max_mps K h + robot radius + obstacle margin) [m]: the reach of a DMPC plan flown to its halt
+    unrevised (``dmpc.commit_when_unheard``), over which every obstacle needs its plane (docs/results/comm_safety.md)."""
+    d, qp = cfg.dmpc, cfg.dmpc.qp
+    inflation = cfg.physics.quadrotor.robot_radius_m + d.obstacle_margin_m
+    return max(type(d)().obstacle_range_m, float(np.sqrt(2.0) * qp.v_max_mps * qp.horizon_s) + inflation)
+
+
+_COMMIT_RANGE = Derivation(
+    "dmpc.obstacle_range_m", "sqrt(2) dmpc.qp.v_max_mps K h + the inflation (dmpc.commit_when_unheard: true)",
+    _commit_obstacle_range_m, lambda c: c.dmpc.commit_when_unheard,
+)
+
+
 def _dmpc_formation(cfg: Any) -> bool:
     return bool(cfg.dmpc.formation_from_goals)
 
@@ -136,13 +150,13 @@ BUILTIN: tuple[Stack, ...] = (
     Stack(
         "comm", _dmpc, "distributed MPC (OSQP) on the plans neighbours broadcast, known obstacles", kind="dmpc",
         uses=Uses(cameras="optional", radio=True, known_obstacles=True), section="dmpc", check=check_dmpc_round,
-        speed_fields=("dmpc.qp.v_max_mps",), flies_formation=_dmpc_formation,
+        speed_fields=("dmpc.qp.v_max_mps",), flies_formation=_dmpc_formation, derived=(_COMMIT_RANGE,),
     ),
     Stack(
         "auto", _auto, "comm, with tracks for stale plans; denied when the radio falls silent",
         uses=Uses(cameras="required", radio=True, known_obstacles=True), section="auto",
         check=_checks(check_dmpc_round, check_flight_levels), speed_fields=("denied.v_max_mps", "dmpc.qp.v_max_mps"),
-        flies_formation=_dmpc_formation,
+        flies_formation=_dmpc_formation, derived=(_COMMIT_RANGE,),
     ),
     Stack(
         "mlr", _mlr, "MLR-DMPC: compute units on the first drones, message-loss recovery; no obstacles",

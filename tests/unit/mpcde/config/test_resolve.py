@@ -117,3 +117,18 @@ def test_the_run_folder_holds_the_resolved_config_and_flying_it_again_gives_the_
         return [flight(v) for v in m] if isinstance(m, list) else m
 
     assert flight(a) == flight(b) and flight(a)["agents"]
+
+
+def test_a_committing_dmpc_plans_against_every_obstacle_its_plan_can_reach():
+    """dmpc.obstacle_range_m under commit_when_unheard: derived, sqrt(2) v_max K h + the inflation, at load time (it was
+    raised silently inside the agent); a file setting another value is refused, and without commitment it is the file's."""
+    import math
+
+    cfg = load_scenario("formation_square", {"planner": {"kind": "dmpc", "cruise_speed_mps": 1.0}})
+    qp, d = cfg.dmpc.qp, cfg.dmpc
+    reach = math.sqrt(2.0) * 1.0 * qp.horizon_steps * qp.step_s + cfg.physics.quadrotor.robot_radius_m + d.obstacle_margin_m
+    assert d.commit_when_unheard and d.obstacle_range_m == pytest.approx(max(3.0, reach))
+    with pytest.raises(ConfigError, match=r"^dmpc\.obstacle_range_m=5\.0: derived from sqrt\(2\) dmpc\.qp\.v_max_mps"):
+        load_scenario("formation_square", {"planner": {"kind": "dmpc"}, "dmpc": {"obstacle_range_m": 5.0}})
+    plain = {"commit_when_unheard": False, "obstacle_range_m": 5.0, "qp": {"collision_mode": "on_demand", "terminal_halt": False}}
+    assert load_scenario("formation_square", {"planner": {"kind": "dmpc"}, "dmpc": plain}).dmpc.obstacle_range_m == 5.0
