@@ -49,9 +49,9 @@ from planners.yaw.explore import explore_yaws
 from planners.yaw.lattice import LatticePath
 from planners.yaw.safety import safe_regime, safety_margin
 from planners.yaw.steering import observe_targets, rate_limited, sweep_offsets, track_targets
-from planners.yaw.types import TrajectoryView, YawPlan
+from planners.yaw.types import SafetyMargin, TrajectoryView, YawPlan
 
-__all__ = ["YawPlanner", "make_yaw_planner", "neighbour_summary"]
+__all__ = ["YawPlanner", "make_yaw_planner", "neighbour_summary", "plan_layers"]
 
 
 def make_yaw_planner(config: YawPlannerConfig | None = None) -> YawPlanner:
@@ -62,6 +62,17 @@ def make_yaw_planner(config: YawPlannerConfig | None = None) -> YawPlanner:
 
         return ZhouYawPlanner(config)
     return YawPlanner(config)
+
+
+def plan_layers(
+    cfg: YawPlannerConfig, time_s: float, yaw: float, trajectory: TrajectoryView, snapshot: OccupancySnapshot
+) -> tuple[np.ndarray, np.ndarray, SafetyMargin]:
+    """What every yaw planner's plan starts from: the layer times (n + 1,) [s], the trajectory's positions there
+    (n + 1, 3) [m] and Eq. 1's safety margin now (Alg. 1 reads S(0)); ValueError on a non-finite time or yaw."""
+    if not (math.isfinite(time_s) and math.isfinite(yaw)):
+        raise ValueError(f"time_s={time_s!r}, yaw={yaw!r}: allowed finite numbers")
+    times = time_s + np.arange(cfg.n_steps + 1) * cfg.period_s
+    return times, trajectory.positions(times), safety_margin(snapshot, trajectory, time_s, cfg, profile=False)
 
 
 def neighbour_summary(time_s: float, own_world: np.ndarray, predictions: Sequence[NeighborPrediction]) -> float:
@@ -117,12 +128,8 @@ class YawPlanner:
             predictions: the neighbours, the set A of Alg. 1 (all predictions
                 handed in; the caller drops pruned tracks).
         """
-        if not (math.isfinite(time_s) and math.isfinite(yaw)):
-            raise ValueError(f"time_s={time_s!r}, yaw={yaw!r}: allowed finite numbers")
         cfg = self.config
-        times = time_s + np.arange(cfg.n_steps + 1) * cfg.period_s
-        positions = trajectory.positions(times)  # (n + 1, 3)
-        safety = safety_margin(snapshot, trajectory, time_s, cfg, profile=False)  # S(0) is all Alg. 1 reads
+        times, positions, safety = plan_layers(cfg, time_s, yaw, trajectory, snapshot)
         s0 = safety.margin_now_s
         self._in_safe_regime = safe_regime(self._in_safe_regime, s0, cfg.tau_thr_s, cfg.hysteresis_s)
         active = list(predictions)

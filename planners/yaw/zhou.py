@@ -13,7 +13,6 @@ replans as often as MP-CDE's would at the same S(0)).
 
 from __future__ import annotations
 
-import math
 from typing import Sequence
 
 import numpy as np
@@ -23,8 +22,7 @@ from planners.yaw.config import YawPlannerConfig
 from planners.yaw.coverage import FanGeometry
 from planners.yaw.explore import explore_yaws
 from planners.yaw.lattice import LatticePath
-from planners.yaw.planner import neighbour_summary
-from planners.yaw.safety import safety_margin
+from planners.yaw.planner import neighbour_summary, plan_layers
 from planners.yaw.types import TrajectoryView, YawPlan
 
 __all__ = ["ZhouYawPlanner"]
@@ -60,12 +58,8 @@ class ZhouYawPlanner:
         predictions: Sequence[NeighborPrediction] = (),
     ) -> YawPlan:
         """The exploring lattice's yaws over the next n t_y with Zhou's reward (arguments as :meth:`YawPlanner.plan`)."""
-        if not (math.isfinite(time_s) and math.isfinite(yaw)):
-            raise ValueError(f"time_s={time_s!r}, yaw={yaw!r}: allowed finite numbers")
         cfg = self.config
-        times = time_s + np.arange(cfg.n_steps + 1) * cfg.period_s
-        positions = trajectory.positions(times)
-        safety = safety_margin(snapshot, trajectory, time_s, cfg, profile=False)
+        times, positions, safety = plan_layers(cfg, time_s, yaw, trajectory, snapshot)
         active = list(predictions)
         recent = [q for q in active if time_s - q.stamp_s <= cfg.t_hold_s]
         nx, ny, _ = snapshot.shape
