@@ -263,7 +263,7 @@ class DeniedAgent(OnboardAgent):
         if not look_around:
             return None
         stop = self.trajectory
-        return self._begin_turn(stop.t0_s + stop.total_duration, stop.pos(np.array([stop.total_duration]))[0], yaw)
+        return self.turn_once_round(stop.t0_s + stop.total_duration, stop.pos(np.array([stop.total_duration]))[0], yaw)
 
     def look_around_at(self, time_s: float, pos_world: np.ndarray, yaw: float) -> tuple[float, float]:
         """Hover at ``pos_world`` (3,) [m] from ``time_s`` [s] on, turn the camera once round from ``yaw`` [rad] at
@@ -274,9 +274,9 @@ class DeniedAgent(OnboardAgent):
         end [s].
         """
         self.trajectory, self.braking = None, False
-        return self._begin_turn(time_s, pos_world, yaw)
+        return self.turn_once_round(time_s, pos_world, yaw)
 
-    def _begin_turn(self, time_s: float, pos_world: np.ndarray, yaw: float) -> tuple[float, float]:
+    def turn_once_round(self, time_s: float, pos_world: np.ndarray, yaw: float) -> tuple[float, float]:
         """Hover at ``pos_world`` (3,) [m] and turn once round from ``time_s`` [s] and ``yaw`` [rad], with the band
         escape after it (:class:`mpcde.onboard.denied.rest_escape.RestEscape`); returns the turn's start and end [s]."""
         self.hover_world = np.asarray(pos_world, float).copy()

@@ -54,9 +54,7 @@ class RestEscape:
         if not self.resting_in_band(agent, t):
             return False
         agent.stats.rest_escapes += 1
-        agent.hover_world = agent.state_at(t)[0].copy()
-        agent.last_plan_time_s = -np.inf
-        self.begin(t, agent.heading.yaw)
+        agent.turn_once_round(t, agent.state_at(t)[0], agent.heading.yaw)
         return True
 
     def resting_in_band(self, agent: DeniedAgent, t: float) -> bool:
