@@ -57,8 +57,8 @@ class MapConfig:
             apart, 0.13 m at 7 m (the far corner of the 10 m window), less
             than a 0.15 m voxel, so the traversed rays still sweep every voxel
             column of the window; a quarter of the traversals costs a quarter
-            of the time (``benchmarks/bench_map.py``). What it changes in the
-            map is measured in ``docs/results/realtime.md``.
+            of the time (``benchmarks/bench_map.py``; what it changes in the
+            map: ``docs/results/realtime.md``).
         clear_tail_voxels: length [voxels] of the traversed tail of a hit ray
             that is not traversed whole (default 2: the space just in front of
             a surface is cleared by every ray).
@@ -70,11 +70,10 @@ class MapConfig:
             like detection pixels (0.4 is the 0.1 m robot radius plus
             prediction error). Without it a neighbour the detector misses at
             close range (it fills the image) is mapped as an obstacle, and a
-            trail of phantom voxels follows its path (seen: a drone 0.35 m
-            behind another found every plan 0.1 m from the leader's trail and
-            could not replan). Default 0 (off): together with MINCO's
-            ``swarm_recovery_mps`` it did not improve the collision totals on
-            radio_outage (measured: docs/results/occupancy_map.md).
+            trail of phantom voxels follows its path, which can block a
+            follower's every plan. Default 0 (off): together with MINCO's
+            ``swarm_recovery_mps`` it does not reduce collisions
+            (docs/results/occupancy_map.md#neighbour_exclusion_m-on-radio_outage-seeds-0-5).
         log_odds_hit: log-odds increment [-] of the end voxel of a ray
             (logit 0.7 = 0.847).
         log_odds_miss: log-odds increment [-] of a voxel a ray passes through

@@ -5,7 +5,7 @@ from MP-CDE (Table I or the text of Sec. IV-B) where the paper gives one, and
 otherwise the value chosen here with the reason in its docstring. Validation
 raises ``ValueError`` with the one-line message ``"<field>=<value!r>: <allowed>"``
 (perception/ may not import mpcde; mpcde turns these into ``ConfigError``).
-Measured behind the chosen defaults: docs/results/tracker.md.
+Measurements behind the chosen defaults: docs/results/tracker.md#trackerconfig.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ class TrackerConfig:
             ``"akf"``. MP-CDE Table I gives no process noise (nor a KF
             baseline setting), so both filters share this one value and differ
             only by the adaptation. 0.5 m/s^2 suits a slowly manoeuvring or
-            hovering neighbour (measured: docs/results/tracker.md).
+            hovering neighbour (docs/results/tracker.md#trackerconfig).
         adapt_scale: factor ``c`` on the covariance-matching estimate of the
             adaptive acceleration covariance, ``A_hat = c K_v D+ K_v^T / dt^2``
             [-] (see :mod:`perception.kalman_cv`).
@@ -54,7 +54,7 @@ class TrackerConfig:
             leaves room for a foreign drone. The cap matters when an
             association goes wrong: a swapped measurement reads as a huge
             manoeuvre, which without it widens the gates until tracks swap
-            targets (measured: docs/results/tracker.md).
+            targets (docs/results/tracker.md#trackerconfig).
         init_vel_std_mps: velocity standard deviation per axis of a new track
             [m/s]. A track is born from one position with zero velocity and
             this (large) uncertainty, so its second and third measurements set
@@ -66,14 +66,14 @@ class TrackerConfig:
             the 97.5 % quantile with 2 degrees of freedom (an image-plane
             gate); on 3-D positions it keeps only about 94 % of true
             measurements, and with a CV filter that lags in turns it breaks
-            tracks often (measured: docs/results/tracker.md). Set 7.38 to
+            tracks often (docs/results/tracker.md#trackerconfig). Set 7.38 to
             follow the paper.
         birth_gate_chi2: an unmatched measurement starts a new track only if
             its squared Mahalanobis distance to every live track exceeds this
             [-] (40, about 6 standard deviations). Without it a true
             measurement that falls just outside ``gate_chi2`` spawns a
             duplicate track that then steals measurements from the original
-            (measured: docs/results/tracker.md).
+            (docs/results/tracker.md#trackerconfig).
         t_hold_s: a confirmed track without a matched measurement for longer
             than this keeps predicting (Eq. 9) and becomes ``coasting`` with
             linearly inflated covariance [s] (MP-CDE Table I, 0.6 s).

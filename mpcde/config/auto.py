@@ -24,8 +24,8 @@ class FusionConfig:
             the delay, so two missed rounds in a row make a neighbour stale;
             with 20 % Bernoulli loss that happens to 4 % of the neighbour-rounds).
         gate_m: a track within this [m] of a plan's position is that plan's
-            drone (chosen: 1.0 m, the tracking score's match radius; measured
-            track RMSE 0.16-0.20 m, plan-following error about 0.1 m).
+            drone (chosen: 1.0 m, the tracking score's match radius, several
+            times a track's and a plan follower's position error).
     """
 
     stale_after_s: float = 0.5
@@ -53,11 +53,11 @@ class AutoAgentConfig:
             off (the denied half then sees exactly what pure MP-CDE sees).
             Chosen: 2.0 s. The outage starts with the drones where DMPC left
             them, side by side in the converging swarm, out of each other's
-            camera view (radio_outage: collisions 1-2 s after the switch came
-            from sideways dodges into a neighbour the camera never saw); the
-            memory covers the first second of denied flight after the 1 s of
-            silence, while the active yaw turns the camera to the remembered
-            drones and the tracker takes them over.
+            camera view, where a sideways dodge meets a neighbour the camera
+            never saw; the memory covers the first second of denied flight
+            after the 1 s of silence, while the active yaw turns the camera to
+            the remembered drones and the tracker takes them over
+            (docs/results/radio_outage.md).
         fusion: when a neighbour's plan is stale and how near its track must be
             (:class:`mpcde.onboard.fusion.FusionConfig`).
         handover: how the denied half takes over when the radio goes out.
@@ -70,9 +70,9 @@ class AutoAgentConfig:
             (``plan_memory_s``) is lengthened by the time from the switch to
             the end of the turn. A plan that does not end at rest
             (``dmpc.qp.terminal_halt: false``) is replaced by the denied half's
-            stopping piece. Chosen: ``halt`` (radio_outage, seeds 0-39, paired:
-            0 flights with a collision against 4 for ``continue``, mission time
-            +1.5 s; docs/results/radio_outage.md).
+            stopping piece. Chosen: ``halt``: it removes the contacts of the
+            outage's first seconds that ``continue`` has, for a little more
+            mission time (docs/results/radio_outage.md).
     """
 
     radio_silence_s: float = 1.0

@@ -36,16 +36,15 @@ class DeniedAgentConfig:
             is, before it leaves its start, and leaves the level for its goal once within
             ``flight_level_release_m`` of it horizontally, for good. Procedural vertical separation: the
             rule of airspace without surveillance, where traffic that cannot see each other is kept
-            apart by assignment rather than by sight. Not in MP-CDE. Why: in the forest sweep the
-            remaining drone-drone contacts are between neighbours that tracked each other, lost each
-            other from the camera's view and closed unseen (docs/results/safety.md); drones on levels
-            s apart cannot touch (contact is 2 robot radii, 0.2 m) while both hold their levels, seen
-            or not. The id and N are the mission's assignment, as the goal is: no neighbour's state
-            is read. inf (default): no levels, the paper's free altitude.
+            apart by assignment rather than by sight. Not in MP-CDE. Why: drones on levels s apart
+            cannot touch (contact is 2 robot radii, 0.2 m) while both hold their levels, seen or not,
+            so it removes the contacts of neighbours that lost each other from the camera's view
+            (docs/results/safety.md). The id and N are the mission's assignment, as the goal is: no
+            neighbour's state is read. inf (default): no levels, the paper's free altitude.
         flight_level_release_m: horizontal distance [m] from the goal at which a drone on flight
             levels leaves its level for the goal's altitude.
         fresh_path_age_s: look before moving: free space of the corridor ahead last seen by the camera
-            longer than this ago [s] is stale (:mod:`mpcde.onboard.fresh_path`). Every t_y the drone checks
+            longer than this ago [s] is stale (:mod:`mpcde.onboard.denied.look`). Every t_y the drone checks
             the corridor (half width ``fresh_path_half_width_m``) of its trajectory from
             ``fresh_path_near_m`` to its stopping distance plus ``fresh_path_distance_m`` ahead; at a stale
             point it brakes to a stop, turns the camera to that point at the yaw-rate limit, holds until the
@@ -53,10 +52,11 @@ class DeniedAgentConfig:
             most pi / yaw_rate_max + 2 t_y), then replans and flies on. A point still stale at the next
             check lies where the camera cannot refresh it (a trunk's shadow): the check then rests for
             ``fresh_path_rest_s``, so the drone is never held for good. A hold whose straight stop would cut
-            into the obstacle band is flown as a glance instead (the camera turns, the plan is kept). Not in MP-CDE. Why: every drone-drone contact left in the
-            forest sweep is between drones that closed outside each other's view (docs/results/safety.md);
-            a drone that only moves into space it looked at within this time sees a neighbour in its way
-            unless the neighbour moved there since. inf (default): off, the paper's stack.
+            into the obstacle band is flown as a glance instead (the camera turns, the plan is kept).
+            Not in MP-CDE. Why: a drone that only moves into space it looked at within this time sees a
+            neighbour in its way unless the neighbour moved there since, so it removes the contacts of
+            drones that close outside each other's view (docs/results/safety.md). inf (default): off,
+            the paper's stack.
         fresh_path_half_width_m: half width [m] of that corridor.
         fresh_path_near_m: the corridor starts this far ahead along the path [m] (the space the drone
             is already in is never seen again: the camera's minimum range).

@@ -11,8 +11,7 @@ The stack flies one of two explicit schemes, and no setting replaces another:
   (:meth:`DmpcAgentConfig.replanning`).
 
 ``commit_when_unheard: true`` with on-demand rows, without the halt or with
-on-demand obstacle rows is refused at load time, one line naming both fields
-(it was once silently turned into BVC inside the agent).
+on-demand obstacle rows is refused at load time, one line naming both fields.
 """
 
 from __future__ import annotations
@@ -80,8 +79,8 @@ class DmpcAgentConfig:
             always the real goal, the paper's form). Chosen: 4.0 m, two
             thirds of what v_max_mps = 2 m/s covers in the 3 s horizon. With a
             far goal the terminal cost pins the plan to the speed limit at
-            every step and OSQP needs many more iterations (measured:
-            docs/results/dmpc_agent.md).
+            every step and OSQP needs many more iterations
+            (docs/results/dmpc_agent.md#the-carrot-goal-dmpcgoal_lookahead_m).
         state_tolerance_m: x0 is the own plan's state when the estimated
             position is within this of it [m], else the estimate (0 = always
             the estimate). Chosen: 0.3 m, above the pose estimate's drift; the
@@ -105,7 +104,9 @@ class DmpcAgentConfig:
             its halt unrevised must clear the obstacles over its whole horizon,
             not only at its first predicted conflict). It also plans against
             every obstacle the plan can reach: ``obstacle_range_m`` is derived.
-            Measured: docs/results/comm_safety.md. False: replan every round
+            On by default: it keeps the stack's plans apart under message loss
+            (docs/results/comm_safety.md).
+            False: replan every round
             against shifted stale plans, with the QP as ``qp`` says
             (:meth:`replanning` gives the on-demand paper's plain DMPC).
             In ``auto`` a stale plan that a camera track replaces no longer counts

@@ -129,8 +129,8 @@ def check_flight_levels(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarr
         raise ConfigError("denied.flight_level_spacing_m", spacing, allowed)
     n = len(starts)
     # the lowest level's layer (held within s / 8 of it) must keep the front end's clearance from the ground the
-    # camera maps below it: a level nearer the ground is one whose every search fails (the held-out ring of 7 at
-    # 0.4 m put a level on the 0.3 m floor; docs/results/denied_default.md)
+    # camera maps below it: a level nearer the ground is one whose every search fails
+    # (docs/results/denied_default.md#ring-of-7)
     ground_m = cfg.denied.front_end_clearance_m
     lo, hi = max(LEVEL_ALTITUDES_M[0], ground_m + spacing / 8.0), LEVEL_ALTITUDES_M[1]
     lowest, highest = flight_level_m(centres[0], 0, n, spacing), flight_level_m(centres[0], n - 1, n, spacing)

@@ -55,7 +55,8 @@ class DmpcConfig:
             (chosen: 1e4. online_dmpc uses ``quad_coll_penalty = 1``, but with
             OSQP that leaves the slack's curvature 1e4 times below its linear
             price and ADMM then hits the iteration limit; 1e4 keeps the linear
-            (exact-penalty) term and converges; docs/results/dmpc_qp.md).
+            (exact-penalty) term and converges;
+            docs/results/dmpc_qp.md#behind-dmpcconfigs-defaults).
         weight_slack_linear: xi, linear slack penalty in [1/m]
             (online_dmpc ``lin_coll_penalty = -5e4`` on a non-positive slack).
         slack_max_m: upper bound on one slack (relaxation) in [m]
@@ -118,8 +119,8 @@ class DmpcConfig:
         vertical_obstacle_planes: every obstacle half-space has a horizontal
             normal (vertical planes, as the agent builds around trees and
             boxes); its rows then hold only the x, y input columns, a third
-            fewer entries in every KKT refactorisation (measured:
-            docs/results/dmpc_qp.md). A plane with a z component is then
+            fewer entries in every KKT refactorisation
+            (docs/results/dmpc_qp.md#behind-dmpcconfigs-defaults). A plane with a z component is then
             rejected. Chosen default: False (general planes).
         terminal_halt: if true, v[K] = 0 (and a[K] = 0 for the triple
             integrator), DMPC-Swarm Eq. 13e; makes a shifted plan a feasible
@@ -128,10 +129,10 @@ class DmpcConfig:
         osqp_eps_rel: OSQP relative tolerance (chosen: 1e-4).
         osqp_max_iter: OSQP iteration limit (chosen: 10000, well above what
             the hardest on-demand rounds of the 8-drone swap need;
-            docs/results/dmpc_qp.md).
+            docs/results/dmpc_qp.md#behind-dmpcconfigs-defaults).
         osqp_check_termination: OSQP checks its residuals every this many
             iterations (chosen: 5 instead of OSQP's 25: a warm-started round
-            typically converges in 5-10 iterations; docs/results/dmpc_qp.md).
+            converges in a few iterations; docs/results/dmpc_qp.md#behind-dmpcconfigs-defaults).
         osqp_polish: run OSQP's solution polishing (exact active-set solve).
         osqp_scaling: OSQP's Ruiz equilibration iterations (OSQP default 10).
             OSQP re-runs them on every matrix update, so they are part of

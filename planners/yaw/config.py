@@ -97,8 +97,7 @@ class YawPlannerConfig:
             exploring/observing regime and looks where it goes (MP-CDE Fig. 3,
             for neighbours that now fly where the camera saw free space): the
             observing mode cannot stare at known neighbours while an unseen
-            one closes in along the path. Measured (forest sweep screens,
-            Table III spot check, radio_outage): docs/results/yaw_planner.md.
+            one closes in along the path (docs/results/yaw_planner.md).
         free_distance: how Eq. 1's d_free is measured: ``"horizontal"`` (in the
             plane of the drone's altitude slab, to the nearest cell not verified
             free; default), ``"voxel"`` (the map's 3-D verified-free distance)
@@ -106,11 +105,8 @@ class YawPlannerConfig:
             the paper's literal "ESDF value of the map", unknown space counting
             as free while tau_s still ends where verified-free space does); see
             :mod:`planners.yaw.safety`. ``"occupied"`` is not the default: it
-            lets the camera leave the path while unobserved space is near,
-            and a new default would change every denied flight of record.
-            What each reading measured on Table III: docs/results/mp-cde.md
-            ("Ours and its baselines with d_free to the nearest occupied
-            cell, at 4.5 m").
+            lets the camera leave the path while unobserved space is near
+            (docs/results/mp-cde.md).
         free_slab_half_height_m: half height [m] of the altitude slab of
             ``"horizontal"`` (chosen: 0.3 m, two voxels either side: the
             drone's height plus its altitude tracking error).
@@ -142,10 +138,9 @@ class YawPlannerConfig:
             passes fov_h / 2 (the map keeps what was seen ahead). Allowed
             below 90 deg (the camera never looks behind the drone), and the
             swing's rate 4 sweep / period may not exceed
-            ``yaw_rate_max_radps``. The earlier 35 deg (travel always in view)
-            left a neighbour at 85-90 deg 5-10 deg outside the frame at the
-            swing's extreme: every collision of the forest sweep was of that
-            kind (measured: docs/results/safety.md, docs/results/yaw_planner.md).
+            ``yaw_rate_max_radps``. A swing small enough to keep travel always
+            in view leaves a neighbour at 85-90 deg outside the frame at the
+            swing's extreme (docs/results/yaw_planner.md).
         tracking_sweep_period_s: period of that swing [s] (chosen 2.1 s: the
             shortest period at which a 60 deg swing turns within the 2 rad/s
             limit, 4 x 60 deg / 2.1 s = 1.99 rad/s, so the camera revisits

@@ -60,7 +60,7 @@ class AdmmFormationConfig:
         weight_input: r on ||u_i[k]||^2 in [s^4/m^2] (paper: R_ii = 1 on
             velocities; chosen: 0.1: with q_g = 1 a scattered formation closes
             within seconds in ``bench_admm.py``; the input box, not r, limits
-            the first steps; docs/results/admm_formation.md).
+            the first steps; docs/results/admm_formation.md#figures-quoted-in-other-docstrings).
         weight_terminal_formation: q_f at k = K in [1/m^2] (paper: P = Q, so
             the same as ``weight_formation``).
         weight_terminal_tracking: q_g at k = K in [1/m^2] (paper: P = Q).
@@ -78,7 +78,7 @@ class AdmmFormationConfig:
         rho: ADMM penalty parameter rho (Eq. 4a, 4c), in the cost's units per
             squared decision variable (paper Sec. 5.1: 1, tuned in
             {0.1, 1, 10, 100}; kept after the same sweep on our OCP,
-            docs/results/admm_formation.md).
+            docs/results/admm_formation.md#figures-quoted-in-other-docstrings).
         l_max: ADMM iterations per MPC step (paper Sec. 5.1: 5).
         delay_compensation: paper Remark 1: u_i[0] is fixed to the input that
             is already being applied on [t, t + h) (decided in the previous
@@ -92,7 +92,7 @@ class AdmmFormationConfig:
             (chosen: 1e-4, as our DMPC's QP: as close to the centralized
             optimum as tighter tolerances, because each ADMM iteration
             warm-starts OSQP and the inexactness does not accumulate;
-            docs/results/admm_formation.md).
+            docs/results/admm_formation.md#figures-quoted-in-other-docstrings).
         osqp_eps_rel: OSQP relative tolerance of each local QP (chosen: 1e-4).
         osqp_max_iter: OSQP iteration limit of one local QP (chosen: 4000);
             a local QP that reaches it is used as it is and counted in
@@ -102,11 +102,11 @@ class AdmmFormationConfig:
             matrix; ``AdmmStepResult.osqp_rho_updates`` counts them (chosen:
             False: with ``osqp_rho`` = 1 the local QPs converge about as fast
             without it, and then no solve ever refactorises;
-            docs/results/admm_formation.md).
+            docs/results/admm_formation.md#figures-quoted-in-other-docstrings).
         osqp_rho: OSQP's own step size inside a local QP, fixed when
             ``osqp_adaptive_rho`` is False (chosen: 1; with OSQP's default
             0.1 single local QPs of the closed loop needed thousands of
-            iterations; docs/results/admm_formation.md).
+            iterations; docs/results/admm_formation.md#figures-quoted-in-other-docstrings).
     """
 
     horizon_steps: int = 15
