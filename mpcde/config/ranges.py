@@ -113,14 +113,10 @@ RANGES: dict[type, dict[str, B]] = {
         "tracking_sweep_period_s": B(0.1, 60, "s"),
     },
     DmpcConfig: {
-        "horizon_steps": B(1, 100), "step_s": B(0.01, 5, "s"), "goal_steps": B(1, 100), "weight_goal": B(0, 1e8),
-        "weight_formation": B(0, 1e8), "weight_smoothness": B(0, 1e8), "weight_slack_quadratic": B(0, 1e8),
-        "weight_slack_linear": B(0, 1e8), "slack_max_m": B(0, 100, "m"), "pos_min_world": B(-1000, 1000, "m"),
+        "horizon_steps": B(1, 100), "step_s": B(0.01, 5, "s"), "weight_goal": B(0, 1e8), "weight_formation": B(0, 1e8),
+        "weight_smoothness": B(0, 1e8), "weight_slack_quadratic": B(0, 1e8), "pos_min_world": B(-1000, 1000, "m"),
         "pos_max_world": B(-1000, 1000, "m"), "v_max_mps": B(0, 20, "m/s"), "a_max_mps2": B(0, 100, "m/s^2"), "j_max_mps3": B(0, 1000, "m/s^3"),
-        "r_min_m": B(0, 10, "m"), "downwash": B(0.1, 10), "neighbourhood_factor": B(0, 100), "conflict_margin_m": B(0, 10, "m"),
-        "conflict_substeps": B(1, 50), "max_neighbours": B(1, 64), "max_obstacle_planes": B(0, 64), "osqp_eps_abs": B(1e-12, 1),
-        "osqp_eps_rel": B(0, 1), "osqp_max_iter": B(1, 1_000_000), "osqp_check_termination": B(0, 1_000_000),
-        "osqp_scaling": B(0, 100),
+        "r_min_m": B(0, 10, "m"), "downwash": B(0.1, 10), "max_neighbours": B(1, 64), "max_obstacle_planes": B(0, 64),
     },
     DmpcAgentConfig: {
         "plan_timeout_s": B(0, 60, "s"), "obstacle_margin_m": B(0, 5, "m"), "obstacle_range_m": B(0, 100, "m"),

@@ -13,6 +13,7 @@ neighbourhood 3 r_min_m, downwash ellipsoid c = 2) and from DMPC-Swarm Eq. 2
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -36,6 +37,14 @@ _OBSTACLE_MODES = ("auto", "on_demand", "every_step")
 @dataclass(frozen=True)
 class DmpcConfig:
     """Settings of one drone's DMPC quadratic program.
+
+    Class constants (:data:`typing.ClassVar`, not fields: no scenario, sweep or
+    preset sets them, so a scenario file that names one is refused as an
+    unknown key; docs/design.md section 7): ``goal_steps``,
+    ``weight_slack_linear``, ``slack_max_m``, ``neighbourhood_factor``,
+    ``conflict_margin_m``, ``on_demand_time``, ``conflict_substeps``,
+    ``obstacle_culling`` and the ``osqp_*`` solver settings. A test that needs
+    another value overrides one in a subclass.
 
     Attributes:
         horizon_steps: K, number of prediction steps (on-demand DMPC Sec. 4: 15).
@@ -142,13 +151,13 @@ class DmpcConfig:
     horizon_steps: int = 15
     step_s: float = 0.2
     model: str = "double"
-    goal_steps: int = 3
+    goal_steps: ClassVar[int] = 3
     weight_goal: float = 100.0
     weight_formation: float = 10.0
     weight_smoothness: float = 1.0
     weight_slack_quadratic: float = 1.0e4
-    weight_slack_linear: float = 5.0e4
-    slack_max_m: float = 10.0
+    weight_slack_linear: ClassVar[float] = 5.0e4
+    slack_max_m: ClassVar[float] = 10.0
     pos_min_world: tuple[float, float, float] = (-20.0, -20.0, 0.2)
     pos_max_world: tuple[float, float, float] = (20.0, 20.0, 10.0)
     v_max_mps: float = 2.0
@@ -157,30 +166,32 @@ class DmpcConfig:
     r_min_m: float = 0.4
     downwash: float = 2.0
     collision_mode: str = "on_demand"
-    neighbourhood_factor: float = 3.0
-    conflict_margin_m: float = 0.05
-    on_demand_time: str = "closest_approach"
-    conflict_substeps: int = 4
+    neighbourhood_factor: ClassVar[float] = 3.0
+    conflict_margin_m: ClassVar[float] = 0.05
+    on_demand_time: ClassVar[str] = "closest_approach"
+    conflict_substeps: ClassVar[int] = 4
     max_neighbours: int = 8
     max_obstacle_planes: int = 0
     obstacle_avoidance: str = "auto"
-    obstacle_culling: bool = True
+    obstacle_culling: ClassVar[bool] = True
     vertical_obstacle_planes: bool = False
     terminal_halt: bool = False
-    osqp_eps_abs: float = 1e-4
-    osqp_eps_rel: float = 1e-4
-    osqp_max_iter: int = 10000
-    osqp_check_termination: int = 5
-    osqp_polish: bool = False
-    osqp_scaling: int = 4
+    osqp_eps_abs: ClassVar[float] = 1e-4
+    osqp_eps_rel: ClassVar[float] = 1e-4
+    osqp_max_iter: ClassVar[int] = 10000
+    osqp_check_termination: ClassVar[int] = 5
+    osqp_polish: ClassVar[bool] = False
+    osqp_scaling: ClassVar[int] = 4
 
     def __post_init__(self) -> None:
         require_integer_at_least("horizon_steps", self.horizon_steps, 2)
         require_positive("step_s", self.step_s)
         if self.model not in _MODELS:
             raise ConfigError("model", self.model, f"one of {', '.join(_MODELS)}")
-        if not isinstance(self.goal_steps, (int, np.integer)) or not 1 <= self.goal_steps <= self.horizon_steps:
-            raise ConfigError("goal_steps", self.goal_steps, f"an integer in [1, horizon_steps={self.horizon_steps}]")
+        if not isinstance(self.goal_steps, (int, np.integer)) or self.goal_steps < 1:
+            raise ConfigError("goal_steps", self.goal_steps, "an integer >= 1")
+        if self.horizon_steps < self.goal_steps:
+            raise ConfigError("horizon_steps", self.horizon_steps, f"an integer >= goal_steps = {self.goal_steps} (the steps pulled to the goal)")
         require_positive("weight_goal", self.weight_goal)
         for name in ("weight_formation", "weight_smoothness", "weight_slack_linear"):
             require_non_negative(name, getattr(self, name))

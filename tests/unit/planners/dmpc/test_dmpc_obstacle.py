@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from test_dmpc_qp import TIGHT, assert_kkt
+from test_dmpc_qp import TightDmpcConfig, assert_kkt
 
 from planners.dmpc.config import DmpcConfig
 from planners.dmpc.obstacle import obstacle_conflicts, stack_obstacles
@@ -49,7 +49,7 @@ def test_conflict_is_the_first_step_inside_r_obs_and_the_row_sits_at_the_deepest
 
 
 def _on_demand_problem(**kwargs) -> DmpcProblem:
-    return DmpcProblem(DmpcConfig(max_obstacle_planes=2, obstacle_avoidance="on_demand", **TIGHT, **kwargs))
+    return DmpcProblem(TightDmpcConfig(max_obstacle_planes=2, obstacle_avoidance="on_demand", **kwargs))
 
 
 def test_the_added_row_separates_the_obstacle_and_the_qp_meets_kkt() -> None:
@@ -69,7 +69,7 @@ def test_the_added_row_separates_the_obstacle_and_the_qp_meets_kkt() -> None:
     assert normal[k] @ p >= offset[k] - 1e-6
     assert np.hypot(p[0] - 2.0, p[1] - 0.1) >= 0.3 + INFLATION_M - 1e-6
     # Without the row, the same QP flies through the tree.
-    free = DmpcProblem(DmpcConfig(**TIGHT)).solve(x0, [4.0, 0.0, 1.5], [], previous, t_now_s=0.0)
+    free = DmpcProblem(TightDmpcConfig()).solve(x0, [4.0, 0.0, 1.5], [], previous, t_now_s=0.0)
     assert np.hypot(free.pos_world[:, 0] - 2.0, free.pos_world[:, 1] - 0.1).min() < 0.3
 
 
@@ -84,7 +84,7 @@ def test_unused_obstacle_slots_keep_the_matrix_and_give_the_same_plan_as_a_fresh
     again = problem.solve(x0, [4.0, 0, 1.5], [], previous, t_now_s=0.0, obstacles=far)
     assert again.n_obstacle_rows == 0
     assert (problem.snapshot().A != A_before).nnz == 0  # no refactorisation needed
-    fresh = DmpcProblem(DmpcConfig(**TIGHT)).solve(x0, [4.0, 0, 1.5], [], previous, t_now_s=0.0)
+    fresh = DmpcProblem(TightDmpcConfig()).solve(x0, [4.0, 0, 1.5], [], previous, t_now_s=0.0)
     np.testing.assert_allclose(again.inputs, fresh.inputs, atol=1e-5)
     assert_kkt(problem.snapshot())
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -14,7 +15,16 @@ from planners.dmpc.qp import DmpcProblem, DmpcSolveError, QpSnapshot
 from planners.dmpc.types import DmpcPlan
 from qp_kkt import assert_kkt  # tests/unit/planners/dmpc/qp_kkt.py
 
-TIGHT = dict(osqp_eps_abs=1e-8, osqp_eps_rel=1e-8, osqp_polish=True, osqp_max_iter=100000)
+
+
+@dataclasses.dataclass(frozen=True)
+class TightDmpcConfig(DmpcConfig):
+    """DmpcConfig solved to 1e-8 and polished (its OSQP settings are class constants): the KKT checks need it."""
+
+    osqp_eps_abs: ClassVar[float] = 1e-8
+    osqp_eps_rel: ClassVar[float] = 1e-8
+    osqp_polish: ClassVar[bool] = True
+    osqp_max_iter: ClassVar[int] = 100000
 
 
 def _x0(cfg: DmpcConfig, pos=(0.0, 0.0, 1.5), vel=(1.5, 0.0, 0.0)) -> np.ndarray:
@@ -41,7 +51,7 @@ CASES = {
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_solution_satisfies_its_constraints_and_the_kkt_conditions(case: str) -> None:
-    cfg = DmpcConfig(max_neighbours=3, **CASES[case], **TIGHT)
+    cfg = TightDmpcConfig(max_neighbours=3, **CASES[case])
     problem = DmpcProblem(cfg)
     x0 = _x0(cfg)
     neighbours = [_hover_neighbour([2.0, 0.05, 1.5], 1), _hover_neighbour([1.0, 3.0, 1.5], 2)]
@@ -90,7 +100,7 @@ def test_solution_satisfies_its_constraints_and_the_kkt_conditions(case: str) ->
 
 
 def test_without_neighbours_the_plan_reaches_the_goal_and_stops() -> None:
-    cfg = DmpcConfig(terminal_halt=True, **TIGHT)
+    cfg = TightDmpcConfig(terminal_halt=True)
     problem = DmpcProblem(cfg)
     x0 = _x0(cfg, vel=(0.0, 0.0, 0.0))
     result = problem.solve(x0, [1.0, -0.5, 2.0], [], None, t_now_s=3.0)
@@ -102,7 +112,7 @@ def test_without_neighbours_the_plan_reaches_the_goal_and_stops() -> None:
 
 
 def test_formation_term_pulls_towards_the_desired_offset() -> None:
-    cfg = DmpcConfig(weight_formation=1000.0, **TIGHT)
+    cfg = TightDmpcConfig(weight_formation=1000.0)
     problem = DmpcProblem(cfg)
     neighbour = _hover_neighbour([5.0, 5.0, 1.5], neighbor_id=7)
     x0 = _x0(cfg, vel=(0.0, 0.0, 0.0))
@@ -215,6 +225,7 @@ INVALID = [
     ("model", "quadruple"),
     ("goal_steps", 0),
     ("goal_steps", 16),
+    ("horizon_steps", 2),  # fewer steps than goal_steps = 3
     ("weight_goal", -1.0),
     ("weight_smoothness", -0.1),
     ("weight_slack_quadratic", 0.0),
@@ -241,7 +252,10 @@ INVALID = [
 @pytest.mark.parametrize(("field", "value"), INVALID)
 def test_invalid_parameters_are_rejected_with_a_one_line_message(field: str, value: object) -> None:
     with pytest.raises(ValueError) as info:
-        DmpcConfig(**{field: value})
+        if field in {f.name for f in dataclasses.fields(DmpcConfig)}:
+            DmpcConfig(**{field: value})
+        else:  # a class constant: a subclass overrides it
+            type("Overridden", (DmpcConfig,), {field: value})()
     message = str(info.value)
     assert "\n" not in message and field in message and ":" in message
 
@@ -282,7 +296,8 @@ def test_culled_obstacle_rows_change_nothing_and_hold_anyway() -> None:
     # Culling leaves out rows the velocity/input limits imply; the QP (and so its solution) is the same.
     results = {}
     for culling in (True, False):
-        cfg = DmpcConfig(max_obstacle_planes=3, obstacle_culling=culling, obstacle_avoidance="every_step", **TIGHT)
+        kind = TightDmpcConfig if culling else type("Unculled", (TightDmpcConfig,), {"obstacle_culling": False})  # a class constant
+        cfg = kind(max_obstacle_planes=3, obstacle_avoidance="every_step")
         problem = DmpcProblem(cfg)
         x0 = _x0(cfg, vel=(1.5, -1.0, 0.0))  # heading for the near wall
         planes = _obstacle_planes(cfg)
@@ -301,7 +316,7 @@ def test_culled_obstacle_rows_change_nothing_and_hold_anyway() -> None:
 
 def test_culling_keeps_a_plane_that_a_fast_plan_can_reach() -> None:
     # A plane 1 m ahead at 2 m/s is reachable from step 2 on, so it must stay and be met.
-    cfg = DmpcConfig(max_obstacle_planes=1, obstacle_avoidance="every_step", **TIGHT)
+    cfg = TightDmpcConfig(max_obstacle_planes=1, obstacle_avoidance="every_step")
     problem = DmpcProblem(cfg)
     x0 = _x0(cfg, vel=(2.0, 0.0, 0.0))
     result = problem.solve(x0, [10.0, 0.0, 1.5], [], None, t_now_s=0.0, obstacles=[(np.array([-1.0, 0, 0]), -1.0)])
@@ -310,7 +325,7 @@ def test_culling_keeps_a_plane_that_a_fast_plan_can_reach() -> None:
 
 
 def test_unused_on_demand_slots_have_zero_slack_and_warm_start_does_not_change_the_answer() -> None:
-    cfg = DmpcConfig(max_neighbours=3, **TIGHT)
+    cfg = TightDmpcConfig(max_neighbours=3)
     x0 = _x0(cfg)
     neighbours = [_hover_neighbour([2.0, 0.05, 1.5], 1), _hover_neighbour([1.0, 3.0, 1.5], 2)]
     warm = DmpcProblem(cfg)
@@ -328,7 +343,7 @@ def test_unused_on_demand_slots_have_zero_slack_and_warm_start_does_not_change_t
 def test_vertical_obstacle_pattern_gives_the_same_plan_and_rejects_tilted_planes() -> None:
     plans = {}
     for vertical in (False, True):
-        cfg = DmpcConfig(max_obstacle_planes=3, vertical_obstacle_planes=vertical, **TIGHT)
+        cfg = TightDmpcConfig(max_obstacle_planes=3, vertical_obstacle_planes=vertical)
         problem = DmpcProblem(cfg)
         x0 = _x0(cfg, vel=(1.5, -1.0, 0.0))
         plans[vertical] = problem.solve(x0, [8.0, -2.0, 1.5], [], None, t_now_s=0.0, obstacles=_obstacle_planes(cfg))
