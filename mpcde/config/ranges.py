@@ -70,12 +70,8 @@ RANGES: dict[type, dict[str, B]] = {
         "att_damping": B(0.1, 5), "max_tilt_rad": B(0.01, 1.5, "rad"),
     },
     TrackerConfig: {
-        "alpha_ema": B(0, 1), "sigma_acc_mps2": B(0, 100, "m/s^2"), "adapt_scale": B(0, 100), "adapt_after_hits": B(1, 1000),
-        "sigma_acc_max_mps2": B(0, 100, "m/s^2"), "init_vel_std_mps": B(0, 50, "m/s"), "gate_chi2": B(0, 10_000),
-        "birth_gate_chi2": B(0, 10_000), "t_hold_s": B(0, 60, "s"), "t_drop_s": B(0, 60, "s"),
-        "coast_pos_inflation_m2ps": B(0, 100, "m^2/s"), "coast_vel_inflation_m2ps3": B(0, 100, "m^2/s^3"),
-        "confirm_hits": B(1, 100), "tentative_drop_s": B(0, 60, "s"), "meas_std_floor_m": B(0, 10, "m"),
-        "meas_std_per_range": B(0, 1),
+        "alpha_ema": B(0, 1), "sigma_acc_mps2": B(0, 100, "m/s^2"), "sigma_acc_max_mps2": B(0, 100, "m/s^2"),
+        "gate_chi2": B(0, 10_000), "t_hold_s": B(0, 60, "s"), "t_drop_s": B(0, 60, "s"), "confirm_hits": B(1, 100),
     },
     BackprojectionConfig: {
         "window_fraction": B(0, 1), "foreground_percentile": B(0, 100), "band_m": B(0, 10, "m"),

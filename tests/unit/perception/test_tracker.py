@@ -99,7 +99,8 @@ def test_the_gate_rejects_an_outlier_and_the_track_only_predicts(rng):
 
 
 def test_a_measurement_inside_the_birth_gate_starts_no_duplicate(rng):
-    cfg = TrackerConfig(gate_chi2=7.38, birth_gate_chi2=1e4)
+    wide_birth_gate = type("WideBirthGate", (TrackerConfig,), {"birth_gate_chi2": 1e4})  # a class constant
+    cfg = wide_birth_gate(gate_chi2=7.38)
     tr, t = _confirmed_tracker(rng, cfg)
     before = tr.tracks()[0]
     t1 = t + DT
@@ -110,8 +111,9 @@ def test_a_measurement_inside_the_birth_gate_starts_no_duplicate(rng):
 
 
 def test_coasting_starts_after_t_hold_with_linear_inflation_and_pruning_after_t_drop(rng):
-    cfg = TrackerConfig(coast_pos_inflation_m2ps=0.5, coast_vel_inflation_m2ps3=2.0)
-    no_inflation = dataclasses.replace(cfg, coast_pos_inflation_m2ps=0.0, coast_vel_inflation_m2ps3=0.0)
+    # the inflation rates are class constants: subclasses set them
+    cfg = type("Inflating", (TrackerConfig,), {"coast_pos_inflation_m2ps": 0.5, "coast_vel_inflation_m2ps3": 2.0})()
+    no_inflation = type("NotInflating", (TrackerConfig,), {"coast_pos_inflation_m2ps": 0.0, "coast_vel_inflation_m2ps3": 0.0})()
     a, t_seen = _confirmed_tracker(np.random.default_rng(3), cfg)
     b, _ = _confirmed_tracker(np.random.default_rng(3), no_inflation)
     times = t_seen + DT * np.arange(1, 30)
@@ -213,7 +215,7 @@ def test_bad_input_is_refused_with_a_clear_message(rng):
         ("alpha_ema", 1.5),
         ("sigma_acc_mps2", -1.0),
         ("gate_chi2", float("nan")),
-        ("birth_gate_chi2", 1.0),
+        ("gate_chi2", 50.0),  # past the birth gate (40)
         ("t_drop_s", 0.5),
         ("confirm_hits", 0),
         ("confirm_hits", True),
@@ -223,7 +225,10 @@ def test_bad_input_is_refused_with_a_clear_message(rng):
 )
 def test_config_validation_names_the_field(field, value):
     with pytest.raises(ValueError, match=f"^{field}="):
-        TrackerConfig(**{field: value})
+        if field in {f.name for f in dataclasses.fields(TrackerConfig)}:
+            TrackerConfig(**{field: value})
+        else:  # a class constant: a subclass overrides it
+            type("Overridden", (TrackerConfig,), {field: value})()
 
 
 def test_config_defaults_follow_mp_cde_table_i():
