@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -17,6 +18,14 @@ class MapConfig:
 
     Log-odds defaults are OctoMap's (Hornung et al. 2013): hit probability 0.7,
     miss 0.4, clamping at 0.12 / 0.97.
+
+    Class constants (:data:`typing.ClassVar`, not fields: no scenario, sweep or
+    preset sets them, so a scenario file that names one is refused as an
+    unknown key; docs/design.md section 7): ``min_range_m``,
+    ``clear_invalid_m``, ``invalid_neighborhood_px``, ``pixel_stride``,
+    ``clear_stride``, ``clear_tail_voxels``, ``detection_margin_px``, the
+    ``log_odds_*`` and ``esdf_max_m``. A test or benchmark that needs another
+    value overrides one in a subclass.
 
     Attributes:
         voxel_m: voxel edge [m], 0.1 to 0.2 (default 0.15).
@@ -89,21 +98,21 @@ class MapConfig:
 
     voxel_m: float = 0.15
     window_size_m: tuple[float, float, float] = (10.0, 10.0, 4.0)
-    min_range_m: float = 0.2
+    min_range_m: ClassVar[float] = 0.2
     max_range_m: float = 10.0
-    clear_invalid_m: float = 10.0
-    invalid_neighborhood_px: int = 3
-    pixel_stride: int = 2
-    clear_stride: int = 4
-    clear_tail_voxels: float = 2.0
-    detection_margin_px: int = 4
+    clear_invalid_m: ClassVar[float] = 10.0
+    invalid_neighborhood_px: ClassVar[int] = 3
+    pixel_stride: ClassVar[int] = 2
+    clear_stride: ClassVar[int] = 4
+    clear_tail_voxels: ClassVar[float] = 2.0
+    detection_margin_px: ClassVar[int] = 4
     neighbour_exclusion_m: float = 0.0
-    log_odds_hit: float = 0.847
-    log_odds_miss: float = -0.405
-    log_odds_min: float = -1.99
-    log_odds_max: float = 3.48
-    log_odds_occupied: float = 0.0
-    esdf_max_m: float = 3.0
+    log_odds_hit: ClassVar[float] = 0.847
+    log_odds_miss: ClassVar[float] = -0.405
+    log_odds_min: ClassVar[float] = -1.99
+    log_odds_max: ClassVar[float] = 3.48
+    log_odds_occupied: ClassVar[float] = 0.0
+    esdf_max_m: ClassVar[float] = 3.0
 
     def __post_init__(self) -> None:
         if not 0.1 <= self.voxel_m <= 0.2:
@@ -111,10 +120,10 @@ class MapConfig:
         w = tuple(self.window_size_m)
         if len(w) != 3 or not all(np.isfinite(x) and x >= 2 * self.voxel_m for x in w):
             raise ConfigError("window_size_m", self.window_size_m, "allowed three finite lengths >= 2 voxels")
-        if not 0.0 <= self.min_range_m < self.max_range_m:
-            raise ConfigError("min_range_m", self.min_range_m, "allowed 0 <= min_range_m < max_range_m")
-        if not np.isfinite(self.max_range_m):
-            raise ConfigError("max_range_m", self.max_range_m, "allowed finite > min_range_m")
+        if not 0.0 <= self.min_range_m:
+            raise ConfigError("min_range_m", self.min_range_m, "allowed >= 0 m")
+        if not (np.isfinite(self.max_range_m) and self.max_range_m > self.min_range_m):
+            raise ConfigError("max_range_m", self.max_range_m, f"allowed finite > min_range_m = {self.min_range_m!r} m")
         if not (np.isfinite(self.clear_invalid_m) and self.clear_invalid_m >= 0.0):
             raise ConfigError("clear_invalid_m", self.clear_invalid_m, "allowed finite >= 0 (0 = skip invalid pixels)")
         if not (isinstance(self.invalid_neighborhood_px, (int, np.integer)) and self.invalid_neighborhood_px >= 0):

@@ -90,12 +90,8 @@ RANGES: dict[type, dict[str, B]] = {
         "fresh_path_glance_age_s": B(0.01, 60, "s", inf="no glances"), "fresh_path_glance_distance_m": B(0, 20, "m"),
     },
     MapConfig: {
-        "voxel_m": B(0.02, 2, "m"), "window_size_m": B(1, 100, "m"), "min_range_m": B(0, 10, "m"),
-        "max_range_m": B(0.1, 100, "m"), "clear_invalid_m": B(0, 100, "m"), "invalid_neighborhood_px": B(0, 50, "px"),
-        "pixel_stride": B(1, 64, "px"), "clear_stride": B(1, 256, "px"), "clear_tail_voxels": B(0, 100, "voxels"),
-        "detection_margin_px": B(0, 200, "px"), "neighbour_exclusion_m": B(0, 10, "m"), "log_odds_hit": B(-20, 20),
-        "log_odds_miss": B(-20, 20), "log_odds_min": B(-20, 20), "log_odds_max": B(-20, 20), "log_odds_occupied": B(-20, 20),
-        "esdf_max_m": B(0.1, 20, "m"),
+        "voxel_m": B(0.02, 2, "m"), "window_size_m": B(1, 100, "m"), "max_range_m": B(0.1, 100, "m"),
+        "neighbour_exclusion_m": B(0, 10, "m"),
     },
     YawPlannerConfig: {
         "period_s": B(0.01, 10, "s"), "n_steps": B(1, 100), "n_candidates": B(2, 720), "yaw_rate_max_radps": B(0, 20, "rad/s"),

@@ -142,7 +142,7 @@ def test_map_esdf_matches_distance_to_a_seen_cylinder() -> None:
     with np.errstate(invalid="ignore"):
         s = (-b - np.sqrt(disc)) / (2 * a)
     depth = np.where((disc >= 0) & (s > 0.2) & (s < 10), s, np.nan).astype(np.float32)
-    m = OccupancyMap(MapConfig(pixel_stride=1))
+    m = OccupancyMap(type("FullResolution", (MapConfig,), {"pixel_stride": 1})())  # a class constant
     m.update(RgbdFrame(0, 0.0, np.zeros((h_px, w_px, 3), np.uint8), depth, K, T))
     snap = m.snapshot()
     # points on the camera's side, within 25 deg of the line of sight and 0.3-1.5 m from the surface

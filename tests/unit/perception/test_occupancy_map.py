@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -132,7 +134,7 @@ def test_invalid_pixels_are_cleared_only_when_configured(wall_scene) -> None:
     probe = CAM_POS + 3.0 * pixel_rays_world(K, T)[v, u]
     cleared = OccupancyMap()
     cleared.update(make_frame(K, T, depth))
-    skipped = OccupancyMap(MapConfig(clear_invalid_m=0.0))
+    skipped = OccupancyMap(type("SkipInvalid", (MapConfig,), {"clear_invalid_m": 0.0})())  # a class constant
     skipped.update(make_frame(K, T, depth))
     assert cleared.snapshot().state_at(probe[None])[0] == 0
     assert skipped.snapshot().state_at(probe[None])[0] == -1
@@ -147,7 +149,7 @@ def test_stereo_holes_do_not_clear_through_the_wall(wall_scene) -> None:
     behind = (CAM_POS + (depth[v, u] + 0.6)[..., None] * rays[v, u]).reshape(-1, 3)
     guarded = OccupancyMap()
     guarded.update(make_frame(K, T, holey))
-    naive = OccupancyMap(MapConfig(invalid_neighborhood_px=0))
+    naive = OccupancyMap(type("Unguarded", (MapConfig,), {"invalid_neighborhood_px": 0})())  # a class constant
     naive.update(make_frame(K, T, holey))
     inside = guarded.snapshot().contains(behind)
     assert np.all(guarded.snapshot().state_at(behind[inside]) == -1)
@@ -278,9 +280,12 @@ def test_snapshot_is_cached_and_read_only(wall_scene) -> None:
 @pytest.mark.parametrize(
     ("field", "value"),
     [("voxel_m", 0.05), ("window_size_m", (10.0, 10.0, 0.1)), ("pixel_stride", 0), ("log_odds_miss", 0.2),
-     ("min_range_m", 20.0), ("esdf_max_m", 0.0), ("clear_invalid_m", -1.0),
+     ("min_range_m", -0.1), ("max_range_m", 0.1), ("esdf_max_m", 0.0), ("clear_invalid_m", -1.0),
      ("invalid_neighborhood_px", -1), ("neighbour_exclusion_m", -0.1)],
 )
 def test_map_config_rejects_bad_values(field: str, value: object) -> None:
     with pytest.raises(ValueError, match=f"^{field}="):
-        MapConfig(**{field: value})
+        if field in {f.name for f in dataclasses.fields(MapConfig)}:
+            MapConfig(**{field: value})
+        else:  # a class constant: a subclass overrides it
+            type("Overridden", (MapConfig,), {field: value})()
