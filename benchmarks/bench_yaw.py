@@ -215,7 +215,8 @@ def main() -> None:
     observing = warm_planner(snapshot, trajectory, config)
     assert observing.plan(time_s, yaw, trajectory, snapshot, seen).mode == "observing"
     observe_ms = median_ms(lambda: observing.plan(time_s, yaw, trajectory, snapshot, seen), args.repeats)
-    tracking = YawPlanner(YawPlannerConfig(epsilon=3.0, safety_horizon_s=6.0))
+    slow_turns = type("SlowTurns", (YawPlannerConfig,), {"epsilon": 3.0})  # epsilon is a class constant
+    tracking = YawPlanner(slow_turns(safety_horizon_s=6.0))
     assert tracking.plan(time_s, yaw, trajectory, snapshot, preds).mode == "tracking"
     track_ms = median_ms(lambda: tracking.plan(time_s, yaw, trajectory, snapshot, preds), args.repeats)
     print(f"  other modes: observing {observe_ms:6.2f} ms   tracking {track_ms:6.2f} ms")

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 from sim.checks import ConfigError, require_boolean, require_integer_at_least, require_non_negative, require_one_of, require_positive
 
@@ -21,6 +22,15 @@ __all__ = ["YawPlannerConfig"]
 @dataclass(frozen=True)
 class YawPlannerConfig:
     """Settings of :class:`planners.yaw.YawPlanner`.
+
+    Class constants (:data:`typing.ClassVar`, not fields: no scenario, sweep or
+    preset sets them, so a scenario file that names one is refused as an
+    unknown key; docs/design.md section 7): ``n_steps``, ``n_candidates``,
+    ``epsilon``, ``hysteresis_s``, ``turn_penalty``, ``n_rays``,
+    ``ray_step_m``, ``window_s``, ``safety_sample_s``,
+    ``free_slab_half_height_m``, ``distance_eps_m``, ``visibility_sigma_ref_m``,
+    ``visibility_weight_max`` and ``still_speed_mps``. A test or benchmark that
+    needs another value overrides one in a subclass.
 
     Attributes:
         period_s: t_y, spacing of the yaw lattice's layers and the planner's
@@ -164,32 +174,32 @@ class YawPlannerConfig:
     """
 
     period_s: float = 0.1
-    n_steps: int = 12
-    n_candidates: int = 64
+    n_steps: ClassVar[int] = 12
+    n_candidates: ClassVar[int] = 64
     yaw_rate_max_radps: float = 2.0
-    epsilon: float = 1.2
-    hysteresis_s: float = 0.1
+    epsilon: ClassVar[float] = 1.2
+    hysteresis_s: ClassVar[float] = 0.1
     alpha: float = 0.6
     beta: float = 0.4
-    turn_penalty: float = 0.01
-    n_rays: int = 72
+    turn_penalty: ClassVar[float] = 0.01
+    n_rays: ClassVar[int] = 72
     fov_h_deg: float = 85.0
     fov_v_deg: float = 58.0
     sensing_range_m: float = 5.0
-    ray_step_m: float = 0.15
+    ray_step_m: ClassVar[float] = 0.15
     detection_range_m: float = 8.0
     v_max_mps: float = 1.0
     t_hold_s: float = 0.6
-    window_s: float = 1.0
-    safety_sample_s: float = 0.05
+    window_s: ClassVar[float] = 1.0
+    safety_sample_s: ClassVar[float] = 0.05
     safety_horizon_s: float = 4.0
     free_max_age_s: float = 1.0
     free_distance: str = "horizontal"
-    free_slab_half_height_m: float = 0.3
-    distance_eps_m: float = 0.2
-    visibility_sigma_ref_m: float = 0.5
-    visibility_weight_max: float = 3.0
-    still_speed_mps: float = 0.1
+    free_slab_half_height_m: ClassVar[float] = 0.3
+    distance_eps_m: ClassVar[float] = 0.2
+    visibility_sigma_ref_m: ClassVar[float] = 0.5
+    visibility_weight_max: ClassVar[float] = 3.0
+    still_speed_mps: ClassVar[float] = 0.1
     tracking_sweep_deg: float = 60.0
     tracking_sweep_period_s: float = 2.1
     exploring_mode: bool = True
@@ -221,15 +231,18 @@ class YawPlannerConfig:
         require_one_of("free_distance", self.free_distance, ("horizontal", "voxel", "occupied"))
         require_integer_at_least("n_steps", self.n_steps, 1)
         require_integer_at_least("n_rays", self.n_rays, 2)
-        m_min = math.ceil(2.0 * math.pi / (self.yaw_rate_max_radps * self.period_s) - 1e-9)
-        require_integer_at_least("n_candidates", self.n_candidates, max(m_min, 3))
+        require_integer_at_least("n_candidates", self.n_candidates, 3)
+        if self.n_candidates * self.max_step_rad < 2.0 * math.pi * (1.0 - 1e-9):  # adjacent candidates must be connected
+            slowest = 2.0 * math.pi / (self.n_candidates * self.period_s)
+            allowed = f"allowed >= 2 pi / (n_candidates t_y) = {slowest:.3f} rad/s (adjacent yaw candidates must be one step apart)"
+            raise ConfigError("yaw_rate_max_radps", self.yaw_rate_max_radps, allowed)
         for name, upper in (("fov_h_deg", 360.0), ("fov_v_deg", 180.0)):
             value = getattr(self, name)
             require_positive(name, value)
             if not value < upper:
                 raise ConfigError(name, value, f"allowed 0 < {name} < {upper:g}")
         if self.ray_step_m > self.sensing_range_m:
-            raise ConfigError("ray_step_m", self.ray_step_m, f"allowed <= sensing_range_m={self.sensing_range_m!r}")
+            raise ConfigError("sensing_range_m", self.sensing_range_m, f"allowed >= ray_step_m = {self.ray_step_m!r} m")
         if not self.fov_h_deg + math.degrees(self.max_step_rad) < 360.0:
             allowed = f"allowed < 360 - yaw_rate_max * t_y = {360.0 - math.degrees(self.max_step_rad):.1f} deg (a turn must not wrap the sector onto itself)"
             raise ConfigError("fov_h_deg", self.fov_h_deg, allowed)

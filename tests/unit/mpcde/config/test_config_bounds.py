@@ -43,7 +43,7 @@ LEAVES = _numeric_leaves(ScenarioConfig, ScenarioConfig()) + [
 def test_every_number_of_the_scenario_tree_has_a_range():
     missing = [path for path, cls, name, _ in LEAVES if name not in SCENARIO_RANGES.get(cls, {})]
     assert not missing, f"numeric fields with no range in mpcde/config/ranges.py or SCENARIO_RANGES: {missing}"
-    assert len(LEAVES) > 190
+    assert len(LEAVES) > 150  # the walk reaches the whole tree (its constants are class attributes, not fields)
 
 
 def test_the_defaults_lie_inside_their_ranges():

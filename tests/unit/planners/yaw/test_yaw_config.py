@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -26,7 +27,8 @@ def test_defaults_are_the_papers():
         ("n_steps", 0),
         ("n_steps", 2.0),
         ("n_steps", True),
-        ("n_candidates", 31),  # 2 pi / 31 > 0.2 rad: adjacent candidates not connected
+        ("n_candidates", 2),
+        ("yaw_rate_max_radps", 0.9),  # 2 pi / 64 > 0.09 rad: adjacent candidates not connected
         ("yaw_rate_max_radps", -2.0),
         ("epsilon", 0.0),
         ("hysteresis_s", -0.1),
@@ -38,7 +40,8 @@ def test_defaults_are_the_papers():
         ("fov_h_deg", 355.0),  # the sector plus one step would wrap onto itself
         ("fov_v_deg", 180.0),
         ("sensing_range_m", 0.0),
-        ("ray_step_m", 10.0),
+        ("ray_step_m", 0.0),
+        ("sensing_range_m", 0.1),  # shorter than one ray step (0.15 m)
         ("detection_range_m", -1.0),
         ("v_max_mps", 0.0),
         ("t_hold_s", -0.6),
@@ -53,7 +56,10 @@ def test_defaults_are_the_papers():
 )
 def test_invalid_values_raise_one_line_errors_naming_the_field(field, value):
     with pytest.raises(ValueError, match=rf"^{field}=") as info:
-        YawPlannerConfig(**{field: value})
+        if field in {f.name for f in dataclasses.fields(YawPlannerConfig)}:
+            YawPlannerConfig(**{field: value})
+        else:  # a class constant: a subclass overrides it
+            type("Overridden", (YawPlannerConfig,), {field: value})()
     assert "\n" not in str(info.value)
     assert ": " in str(info.value)  # <field>=<value>: <allowed> (sim.checks wording)
 
@@ -64,5 +70,6 @@ def test_alpha_and_beta_cannot_both_be_zero():
 
 
 def test_coarser_lattice_with_a_faster_yaw_is_accepted():
-    cfg = YawPlannerConfig(n_candidates=16, yaw_rate_max_radps=4.0)
+    coarse = type("CoarseLattice", (YawPlannerConfig,), {"n_candidates": 16})  # a class constant
+    cfg = coarse(yaw_rate_max_radps=4.0)
     assert cfg.max_hop == 1
