@@ -8,6 +8,7 @@ numpy's checks, where :mod:`perception.backprojection` loads the tracker
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from sim.checks import ConfigError
 
@@ -17,6 +18,15 @@ __all__ = ["BackprojectionConfig"]
 @dataclass(frozen=True)
 class BackprojectionConfig:
     """How depth is read from a box and how uncertain the result is.
+
+    Class constants (:data:`typing.ClassVar`, not fields: no scenario, sweep or
+    preset sets them, so a scenario file that names one is refused as an
+    unknown key; docs/design.md section 7): every attribute but the two pose
+    terms, which :mod:`mpcde.config.resolve` derives from the scenario's
+    ``pose_estimate``. The depth-noise pair is the measurement model's, equal
+    to the default camera's (``sim.camera.CameraConfig``), not derived from the
+    scenario's camera. A test that needs another value overrides one in a
+    subclass.
 
     Attributes:
         window_fraction: side of the central sub-window relative to the box side, in (0, 1].
@@ -36,16 +46,16 @@ class BackprojectionConfig:
             (default: ``sim.pose_estimate.PoseEstimateConfig``).
     """
 
-    window_fraction: float = 0.5
-    foreground_percentile: float = 20.0
-    band_m: float = 0.1
-    surface_to_centre_m: float = 0.03
-    depth_noise_base_m: float = 0.002
-    depth_noise_quadratic_per_m: float = 0.0025
-    model_std_m: float = 0.01
-    centre_std_px: float = 0.15
-    centre_std_box_fraction: float = 0.02
-    across_floor_m: float = 0.0
+    window_fraction: ClassVar[float] = 0.5
+    foreground_percentile: ClassVar[float] = 20.0
+    band_m: ClassVar[float] = 0.1
+    surface_to_centre_m: ClassVar[float] = 0.03
+    depth_noise_base_m: ClassVar[float] = 0.002
+    depth_noise_quadratic_per_m: ClassVar[float] = 0.0025
+    model_std_m: ClassVar[float] = 0.01
+    centre_std_px: ClassVar[float] = 0.15
+    centre_std_box_fraction: ClassVar[float] = 0.02
+    across_floor_m: ClassVar[float] = 0.0
     pose_pos_std_m: float = 0.01
     pose_yaw_std_rad: float = 0.002
 

@@ -74,10 +74,7 @@ RANGES: dict[type, dict[str, B]] = {
         "gate_chi2": B(0, 10_000), "t_hold_s": B(0, 60, "s"), "t_drop_s": B(0, 60, "s"), "confirm_hits": B(1, 100),
     },
     BackprojectionConfig: {
-        "window_fraction": B(0, 1), "foreground_percentile": B(0, 100), "band_m": B(0, 10, "m"),
-        "surface_to_centre_m": B(0, 1, "m"), "depth_noise_base_m": B(0, 1, "m"), "depth_noise_quadratic_per_m": B(0, 1, "1/m"),
-        "model_std_m": B(0, 1, "m"), "centre_std_px": B(0, 100, "px"), "centre_std_box_fraction": B(0, 1),
-        "across_floor_m": B(0, 1, "m"), "pose_pos_std_m": B(0, 10, "m"), "pose_yaw_std_rad": B(0, 1, "rad"),
+        "pose_pos_std_m": B(0, 10, "m"), "pose_yaw_std_rad": B(0, 1, "rad"),
     },
     DeniedAgentConfig: {
         "v_max_mps": B(0, 10, "m/s"), "a_max_mps2": B(0, 50, "m/s^2"), "clearance_m": B(0, 5, "m"),

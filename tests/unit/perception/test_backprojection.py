@@ -23,6 +23,11 @@ from sim.types import ObstacleSpec, RgbdFrame
 K = intrinsics(CameraConfig())
 
 
+def _with(**constants: float) -> BackprojectionConfig:
+    """BackprojectionConfig with other values of its class constants (a subclass sets them)."""
+    return type("Constants", (BackprojectionConfig,), constants)()
+
+
 def _pose(yaw: float, pitch: float, pos) -> np.ndarray:
     """A camera pose: optical axis along body x, body yawed and pitched."""
     rig = CameraRig(CameraConfig(), seed=0)
@@ -34,7 +39,7 @@ def _pose(yaw: float, pitch: float, pos) -> np.ndarray:
 @pytest.mark.parametrize("u,v,d", [(10.0, 20.0, 0.7), (159.5, 119.5, 3.0), (301.3, 200.8, 9.4)])
 def test_pixel_to_world_to_pixel_round_trip(u, v, d):
     T = _pose(0.7, -0.2, [1.0, -2.0, 1.5])
-    cfg = BackprojectionConfig(surface_to_centre_m=0.0)
+    cfg = _with(surface_to_centre_m=0.0)
     m = measurement_from_pixel(u, v, d, 9, 10.0, K, T, 1.25, cfg)
     assert isinstance(m, Measurement) and m.time_s == 1.25
     p_c = np.linalg.inv(T) @ np.append(m.pos_world, 1.0)
@@ -45,8 +50,8 @@ def test_pixel_to_world_to_pixel_round_trip(u, v, d):
 
 def test_surface_to_centre_offset_moves_the_point_along_the_ray():
     T = _pose(-1.1, 0.1, [0.0, 0.0, 2.0])
-    a = measurement_from_pixel(50.0, 60.0, 4.0, 9, 10.0, K, T, 0.0, BackprojectionConfig(surface_to_centre_m=0.0))
-    b = measurement_from_pixel(50.0, 60.0, 4.0, 9, 10.0, K, T, 0.0, BackprojectionConfig(surface_to_centre_m=0.05))
+    a = measurement_from_pixel(50.0, 60.0, 4.0, 9, 10.0, K, T, 0.0, _with(surface_to_centre_m=0.0))
+    b = measurement_from_pixel(50.0, 60.0, 4.0, 9, 10.0, K, T, 0.0, _with(surface_to_centre_m=0.05))
     ray_w = a.pos_world - T[:3, 3]
     assert np.linalg.norm(b.pos_world - a.pos_world) == pytest.approx(0.05)
     assert np.cross(b.pos_world - a.pos_world, ray_w) == pytest.approx(np.zeros(3), abs=1e-12)
@@ -145,6 +150,7 @@ def test_compiled_box_depth_equals_its_numpy_reference_to_the_bit():
     from perception.backprojection_config import BackprojectionConfig
 
     rng = np.random.default_rng(4)
+    at = {p: _with(foreground_percentile=p) for p in (0.0, 20.0, 33.3, 50.0)}  # a class constant
     for t in range(400):
         d = rng.uniform(0.3, 12, (60, 80)).astype(np.float32)
         if t % 3 == 0:
@@ -155,7 +161,7 @@ def test_compiled_box_depth_equals_its_numpy_reference_to_the_bit():
             d = np.round(d, 1).astype(np.float32)  # repeated depths
         x0, y0 = rng.uniform(-10, 80), rng.uniform(-10, 60)
         box = np.array([x0, y0, x0 + rng.uniform(0, 40), y0 + rng.uniform(0, 30)])
-        cfg = BackprojectionConfig(foreground_percentile=float(rng.choice([0.0, 20.0, 33.3, 50.0])))
+        cfg = at[float(rng.choice([0.0, 20.0, 33.3, 50.0]))]
         got, ref = box_depth_m(d, box, cfg), box_depth_numpy(d, box, cfg)
         assert got[1] == ref[1]
         assert got[0] == ref[0] or (np.isnan(got[0]) and np.isnan(ref[0]))
