@@ -31,7 +31,7 @@ class TrackerConfig:
     unknown key; docs/design.md section 7): ``adapt_scale``,
     ``adapt_after_hits``, ``init_vel_std_mps``, ``birth_gate_chi2``,
     ``coast_pos_inflation_m2ps``, ``coast_vel_inflation_m2ps3``,
-    ``tentative_drop_s``, ``meas_std_floor_m`` and ``meas_std_per_range``. A
+    ``confirm_hits``, ``tentative_drop_s``, ``meas_std_floor_m`` and ``meas_std_per_range``. A
     test that needs another value overrides one in a subclass.
 
     Attributes:
@@ -119,7 +119,7 @@ class TrackerConfig:
     t_drop_s: float = 1.0
     coast_pos_inflation_m2ps: ClassVar[float] = 0.1
     coast_vel_inflation_m2ps3: ClassVar[float] = 1.0
-    confirm_hits: int = 3
+    confirm_hits: ClassVar[int] = 3
     tentative_drop_s: ClassVar[float] = 0.2
     meas_std_floor_m: ClassVar[float] = 0.02
     meas_std_per_range: ClassVar[float] = 0.01

@@ -23,7 +23,6 @@ from sim.camera import CameraConfig
 from sim.faults import FaultsConfig
 from sim.pose_estimate import PoseEstimateConfig
 from sim.radio import RadioConfig
-from sim.vehicle.controller import ControllerGains
 from sim.vehicle.params import QuadrotorParams
 from sim.vehicle.physics_config import PhysicsConfig
 
@@ -64,14 +63,9 @@ RANGES: dict[type, dict[str, B]] = {
         "linear_drag_coeff": B(0, 10, "N s/m"), "robot_radius_m": B(0.01, 2, "m"), "motor_dirs": B(-1, 1),
         "motor_angles_rad": B(-2 * PI, 2 * PI, "rad"),
     },
-    ControllerGains: {
-        "pos_natural_freq_radps": B(0.1, 50, "rad/s"), "pos_damping": B(0.1, 5), "pos_integral_gain": B(0, 50, "1/s"),
-        "integral_limit_m_s": B(0, 10, "m s"), "integral_zone_m": B(0, 10, "m"), "att_natural_freq_radps": B(1, 200, "rad/s"),
-        "att_damping": B(0.1, 5), "max_tilt_rad": B(0.01, 1.5, "rad"),
-    },
     TrackerConfig: {
         "alpha_ema": B(0, 1), "sigma_acc_mps2": B(0, 100, "m/s^2"), "sigma_acc_max_mps2": B(0, 100, "m/s^2"),
-        "gate_chi2": B(0, 10_000), "t_hold_s": B(0, 60, "s"), "t_drop_s": B(0, 60, "s"), "confirm_hits": B(1, 100),
+        "gate_chi2": B(0, 10_000), "t_hold_s": B(0, 60, "s"), "t_drop_s": B(0, 60, "s"),
     },
     BackprojectionConfig: {
         "pose_pos_std_m": B(0, 10, "m"), "pose_yaw_std_rad": B(0, 1, "rad"),
@@ -93,13 +87,13 @@ RANGES: dict[type, dict[str, B]] = {
     YawPlannerConfig: {
         "period_s": B(0.01, 10, "s"), "yaw_rate_max_radps": B(0, 20, "rad/s"), "alpha": B(0, 100), "beta": B(0, 100),
         "fov_h_deg": B(1, 170, "deg"), "fov_v_deg": B(1, 170, "deg"), "sensing_range_m": B(0.1, 100, "m"),
-        "detection_range_m": B(0.1, 100, "m"), "v_max_mps": B(0, 10, "m/s"), "t_hold_s": B(0, 60, "s"),
+        "v_max_mps": B(0, 10, "m/s"), "t_hold_s": B(0, 60, "s"),
         "safety_horizon_s": B(0, 60, "s"), "free_max_age_s": B(0, 3600, "s", inf="free space never ages"),
         "tracking_sweep_deg": B(0, 180, "deg"), "tracking_sweep_period_s": B(0.1, 60, "s"),
     },
     DmpcConfig: {
         "horizon_steps": B(1, 100), "step_s": B(0.01, 5, "s"), "weight_goal": B(0, 1e8), "weight_formation": B(0, 1e8),
-        "weight_smoothness": B(0, 1e8), "weight_slack_quadratic": B(0, 1e8), "pos_min_world": B(-1000, 1000, "m"),
+        "weight_smoothness": B(0, 1e8), "pos_min_world": B(-1000, 1000, "m"),
         "pos_max_world": B(-1000, 1000, "m"), "v_max_mps": B(0, 20, "m/s"), "a_max_mps2": B(0, 100, "m/s^2"), "j_max_mps3": B(0, 1000, "m/s^3"),
         "r_min_m": B(0, 10, "m"), "downwash": B(0.1, 10), "max_neighbours": B(1, 64), "max_obstacle_planes": B(0, 64),
     },

@@ -41,7 +41,7 @@ class DmpcConfig:
     Class constants (:data:`typing.ClassVar`, not fields: no scenario, sweep or
     preset sets them, so a scenario file that names one is refused as an
     unknown key; docs/design.md section 7): ``goal_steps``,
-    ``weight_slack_linear``, ``slack_max_m``, ``neighbourhood_factor``,
+    ``weight_slack_quadratic``, ``weight_slack_linear``, ``slack_max_m``, ``neighbourhood_factor``,
     ``conflict_margin_m``, ``on_demand_time``, ``conflict_substeps``,
     ``obstacle_culling`` and the ``osqp_*`` solver settings. A test that needs
     another value overrides one in a subclass.
@@ -155,7 +155,7 @@ class DmpcConfig:
     weight_goal: float = 100.0
     weight_formation: float = 10.0
     weight_smoothness: float = 1.0
-    weight_slack_quadratic: float = 1.0e4
+    weight_slack_quadratic: ClassVar[float] = 1.0e4
     weight_slack_linear: ClassVar[float] = 5.0e4
     slack_max_m: ClassVar[float] = 10.0
     pos_min_world: tuple[float, float, float] = (-20.0, -20.0, 0.2)

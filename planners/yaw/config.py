@@ -27,7 +27,7 @@ class YawPlannerConfig:
     preset sets them, so a scenario file that names one is refused as an
     unknown key; docs/design.md section 7): ``n_steps``, ``n_candidates``,
     ``epsilon``, ``hysteresis_s``, ``turn_penalty``, ``n_rays``,
-    ``ray_step_m``, ``window_s``, ``safety_sample_s``,
+    ``ray_step_m``, ``detection_range_m``, ``window_s``, ``safety_sample_s``,
     ``free_slab_half_height_m``, ``distance_eps_m``, ``visibility_sigma_ref_m``,
     ``visibility_weight_max`` and ``still_speed_mps``. A test or benchmark that
     needs another value overrides one in a subclass.
@@ -187,7 +187,7 @@ class YawPlannerConfig:
     fov_v_deg: float = 58.0
     sensing_range_m: float = 5.0
     ray_step_m: ClassVar[float] = 0.15
-    detection_range_m: float = 8.0
+    detection_range_m: ClassVar[float] = 8.0
     v_max_mps: float = 1.0
     t_hold_s: float = 0.6
     window_s: ClassVar[float] = 1.0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from sim.checks import ConfigError
 from sim.vehicle.controller import ControllerGains
@@ -15,6 +16,12 @@ __all__ = ["PhysicsConfig"]
 class PhysicsConfig:
     """Physics and low-level control.
 
+    Class constant (:data:`typing.ClassVar`, not a field: no scenario, sweep or
+    preset sets it, so a scenario file that names ``physics.gains`` is refused
+    as an unknown key; docs/design.md section 7): ``gains``. Code that flies
+    other gains builds :class:`sim.vehicle.controller.SE3Controller` with its
+    own :class:`~sim.vehicle.controller.ControllerGains`, or subclasses this.
+
     Attributes:
         physics_hz: physics and controller rate [Hz] (PyBullet default 240).
         quadrotor: airframe, rotors and motors.
@@ -25,7 +32,7 @@ class PhysicsConfig:
 
     physics_hz: float = 240.0
     quadrotor: QuadrotorParams = field(default_factory=QuadrotorParams)
-    gains: ControllerGains = field(default_factory=ControllerGains)
+    gains: ClassVar[ControllerGains] = ControllerGains()
     crash_tilt_rad: float = 1.2
 
     def __post_init__(self) -> None:
