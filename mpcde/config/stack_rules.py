@@ -6,6 +6,8 @@ z_c the mean of its own start and goal altitudes (:class:`mpcde.config.denied.De
 make the levels what they promise: every drone's z_c is the same, so that the levels are distinct and s apart;
 and the lowest and highest levels lie within the altitudes a layout may use (:data:`LEVEL_ALTITUDES_M`), the
 lowest level's layer keeping the front end's clearance (``denied.front_end_clearance_m``) from the ground.
+The same clearance bounds every start and goal of a stack that flies the denied planner
+(:func:`check_denied_ground_clearance`): the camera maps the ground, so a search from or to a point nearer it fails.
 
 Each is a registry entry's ``check`` (:mod:`mpcde.stacks.builtin`), which
 :meth:`mpcde.config.scenario.ScenarioConfig.__post_init__` calls for the scenario's stack.
@@ -23,7 +25,10 @@ from mpcde.errors import ConfigError
 if TYPE_CHECKING:
     from mpcde.config.scenario import ScenarioConfig, WorldConfig
 
-__all__ = ["LEVEL_ALTITUDES_M", "check_admm", "check_dmpc_round", "check_flight_levels", "check_mlr", "flight_level_m"]
+__all__ = [
+    "LEVEL_ALTITUDES_M", "check_admm", "check_denied_ground_clearance", "check_dmpc_round", "check_flight_levels",
+    "check_mlr", "flight_level_m",
+]
 
 
 def _refuse_obstacles(world: WorldConfig, kind: str, why: str) -> None:
@@ -142,3 +147,22 @@ def check_flight_levels(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarr
             f"the lowest must keep denied.front_end_clearance_m + s / 8 = {lo:.3g} m above the ground, the highest <= {hi:g} m)"
         )
         raise ConfigError("denied.flight_level_spacing_m", spacing, allowed)
+
+
+def check_denied_ground_clearance(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> None:
+    """ConfigError naming the first start or goal (N, 3) [m] below ``denied.front_end_clearance_m``.
+
+    The denied planner's front end keeps that clearance from every occupied voxel, the ground its camera maps
+    among them, so every search from or to such a point fails and the drone never leaves or never arrives
+    (docs/results/denied_default.md#ring-of-7 shows it for a flight level on the floor).
+    """
+    ground_m = cfg.denied.front_end_clearance_m
+    for name, pts in (("drones.starts", starts), ("drones.goals", goals)):
+        low = np.flatnonzero(pts[:, 2] < ground_m - 1e-9)
+        if low.size:
+            i = int(low[0])
+            allowed = (
+                f"an altitude >= denied.front_end_clearance_m = {ground_m:g} m (the denied planner keeps that clearance "
+                f"from the ground it maps)"
+            )
+            raise ConfigError(f"{name}[{i}]", [round(float(v), 3) for v in pts[i]], allowed)

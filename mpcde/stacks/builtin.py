@@ -16,7 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from mpcde.config.stack_rules import check_admm, check_dmpc_round, check_flight_levels, check_mlr
+from mpcde.config.stack_rules import (
+    check_admm, check_denied_ground_clearance, check_dmpc_round, check_flight_levels, check_mlr,
+)
 from mpcde.stacks.registry import AgentContext, Derivation, Stack, Uses
 
 __all__ = ["BUILTIN", "DEFAULT_KIND", "DEFAULT_KIND_WITHOUT_CAMERAS", "PAPER_PRESET"]
@@ -101,6 +103,10 @@ def _checks(*rules: Any) -> Any:
     return check
 
 
+_DENIED_CHECKS = _checks(check_denied_ground_clearance, check_flight_levels)
+"""The load-time rules of a stack that flies the denied planner: starts and goals clear of the ground, the levels."""
+
+
 def _commit_obstacle_range_m(cfg: Any) -> float:
     """max(3.0, sqrt(2) v_max_mps K h + robot radius + obstacle margin) [m]: the reach of a DMPC plan flown to its halt
     unrevised (``dmpc.commit_when_unheard``), over which every obstacle needs its plane (docs/results/comm_safety.md)."""
@@ -140,11 +146,11 @@ BUILTIN: tuple[Stack, ...] = (
     ),
     Stack(
         "denied", _denied, "MP-CDE without radio: own detector, tracks, active yaw, A* + MINCO", kind="mpcde",
-        uses=Uses(cameras="required"), section="denied", check=check_flight_levels, speed_fields=("denied.v_max_mps",),
+        uses=Uses(cameras="required"), section="denied", check=_DENIED_CHECKS, speed_fields=("denied.v_max_mps",),
     ),
     Stack(
         "mpcde_paper", _denied, "denied as MP-CDE publishes it: without look before moving or flight levels",
-        uses=Uses(cameras="required"), section="denied", check=check_flight_levels, speed_fields=("denied.v_max_mps",),
+        uses=Uses(cameras="required"), section="denied", check=_DENIED_CHECKS, speed_fields=("denied.v_max_mps",),
         preset=PAPER_PRESET,
     ),
     Stack(
@@ -155,7 +161,7 @@ BUILTIN: tuple[Stack, ...] = (
     Stack(
         "auto", _auto, "comm, with tracks for stale plans; denied when the radio falls silent",
         uses=Uses(cameras="required", radio=True, known_obstacles=True), section="auto",
-        check=_checks(check_dmpc_round, check_flight_levels), speed_fields=("denied.v_max_mps", "dmpc.qp.v_max_mps"),
+        check=_checks(check_dmpc_round, _DENIED_CHECKS), speed_fields=("denied.v_max_mps", "dmpc.qp.v_max_mps"),
         flies_formation=_dmpc_formation, derived=(_COMMIT_RANGE,),
     ),
     Stack(
@@ -174,7 +180,8 @@ BUILTIN: tuple[Stack, ...] = (
     ),
     Stack(
         "minco_comm", _minco_comm, "the denied planner on radio plans, heading along travel (EGO-Swarm analogue)",
-        uses=Uses(cameras="optional", radio=True), section="denied", speed_fields=("denied.v_max_mps",),
+        uses=Uses(cameras="optional", radio=True), section="denied", check=check_denied_ground_clearance,
+        speed_fields=("denied.v_max_mps",),
     ),
 )  # fmt: skip
 """The built-in stacks, in the order ``--help`` lists them."""

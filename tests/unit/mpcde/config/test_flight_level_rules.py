@@ -50,3 +50,22 @@ def test_the_cli_refuses_levels_in_one_line_with_exit_2_and_writes_nothing(tmp_p
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1 and "denied.flight_level_spacing_m=1.0" in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("kind", ["mpcde", "mpcde_paper", "auto", "minco_comm"])
+def test_a_denied_planners_start_or_goal_nearer_the_ground_than_its_clearance_is_refused(kind):
+    low_goal = {
+        "drones": {"layout": "explicit", "starts": [[-4.0, 0.0, 1.5], [0.0, -4.0, 1.5]], "goals": [[4.0, 0.0, 1.5], [0.0, 4.0, 0.3]]},
+        "planner": {"kind": kind},
+    }
+    with pytest.raises(ConfigError, match=r"^drones\.goals\[1\]=\[0\.0, 4\.0, 0\.3\]: an altitude >= denied\.front_end_clearance_m = 0\.45 m") as e:
+        load_scenario("crossing", low_goal)
+    assert "\n" not in str(e.value)
+    # at the clearance it loads, and a smaller clearance admits the lower goal
+    assert load_scenario("crossing", {**low_goal, "drones": {**low_goal["drones"], "goals": [[4.0, 0.0, 1.5], [0.0, 4.0, 0.45]]}})
+    assert load_scenario("crossing", {**low_goal, "denied": {"front_end_clearance_m": 0.25}})
+
+
+def test_stacks_without_the_denied_planner_may_fly_low():
+    low = {"drones": {"layout": "explicit", "starts": [[-4.0, 0.0, 0.3], [0.0, -4.0, 1.5]], "goals": [[4.0, 0.0, 0.3], [0.0, 4.0, 1.5]]}}
+    assert load_scenario("crossing", {**low, "planner": {"kind": "dmpc"}})
