@@ -8,8 +8,11 @@ BVC -> results.json), ``compare`` (one scenario in each mode, paired by
 seed -> results.json + run folders), ``eval-mlr`` (DMPC-Swarm's message-loss
 recovery experiments -> results.json), ``sweep`` (a grid of conditions x
 seeds on local processes or Ray -> a resumable results.jsonl + report),
-``report`` (a sweep folder's tables and plots) and ``bench`` (the hot-path
-benchmarks -> their printed figures + results.json). Bad input prints one
+``report`` (a sweep folder's tables and plots), ``paper`` (the paper
+reproduction's reports from sweep stores: Table III, the summary, the goals;
+:mod:`mpcde.paper.commands`), ``explain`` (each collision of a sweep's store
+re-flown and named) and ``bench`` (the hot-path benchmarks -> their printed
+figures + results.json). Bad input prints one
 line ``mpcde: error: <field>=<value>: <allowed>`` and exits with status 2,
 having written nothing.
 """
@@ -28,6 +31,7 @@ from mpcde import numerics
 from mpcde.stacks import stacks
 from mpcde.errors import ConfigError, MpcdeError, Terminated
 from mpcde.onboard.budget import ComputeBudget
+from mpcde.paper import commands as paper
 
 __all__ = ["main"]
 
@@ -142,6 +146,11 @@ def build_parser() -> argparse.ArgumentParser:
         default=["fig4_swap", "fig3b_cus", "fig3c_triggers"], help="which of the paper's experiments (default all)",
     )  # fmt: skip
     em.add_argument("--seeds", type=int, default=1, help="runs per row (seeds 0..N-1)")
+    paper.add_parser(sub)
+    ex = sub.add_parser("explain", help="re-fly every colliding flight of a sweep's store and name each collision's cause, per cell")
+    ex.add_argument("sweep", type=Path, help="the sweep YAML the store was flown from")
+    ex.add_argument("store", type=Path, help="its folder (mpcde sweep SWEEP --out STORE); causes go to STORE/collision_causes.jsonl")
+    ex.add_argument("--limit", type=int, default=None, help="explain at most this many new flights")
     bn = sub.add_parser("bench", help="run the hot-path benchmarks (benchmarks/) -> their figures + results.json")
     bn.add_argument("names", nargs="*", metavar="NAME", help="benchmarks to run (default all): sim, detector, map, ...")
     bn.add_argument("--out", required=True, type=Path, help="output folder (must be empty unless --overwrite)")
@@ -326,6 +335,18 @@ def _cmd_eval_mlr(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_explain(args: argparse.Namespace) -> int:
+    from mpcde.evals.explain import causes_table, entry_line, explain_store
+    from mpcde.sweep.spec import load_sweep
+
+    if args.limit is not None:
+        _at_least("--limit", args.limit, 0)
+    spec = load_sweep(args.sweep)
+    rows, done = explain_store(spec, args.store, args.limit, on_entry=lambda entry: print(entry_line(entry), flush=True))
+    print("\n" + causes_table(spec, rows, done))
+    return 0
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from mpcde.evals.bench import format_table, run_bench
 
@@ -339,7 +360,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 _COMMANDS = {
     "fly": _cmd_fly, "train-detector": _cmd_train_detector, "eval-detector": _cmd_eval_detector,
     "eval-tracking": _cmd_eval_tracking, "eval-dmpc": _cmd_eval_dmpc, "compare": _cmd_compare,
-    "eval-mlr": _cmd_eval_mlr, "sweep": _cmd_sweep, "report": _cmd_report, "bench": _cmd_bench,
+    "eval-mlr": _cmd_eval_mlr, "sweep": _cmd_sweep, "report": _cmd_report, "paper": paper.run, "explain": _cmd_explain,
+    "bench": _cmd_bench,
 }  # fmt: skip
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports Ctrl-C
 EXIT_TERMINATED = 143  # 128 + SIGTERM

@@ -1,1 +1,1 @@
-"""Evaluations and comparisons: compare, eval-tracking, eval-dmpc, eval-mlr, bench, and their tables."""
+"""Evaluations and comparisons: compare, eval-tracking, eval-dmpc, eval-mlr, explain, bench, and their tables."""

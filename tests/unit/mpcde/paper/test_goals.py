@@ -1,21 +1,18 @@
-"""scripts/paper_goals.py decides each of issue 28's goals from the stores, and mp-cde.md holds its output on the kept
-stores verbatim."""
+"""mpcde.paper.goals (`mpcde paper goals`) decides each of issue 28's goals from the stores, and mp-cde.md holds its
+output on the kept stores verbatim."""
 
 from __future__ import annotations
 
 import json
 import shutil
-import sys
 from pathlib import Path
 
 import pytest
+from sweep_stores import YAWS, mpcde, write_store  # tests/unit/mpcde/paper/sweep_stores.py
 
-SCRIPTS = Path(__file__).resolve().parents[3] / "scripts"
-sys.path.insert(0, str(SCRIPTS))
-import paper_goals  # noqa: E402
-from sweep_stores import write_store  # noqa: E402  (tests/unit/scripts/sweep_stores.py)
+from mpcde.paper import goals as paper_goals
 
-YAWS = [{"method": "zhou"}, {"exploring_mode": False}, {"tracking_mode": False}, {}]
+ROOT = Path(__file__).resolve().parents[4]
 ZHOU, NO_EXPLORING, NO_TRACKING, OURS = range(4)
 
 
@@ -157,39 +154,38 @@ def test_fig10_on_needs_fifty_clean_flights(tmp_path, flights, failed, per_fligh
 
 
 def test_missing_inputs_are_named_and_bad_ones_refused_in_one_line(tmp_path, capsys):
-    assert paper_goals.main([str(tmp_path)]) == 0
+    assert mpcde("paper", "goals", tmp_path) == 0
     out = capsys.readouterr().out
     assert out.count("<!-- ") == 5 and "| Table III" not in out  # nothing flown here: said, not invented
     _fig10_akf(tmp_path)
     report = tmp_path / "fig10" / "report.json"
     for text in ("{not json", json.dumps({"cells": [{"values": {}}]})):
         report.write_text(text)
-        assert paper_goals.main([str(tmp_path)]) == 2
+        assert mpcde("paper", "goals", tmp_path) == 2
         out, err = capsys.readouterr()
-        assert out == "" and err.startswith("paper_goals: error: ") and err.count("\n") == 1, err
+        assert out == "" and err.startswith("mpcde: error: ") and err.count("\n") == 1, err
     report.write_text(json.dumps({"cells": [], "pairs": []}))
     fig6 = tmp_path / "fig6" / "report.json"
     fig6.parent.mkdir()
     for text in (json.dumps({"stores": [], "cells": [], "pairs": [], "shared_overrides": {}}),  # no store: IndexError
                  json.dumps({"stores": [{"name": "a"}], "cells": [{"store": "b", "flights": 1, "settings": []}], "pairs": [], "shared_overrides": {}})):
         fig6.write_text(text)
-        assert paper_goals.main([str(tmp_path)]) == 2
+        assert mpcde("paper", "goals", tmp_path) == 2
         out, err = capsys.readouterr()
-        assert out == "" and err.startswith("paper_goals: error: fig6: ") and err.count("\n") == 1, err
+        assert out == "" and err.startswith("mpcde: error: fig6: ") and err.count("\n") == 1, err
     fig6.unlink()
     fig6.mkdir()  # a folder where the report should be
-    assert paper_goals.main([str(tmp_path)]) == 2
-    assert capsys.readouterr().err.startswith("paper_goals: error: fig6: IsADirectoryError")
-    assert paper_goals.main([str(tmp_path), "x"]) == 2 and "at most one RUNS_DIR" in capsys.readouterr().err
+    assert mpcde("paper", "goals", tmp_path) == 2
+    assert capsys.readouterr().err.startswith("mpcde: error: fig6: IsADirectoryError=")
 
 
-KEPT = SCRIPTS.parent / "docs" / "results" / "stores"
+KEPT = ROOT / "docs" / "results" / "stores"
 FIG6_KEPT = ["fig6_denied_portable", "fig6_auto_portable", "fig6_fresh_portable", "fig6_fresh2_portable", "fig6_dmpc_portable", "fig6_minco_portable"]
 
 
-def test_the_goals_of_the_kept_stores_stand_verbatim_in_mp_cde_md(tmp_path, monkeypatch, unpack_kept_store):
-    """mp-cde.md's goals table is this script's output on the stores kept in the repository, built as the doc's
-    commands build them (the same inputs as paper_summary.py's kept rows, and the swarm ablation's pair report)."""
+def test_the_goals_of_the_kept_stores_stand_verbatim_in_mp_cde_md(tmp_path, monkeypatch, unpack_kept_store, capsys):
+    """mp-cde.md's goals table is `mpcde paper goals`' output on the stores kept in the repository, built as the doc's
+    commands build them (the same inputs as the summary's kept rows, and the swarm ablation's pair report)."""
     from mpcde.sweep.cross_report import build_cross_report
     from mpcde.sweep.report import build_report
     from mpcde.sweep.store import json_safe
@@ -207,13 +203,16 @@ def test_the_goals_of_the_kept_stores_stand_verbatim_in_mp_cde_md(tmp_path, monk
     (runs / "akf_pipeline").mkdir()
     shutil.copy(KEPT / "akf_pipeline_portable" / "results.json", runs / "akf_pipeline" / "results.json")
     rows = paper_goals.table3(runs) + paper_goals.fig6(runs) + paper_goals.swarm_modes(runs) + paper_goals.fig10(runs) + paper_goals.akf(runs)
+    assert mpcde("paper", "goals", runs) == 0
+    assert capsys.readouterr().out == "\n".join(paper_goals.HEAD + rows) + "\n"
     assert len(rows) == 9 + 3 * 2 * 3 + 3 + 2 + 5  # Table III, MP-CDE and two variants (success, paired), the swarm, Fig. 10, AKF
-    doc = (SCRIPTS.parent / "docs" / "results" / "mp-cde.md").read_text()
+    doc = (ROOT / "docs" / "results" / "mp-cde.md").read_text()
     missing = [row for row in rows if row not in doc]
     assert not missing, f"mp-cde.md lacks the kept stores' goal rows: {missing}"
 
 
-@pytest.mark.parametrize("argv", [["-h"], ["a", "b"]])
+@pytest.mark.parametrize("argv", [["a", "b"], ["--runs", "x"]])
 def test_arguments_are_one_runs_folder(argv, capsys):
-    assert paper_goals.main(argv) == 2
-    assert capsys.readouterr().err.startswith(f"paper_goals: error: arguments={argv!r}")
+    assert mpcde("paper", "goals", *argv) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith("mpcde: error: unrecognized arguments: ") and err.count("\n") == 1

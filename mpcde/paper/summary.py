@@ -1,35 +1,44 @@
-"""MP-CDE's Sec. V-B figures beside ours, one markdown row each (paper figure | paper | ours | command | commit | date),
-read from the stores and reports the README's experiment commands write (issue 28, deliverable 4).
+"""MP-CDE's Sec. V-B figures beside ours, one markdown row each (``mpcde paper summary [RUNS_DIR]``, default runs/).
 
-Usage: .venv/bin/python scripts/paper_summary.py [RUNS_DIR]   (default runs/)
+Each row is: paper figure | paper | ours | command | commit | date, read from the stores and reports that the
+experiment commands write (issue 28, deliverable 4):
 
-Reads RUNS_DIR/fig10/report.json (`mpcde report`), RUNS_DIR/fig6/report.json (the cross-store report of the denied
-sweep, the view-gated baselines and whatever else it pairs, e.g. auto; a store of the denied stack with other
-settings, e.g. look before moving, gets MP-CDE's rows of its own besides its pairs; or the denied sweep's store
-itself, reported alone, which gives MP-CDE's rows only), RUNS_DIR/table3 (a sweep store; scripts/table3_report.py's cells) and
-RUNS_DIR/akf_pipeline/results.json (`mpcde eval-tracking`). The commit column lists the code revisions the
-stores' flights recorded, the date their commit dates; for `eval-tracking`, the revision its results.json
-records (results written before 2026-11-27 record none: "not recorded"). A missing input (or a store with no flight
-recorded yet) leaves its rows out, with an HTML comment saying which; a cell not flown yet has no row. A corrupt
-input (a store's row, a report that is not JSON) stops the script with one line on stderr, exit status 2 and nothing
-on stdout.
+* RUNS_DIR/fig10/report.json (`mpcde report`);
+* RUNS_DIR/fig6/report.json: the cross-store report of the denied sweep, the view-gated baselines and whatever
+  else it pairs (e.g. auto). A store of the denied stack with other settings (e.g. look before moving) gets
+  MP-CDE's rows of its own besides its pairs. The denied sweep's store itself, reported alone, gives MP-CDE's rows
+  only;
+* RUNS_DIR/table3: a sweep store (:func:`mpcde.paper.table3.cells`);
+* RUNS_DIR/akf_pipeline/results.json (`mpcde eval-tracking`).
+
+The commit column lists the code revisions the stores' flights recorded, the date their commit dates; for
+`eval-tracking`, the revision its results.json records ("not recorded" where it records none). A missing input (or
+a store with no flight recorded yet) leaves its rows out, with an HTML comment saying which; a cell not flown yet
+has no row. A corrupt input (a store's row, a report that is not JSON) raises a one-line
+:class:`~mpcde.errors.ConfigError`.
 """
 
 from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from table3_report import cells, label, margins, paper_margin, read_store  # noqa: E402
+from mpcde.errors import ConfigError
+from mpcde.paper.stores import read_store
+from mpcde.paper.table3 import cells, label, margins, paper_margin
 
-from mpcde.errors import ConfigError  # noqa: E402
+__all__ = [
+    "AKF_PAPER", "FIG6_PAPER", "HEAD", "MALFORMED", "akf", "commit_date", "fig10", "fig6", "fig6_row", "pct", "read_json", "revisions",
+    "summary_table", "table3", "table_text", "variant_of",
+]  # fmt: skip
 
-REPO = Path(__file__).resolve().parents[1]  # commit dates are the repository's, wherever the script runs from
-FIG6_PAPER = {0.5: 0.98, 1.0: 0.95, 2.0: 0.90}  # issue 28's reading of Fig. 6 for MP-CDE (its goals)
-AKF_PAPER = {"low": (0.06, 0.25), "high": (0.23, 0.34)}  # Sec. V-B2, AKF position [m], velocity [m/s]
+HERE = Path(__file__).resolve().parent
+"""Where ``git`` looks for the repository whose commit dates the rows cite (the checkout this package is in)."""
+FIG6_PAPER = {0.5: 0.98, 1.0: 0.95, 2.0: 0.90}
+"""MP-CDE's success rate in Fig. 6 by cruise speed [m/s], as issue 28 reads the figure (its goals)."""
+AKF_PAPER = {"low": (0.06, 0.25), "high": (0.23, 0.34)}
+"""The AKF's position [m] and velocity [m/s] RMSE at low and high speed (Sec. V-B2)."""
 
 
 def revisions(*stores: Path) -> tuple[str, str]:
@@ -48,7 +57,7 @@ def revisions(*stores: Path) -> tuple[str, str]:
     return ", ".join(revs) or "-", ", ".join(dates) or "-"
 
 
-def _json(path: Path) -> dict:
+def read_json(path: Path) -> dict:
     """The JSON object in ``path`` (FileNotFoundError when absent; ConfigError, one line, when it is not JSON)."""
     text = path.read_text()
     try:
@@ -59,16 +68,18 @@ def _json(path: Path) -> dict:
 
 def commit_date(rev: str) -> str:
     """The commit date (YYYY-MM-DD) of revision ``rev``, "?" where git does not know it."""
-    out = subprocess.run(["git", "-C", str(REPO), "show", "-s", "--format=%cs", rev], capture_output=True, text=True)
+    out = subprocess.run(["git", "-C", str(HERE), "show", "-s", "--format=%cs", rev], capture_output=True, text=True)
     return out.stdout.strip() if out.returncode == 0 else "?"
 
 
 def pct(x: float) -> str:
+    """A fraction as whole per cent ("93 %")."""
     return f"{100 * x:.0f} %"
 
 
 def fig10(runs: Path) -> list[str]:
-    report = _json(runs / "fig10" / "report.json")
+    """The rows of Fig. 10, from RUNS_DIR/fig10/report.json: collisions and minimum distance, yaw planning on and off."""
+    report = read_json(runs / "fig10" / "report.json")
     commit, date = revisions(runs / "fig10")
     rows = []
     for c in report["cells"]:
@@ -90,7 +101,9 @@ def fig6_row(c: dict, command: str, commit: str, date: str, variant: str = "") -
 
 
 def fig6(runs: Path) -> list[str]:
-    report = _json(runs / "fig6" / "report.json")
+    """The rows of Fig. 6, from RUNS_DIR/fig6/report.json: MP-CDE's (and each denied-stack variant's) success per speed,
+    then every store paired with them (view-gated baselines, and the stores beside)."""
+    report = read_json(runs / "fig6" / "report.json")
     if "stores" not in report:  # the denied sweep's own store, reported alone: MP-CDE's rows, nothing to pair
         commit, date = revisions(runs / "fig6")
         return [fig6_row(c, "`mpcde sweep data/sweeps/forest_swarm_denied.yaml`", commit, date) for c in report["cells"] if c["flights"]]
@@ -155,6 +168,7 @@ def _pair_row(role: str, paper: str, a: dict, b: dict, p: dict, ok_b: int, radio
 
 
 def table3(runs: Path) -> list[str]:
+    """The rows of Table III, from the store RUNS_DIR/table3: each flown cell, then ours against Zhou's per density."""
     table = cells(runs / "table3")
     commit, date = revisions(runs / "table3")
     rows = []
@@ -170,8 +184,9 @@ def table3(runs: Path) -> list[str]:
 
 
 def akf(runs: Path) -> list[str]:
-    results = _json(runs / "akf_pipeline" / "results.json")
-    rows_in, rev = results["rows"], (results.get("run") or {}).get("git_rev")  # results before 2026-11-27 record no revision
+    """The rows of AKF vs KF, from RUNS_DIR/akf_pipeline/results.json: position and velocity RMSE per filter and speed."""
+    results = read_json(runs / "akf_pipeline" / "results.json")
+    rows_in, rev = results["rows"], (results.get("run") or {}).get("git_rev")  # older results record no revision
     commit, date = "not recorded", "-"
     if rev:
         commit, date = rev[:7] + ("+dirty" if rev.endswith("+dirty") else ""), commit_date(rev[:40])
@@ -184,41 +199,32 @@ def akf(runs: Path) -> list[str]:
     return rows
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Print the table for the runs folder in ``argv`` (default ``sys.argv[1:]``, else runs/); a missing input leaves
-    its rows out (an HTML comment says which), a corrupt store prints one line on stderr, nothing on stdout, and
-    returns 2."""
-    argv = sys.argv[1:] if argv is None else argv
-    if len(argv) > 1 or (argv and argv[0].startswith("-")):
-        sys.stderr.write(f"paper_summary: error: arguments={argv!r}: at most one RUNS_DIR (default runs/)\n")
-        return 2
-    runs = Path(argv[0]) if argv else Path("runs")
-    return print_table("paper_summary", ["| paper figure | paper | ours | command | commit | date |", "|---|---|---|---|---|---|"],
-                       (fig10, fig6, table3, akf), runs)
-
-
 MALFORMED = (ConfigError, KeyError, TypeError, ValueError, IndexError, AttributeError, ZeroDivisionError, OSError)
 """What reading a store or report that is not what `mpcde sweep` / `mpcde report` writes can raise."""
 
 
-def print_table(prog: str, head: list[str], parts: tuple, runs: Path) -> int:
-    """Print ``head`` and every part's rows for ``runs``; 0, or 2 with one line on stderr and nothing on stdout.
+def table_text(head: list[str], parts: tuple, runs: Path) -> str:
+    """``head`` and every part's rows for ``runs``, one line each (the text ends with a newline).
 
     A part whose input is missing (FileNotFoundError) leaves an HTML comment naming it; a malformed input
-    (:data:`MALFORMED`) stops the table: ``prog: error: ...`` naming the part and what is wrong."""
+    (:data:`MALFORMED`) stops the table with a one-line ConfigError naming the part and what is wrong."""
     lines = list(head)
     for part in parts:
         try:
             lines += part(runs)
         except FileNotFoundError as e:
             lines.append(f"<!-- {part.__name__}: {e.filename} missing -->")
+        except ConfigError:
+            raise
         except MALFORMED as e:
-            what = e if isinstance(e, ConfigError) else f"{part.__name__}: {type(e).__name__}: {e}: not what `mpcde report` writes"
-            sys.stderr.write(f"{prog}: error: {what}\n")
-            return 2
-    print("\n".join(lines))
-    return 0
+            raise ConfigError(f"{part.__name__}: {type(e).__name__}", str(e), "not what `mpcde report` writes") from None
+    return "\n".join(lines) + "\n"
 
 
-if __name__ == "__main__":
-    raise SystemExit(main())
+HEAD = ["| paper figure | paper | ours | command | commit | date |", "|---|---|---|---|---|---|"]
+"""The summary table's header."""
+
+
+def summary_table(runs: Path | str = "runs") -> str:
+    """The summary of the stores and reports under ``runs`` (module docstring), as `mpcde paper summary` prints it."""
+    return table_text(HEAD, (fig10, fig6, table3, akf), Path(runs))

@@ -1,20 +1,20 @@
-"""Issue 28's goals ("beat the paper"), each checked against the stores and reports behind `paper_summary.py`'s table:
-one markdown row per goal (goal | target | ours | verdict | where it is discussed), so whether a goal is met, and by
-how much it is missed, is computed from the flights and never typed.
+"""Issue 28's goals ("beat the paper"), each checked against the stores and reports behind the paper summary
+(``mpcde paper goals [RUNS_DIR]``, default runs/).
 
-Usage: .venv/bin/python scripts/paper_goals.py [RUNS_DIR]   (default runs/)
+One markdown row per goal (goal | target | ours | verdict | where it is discussed), so whether a goal is met, and
+by how much it is missed, is computed from the flights and never typed.
 
-Reads what `paper_summary.py` reads (RUNS_DIR/fig10/report.json, RUNS_DIR/fig6/report.json, the Table III store
+Reads what :mod:`mpcde.paper.summary` reads (RUNS_DIR/fig10/report.json, RUNS_DIR/fig6/report.json, the Table III store
 RUNS_DIR/table3, RUNS_DIR/akf_pipeline/results.json) and, if present, RUNS_DIR/fig6_modes_vs/report.json (`mpcde report
 runs/fig6_denied_portable runs/fig6_modes --out runs/fig6_modes_vs`: the swarm without tracking mode, paired with
-MP-CDE by seed). A missing input leaves its rows out, with an HTML comment saying which; a corrupt one stops the
-script with one line on stderr, exit status 2 and nothing on stdout.
+MP-CDE by seed). A missing input leaves its rows out, with an HTML comment saying which; a corrupt one raises a
+one-line :class:`~mpcde.errors.ConfigError`.
 
 The goals, as issue 28 words them, and how each verdict is decided:
 
 * Table III, per density: ours' mean S_obs above Zhou's by at least the paper's margin (the paper's own ratio,
   167.5 / 142.7 etc., so "+17 %" is +17.4 %); missed by the difference in percentage points. Ours without exploring
-  below ours, seed by seed: the paired Wilcoxon test (`table3_report.paired`, two-sided) gives the p, and its signed
+  below ours, seed by seed: the paired Wilcoxon test (:func:`mpcde.paper.table3.paired`, two-sided) gives the p, and its signed
   rank sums W+ (seeds where ours saw more) and W- give the direction. "met" when ours' mean is higher, W+ > W- and
   p < 0.05; "reversed" when W- > W+ with p < 0.05 (ours without exploring sees more on most seeds, whatever the
   means say: a few seeds with large differences can carry the mean the other way); "not significant" when p >= 0.05
@@ -39,18 +39,20 @@ The goals, as issue 28 words them, and how each verdict is decided:
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from paper_summary import AKF_PAPER, FIG6_PAPER, _json, pct, print_table, variant_of  # noqa: E402
-from scipy.stats import rankdata  # noqa: E402
-from table3_report import PAPER, cells, margins, paired  # noqa: E402
+from scipy.stats import rankdata
 
-from mpcde.errors import ConfigError  # noqa: E402
+from mpcde.errors import ConfigError
+from mpcde.paper.summary import AKF_PAPER, FIG6_PAPER, pct, read_json, table_text, variant_of
+from mpcde.paper.table3 import PAPER, cells, margins, paired
 
-ALPHA = 0.05  # the significance level a paired test must reach for "met" / "shown"
-FIG10_SEEDS = 50  # the issue's "≥ 50 seeds"
+__all__ = ["ALPHA", "FIG10_SEEDS", "HEAD", "SECTIONS", "akf", "fig10", "fig6", "goals_table", "rank_sums", "swarm_modes", "table3"]
+
+ALPHA = 0.05
+"""The significance level a paired test must reach for "met" / "shown"."""
+FIG10_SEEDS = 50
+"""The seeds issue 28 asks Fig. 10's flight with yaw planning on to fly without a collision ("≥ 50 seeds")."""
 SECTIONS = {  # where mp-cde.md (or safety.md) discusses each goal: its section title
     "table3": '"Table III: observed area and success, three densities"',
     "fig6": '"Fig. 6: six drones in a forest at 0.5, 1 and 2 m/s"; the contacts: safety.md',
@@ -61,6 +63,7 @@ SECTIONS = {  # where mp-cde.md (or safety.md) discusses each goal: its section 
 
 
 def _row(goal: str, target: str, ours: str, verdict: str, section: str) -> str:
+    """One markdown row of the goals table; ``section``: a key of :data:`SECTIONS`."""
     return f"| {goal} | {target} | {ours} | {verdict} | {SECTIONS[section]} |"
 
 
@@ -82,7 +85,7 @@ def _outcomes(c: dict) -> tuple[int, int, str]:
 
 def rank_sums(diff: list[float]) -> tuple[float, float]:
     """(W+, W-): the Wilcoxon signed-rank sums of the positive and the negative differences, zeros dropped, ties given
-    their mean rank (the statistic whose two-sided p `table3_report.signed_rank_p` gives)."""
+    their mean rank (the statistic whose two-sided p :func:`mpcde.paper.table3.signed_rank_p` gives)."""
     nonzero = [d for d in diff if d != 0]
     if not nonzero:
         return 0.0, 0.0
@@ -91,6 +94,8 @@ def rank_sums(diff: list[float]) -> tuple[float, float]:
 
 
 def table3(runs: Path) -> list[str]:
+    """The goal rows of Table III, from the store RUNS_DIR/table3: the margin over Zhou's, ours w/o exploring below
+    ours, ours w/o tracking less successful."""
     table = cells(runs / "table3")
     by = {(c["density_index"], c["method"]): c for c in table if c["flights"]}
     rows = []
@@ -134,7 +139,9 @@ def table3(runs: Path) -> list[str]:
 
 
 def fig6(runs: Path) -> list[str]:
-    report = _json(runs / "fig6" / "report.json")
+    """The goal rows of Fig. 6, from the cross-store report RUNS_DIR/fig6/report.json: each denied-stack store's success
+    per speed, and its paired successes against every view-gated baseline."""
+    report = read_json(runs / "fig6" / "report.json")
     if "stores" not in report:
         raise ConfigError(str(runs / "fig6" / "report.json"), "a single store's report", "the cross-store report of MP-CDE and its baselines")
     first = report["stores"][0]["name"]
@@ -179,7 +186,9 @@ def fig6(runs: Path) -> list[str]:
 
 
 def swarm_modes(runs: Path) -> list[str]:
-    report = _json(runs / "fig6_modes_vs" / "report.json")
+    """The rows beside the goals, from RUNS_DIR/fig6_modes_vs/report.json: the swarm without tracking mode against
+    MP-CDE on their paired seeds."""
+    report = read_json(runs / "fig6_modes_vs" / "report.json")
     first = report["stores"][0]["name"]
     rows = []
     for p in report["pairs"]:
@@ -196,7 +205,8 @@ def swarm_modes(runs: Path) -> list[str]:
 
 
 def fig10(runs: Path) -> list[str]:
-    report = _json(runs / "fig10" / "report.json")
+    """The goal rows of Fig. 10, from RUNS_DIR/fig10/report.json: the crossing pair with yaw planning on and off."""
+    report = read_json(runs / "fig10" / "report.json")
     rows = []
     for c in report["cells"]:
         if not c["flights"]:  # a cell not flown yet
@@ -217,7 +227,8 @@ def fig10(runs: Path) -> list[str]:
 
 
 def akf(runs: Path) -> list[str]:
-    results = _json(runs / "akf_pipeline" / "results.json")
+    """The goal rows of AKF vs KF, from the pipeline rows of RUNS_DIR/akf_pipeline/results.json."""
+    results = read_json(runs / "akf_pipeline" / "results.json")
     by: dict[tuple[str, float], dict] = {}
     for r in results["rows"]:
         if r.get("measurements") != "pipeline":  # the goal is the pipeline's; synthetic measurements are another question
@@ -246,16 +257,10 @@ def akf(runs: Path) -> list[str]:
     return rows
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Print the goals table for the runs folder in ``argv`` (default ``sys.argv[1:]``, else runs/); 2 on bad input."""
-    argv = sys.argv[1:] if argv is None else argv
-    if len(argv) > 1 or (argv and argv[0].startswith("-")):
-        sys.stderr.write(f"paper_goals: error: arguments={argv!r}: at most one RUNS_DIR (default runs/)\n")
-        return 2
-    runs = Path(argv[0]) if argv else Path("runs")
-    head = ["| goal (issue 28) | target | ours | verdict | discussed in |", "|---|---|---|---|---|"]
-    return print_table("paper_goals", head, (table3, fig6, swarm_modes, fig10, akf), runs)
+HEAD = ["| goal (issue 28) | target | ours | verdict | discussed in |", "|---|---|---|---|---|"]
+"""The goals table's header."""
 
 
-if __name__ == "__main__":
-    raise SystemExit(main())
+def goals_table(runs: Path | str = "runs") -> str:
+    """The goals table of the stores and reports under ``runs`` (module docstring), as `mpcde paper goals` prints it."""
+    return table_text(HEAD, (table3, fig6, swarm_modes, fig10, akf), Path(runs))

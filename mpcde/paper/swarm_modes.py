@@ -1,12 +1,10 @@
-"""What the denied swarm's yaw planner did in each cell of one or more sweep stores: contacts by kind, the share of
-yaw plans in each mode, yaw replans and mission time (issue 28: the tracking mode's safety role in the swarm).
+"""What the denied swarm's yaw planner did in each cell of one or more sweep stores (``mpcde paper modes STORE_DIR ...``).
 
-Usage: .venv/bin/python scripts/swarm_modes_report.py STORE_DIR [STORE_DIR ...]   (stores `mpcde sweep ... --out` wrote)
-
-`mpcde report` gives each cell's success rate, its interval, collisions per flight and the minimum distance; this
-script adds, per cell (one line each, labelled as `mpcde report` labels it: the store's folder name and the cell's
-axis values; with ``--seeds N`` only the flights of seeds 0..N-1, so a 100-seed store is read on the seeds a 30-seed
-store flew):
+Contacts by kind, the share of yaw plans in each mode, yaw replans and mission time (issue 28: the tracking mode's
+safety role in the swarm). `mpcde report` gives each cell's success rate, its interval, collisions per flight and
+the minimum distance; this report adds, per cell (one line each, labelled as `mpcde report` labels it: the store's
+folder name and the cell's axis values; with ``seeds`` only the flights of seeds 0..seeds-1, so a store of more
+seeds is read on the seeds a smaller one flew):
 
 * ``flights``: the flights that recorded metrics (a failed flight records none);
 * ``ok``: the flights that succeeded (every drone arrived, no contact);
@@ -16,27 +14,26 @@ store flew):
   each of MP-CDE's modes, Alg. 1), in per cent, over the drones and flights that made a yaw plan;
 * ``yaw repl.``: yaw replans per drone and flight: trajectory replans that Alg. 1's trigger forced (S(0) below
   tau_thr, Eq. 2, or the nearest neighbour closer than C_s) and that succeeded;
-* ``mission s``: mean ``mission_time_s`` over the flights in which every drone arrived (with or without a contact),
-  as `mpcde report`'s column of that name.
+* ``mission s``: mean ``mission_time_s`` [s] over the flights in which every drone arrived (with or without a
+  contact), as `mpcde report`'s column of that name.
 
 A cell with no flight recorded yet prints ``nan``. A folder that is not a store (no sweep.json or no results.jsonl,
-a kept store not unpacked) or a row this script cannot read (a cell or seed out of the sweep, metrics without the
-fields above) stops the script with one line on stderr and exit status 2. A store still being flown is read as
+a kept store not unpacked) raises FileNotFoundError or ConfigError; a row this report cannot read (a cell or seed
+out of the sweep, metrics without the fields above) a one-line ConfigError. A store still being flown is read as
 `mpcde report` reads it (a last line cut short is left out).
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from table3_report import MODES, _finite, check_mode_fraction, check_place, read_store  # noqa: E402
+from mpcde.errors import ConfigError
+from mpcde.paper.stores import MODES, check_mode_fraction, check_place, is_finite, read_store
+from mpcde.sweep.report import axis_cells, rows_by_cell
+from mpcde.sweep.spec import cell_label
 
-from mpcde.errors import ConfigError  # noqa: E402
-from mpcde.sweep.report import axis_cells, rows_by_cell  # noqa: E402
-from mpcde.sweep.spec import cell_label  # noqa: E402
+__all__ = ["cell_lines", "render"]
+
 
 def cell_lines(store: Path, seeds: int | None = None) -> list[dict]:
     """One dict per cell of ``store`` (see the module docstring), over seeds below ``seeds`` when given."""
@@ -73,7 +70,7 @@ def cell_lines(store: Path, seeds: int | None = None) -> list[dict]:
 
 
 def _checked(r: dict, where: str, n_cells: int, seeds: object) -> dict:
-    """Row ``r`` (at ``where``) if this script can read it, else ConfigError (one line)."""
+    """Row ``r`` (at ``where``) if this report can read it, else ConfigError (one line)."""
     check_place(r, where, n_cells, seeds)
     m = r["metrics"]
     if m is None:
@@ -86,20 +83,21 @@ def _checked(r: dict, where: str, n_cells: int, seeds: object) -> dict:
         if not isinstance(m.get(key), int) or isinstance(m.get(key), bool) or m[key] < 0:
             raise ConfigError(f"{where}: metrics.{key}", m.get(key), "an integer >= 0")
     mission = m.get("mission_time_s", "absent")
-    if mission is not None and not _finite(mission):
+    if mission is not None and not is_finite(mission):
         raise ConfigError(f"{where}: metrics.mission_time_s", mission, "a time [s], or null when a drone did not arrive")
     agents = m.get("agents")
     if not isinstance(agents, list) or not all(isinstance(a, dict) for a in agents):
         raise ConfigError(f"{where}: metrics.agents", agents, "a list of per-drone mappings")
     for i, a in enumerate(agents):
         check_mode_fraction(a.get("yaw_mode_fraction"), f"{where}: metrics.agents[{i}].yaw_mode_fraction")
-        if "yaw_replans" in a and not (_finite(a["yaw_replans"]) and a["yaw_replans"] >= 0):
+        if "yaw_replans" in a and not (is_finite(a["yaw_replans"]) and a["yaw_replans"] >= 0):
             raise ConfigError(f"{where}: metrics.agents[{i}].yaw_replans", a["yaw_replans"], "a count >= 0")
     return r
 
 
 def render(lines: list[dict]) -> str:
-    """The table of :func:`cell_lines`' dicts, one line per cell under a header, as the script prints it."""
+    """The table of :func:`cell_lines`' dicts, one line per cell under a header, as `mpcde paper modes` prints it
+    (without the last newline)."""
     head = f"{'flights':>7} {'ok':>4} {'with d-d':>8} {'with d-o':>8} {'explore':>7} {'observe':>7} {'track':>6} {'yaw repl.':>9} {'mission s':>9}  cell"
     out = [head, "-" * len(head)]
     for c in lines:
@@ -109,29 +107,3 @@ def render(lines: list[dict]) -> str:
             f"{100 * s['observing']:>6.1f}% {100 * s['tracking']:>5.1f}% {c['yaw_replans']:>9.1f} {c['mission_s']:>9.2f}  {c['label']}"
         )
     return "\n".join(out)
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Print the table of the stores in ``argv`` (default ``sys.argv[1:]``); a folder that is not a readable store
-    prints one line on stderr, nothing on stdout, and returns 2."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("stores", nargs="+", type=Path)
-    ap.add_argument("--seeds", type=int, default=None, help="only seeds 0..N-1 (N >= 1)")
-    args = ap.parse_args(argv)
-    if args.seeds is not None and args.seeds < 1:
-        sys.stderr.write(f"swarm_modes_report: error: --seeds={args.seeds}: an integer >= 1\n")
-        return 2
-    try:
-        lines = [line for store in args.stores for line in cell_lines(store, args.seeds)]
-    except FileNotFoundError as e:
-        sys.stderr.write(f"swarm_modes_report: error: store={e.filename}: no such file there: a folder `mpcde sweep` wrote\n")
-        return 2
-    except ConfigError as e:
-        sys.stderr.write(f"swarm_modes_report: error: {e}\n")
-        return 2
-    print(render(lines))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

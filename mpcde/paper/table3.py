@@ -1,8 +1,9 @@
-"""MP-CDE's Table III from a store of a Table III sweep file (data/sweeps/table3_active_perception.yaml or
-table3_fuel_range.yaml): S_obs (mean +- sd) and success per density and method, ours against Zhou's, beside the
-paper's figures; then the paper's two S_obs orderings tested seed by seed, and the share of yaw plans in each mode.
+"""MP-CDE's Table III from the store of a Table III sweep file (``mpcde paper table3 STORE_DIR [STORE_DIR ...]``).
 
-Usage: .venv/bin/python scripts/table3_report.py STORE_DIR [STORE_DIR ...]   (stores `mpcde sweep ... --out` wrote)
+The sweep files are data/sweeps/table3_active_perception.yaml, table3_fuel_range.yaml and their variants. The report
+gives S_obs (mean +- sd [m^2]) and success per density [obstacles per 100 m^2] and method, ours against Zhou's,
+beside the paper's figures; then the paper's two S_obs orderings tested seed by seed, and the share of yaw plans in
+each mode.
 
 Several stores are reported as one table when they are flights of one Table III: the same base scenario, overrides,
 densities and seeds (so a seed is the same forest in each), each (density, method) cell flown in one store only;
@@ -11,11 +12,10 @@ other than the default (``free_distance``) makes a method of its own ("ours, d_f
 reads S(0), which triggers replans). The paper's orderings are tested within one reading (ours with a reading
 against Zhou's and ours without exploring with the same reading), and ours with a reading against ours.
 
-The store is read as `mpcde report` reads it (:class:`mpcde.sweep.store.ResultsStore`): a last line cut short by a
-crash is left out, so a sweep still running can be reported (a cell not flown yet shows 0 flights and nan). A folder
-that is not a Table III store (no sweep.json or no results.jsonl, a kept store not unpacked, a corrupt row, a sweep
-whose axes are not density then yaw, a flight without S_obs) stops the script with one line on stderr and exit
-status 2.
+The store is read as `mpcde report` reads it (:mod:`mpcde.paper.stores`): a cell not flown yet shows 0 flights and
+nan. A folder that is not a Table III store (no sweep.json or no results.jsonl, a kept store not unpacked, a
+corrupt row, a sweep whose axes are not density then yaw, a flight without S_obs) raises FileNotFoundError or a
+one-line :class:`~mpcde.errors.ConfigError`.
 
 The paired lines: for each density, the seeds both methods flew, the mean of (a - b) over them [m^2], on how many
 seeds a saw more and on how many the two saw exactly the same, and the two-sided Wilcoxon signed-rank p of the
@@ -28,27 +28,35 @@ of yaw plans made in the exploring / observing / tracking mode; a flight that ma
 
 from __future__ import annotations
 
-import errno
 import math
-import sys
 from collections import defaultdict
 from pathlib import Path
 
 from scipy.stats import wilcoxon
 
 from mpcde.errors import ConfigError
+from mpcde.paper.stores import MODES, check_mode_fraction, check_place, is_finite, read_store
 from mpcde.sweep.stats import wilson_interval
-from mpcde.sweep.store import MANIFEST, RESULTS, ResultsStore
+from mpcde.sweep.store import MANIFEST, ResultsStore
 
-PAPER = {  # Table III, S_obs [m^2]: Zhou's, ours w/o exploring, ours; success is not printed in the paper's table
+__all__ = [
+    "D_FREE", "DENSITY_AXIS", "METHODS", "PAIRS", "PAPER", "YAW_AXIS", "cells", "label", "margins", "merged_cells", "method_of",
+    "paired", "pairs_of", "paper_margin", "render", "signed_rank_p",
+]  # fmt: skip
+
+PAPER = {  # density index -> S_obs [m^2] of Zhou's, ours w/o exploring, ours; the paper's table prints no success
     0: (142.7, 137.1, 167.5),
     1: (132.4, 122.4, 145.9),
     2: (105.7, 94.6, 123.5),
 }
 METHODS = {"zhou": "Zhou's [26]", "no_exploring": "ours w/o exploring", "no_tracking": "ours w/o tracking", "ours": "ours"}
-
-
-D_FREE = {"occupied": "d_free to occupied", "voxel": "d_free in 3-D"}  # Eq. 1's readings besides the default "horizontal"
+"""The methods of Table III by key, with their printed names."""
+D_FREE = {"occupied": "d_free to occupied", "voxel": "d_free in 3-D"}
+"""Eq. 1's readings of d_free besides the default ``horizontal``, with their printed names."""
+PAIRS = (("ours", "zhou"), ("ours", "no_exploring"))
+"""The paper's two orderings of S_obs: ours above each."""
+DENSITY_AXIS, YAW_AXIS = "world.obstacle_density_per_100m2", "denied.yaw"
+"""The axes of a Table III sweep, in this order."""
 
 
 def method_of(yaw: dict) -> str:
@@ -83,7 +91,7 @@ def _cells(results: ResultsStore) -> list[dict]:
         raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes", names if names is not None else axes,
                           f"a Table III sweep: the axes {DENSITY_AXIS} then {YAW_AXIS}, each a list, and no other")
     densities, yaw_values = axes[0][1], axes[1][1]
-    if not all(_finite(d) for d in densities) or not all(isinstance(y, dict) for y in yaw_values):
+    if not all(is_finite(d) for d in densities) or not all(isinstance(y, dict) for y in yaw_values):
         raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes", axes, "densities as finite numbers and yaw settings as mappings")
     if len(set(densities)) < len(densities):
         raise ConfigError(f"store {results.folder / MANIFEST}: sweep.axes[0][1]", densities, "each density once")
@@ -115,10 +123,6 @@ def _cells(results: ResultsStore) -> list[dict]:
                         "successes": ok, "success_low": lo, "success_high": hi, "paper_s_obs_m2": paper,
                         "area_by_seed": {r["seed"]: r["metrics"]["observed_area_swarm_m2"] for r in rows}, "modes": modes})  # fmt: skip
     return out
-
-
-MODES = ("exploring", "observing", "tracking")
-PAIRS = (("ours", "zhou"), ("ours", "no_exploring"))  # the paper's two orderings of S_obs: ours above each
 
 
 def merged_cells(stores: list[Path]) -> list[dict]:
@@ -168,22 +172,6 @@ def pairs_of(table: list[dict]) -> list[tuple[str, str]]:
     return out
 
 
-DENSITY_AXIS, YAW_AXIS = "world.obstacle_density_per_100m2", "denied.yaw"
-
-
-def read_store(folder: Path | str) -> ResultsStore:
-    """The sweep store in ``folder``: FileNotFoundError when it holds no sweep.json or no results.jsonl yet (no
-    flight recorded: a report of what is not flown yet leaves it out); ConfigError (one line) when it is corrupt, or
-    holds only a kept store's packed results.jsonl.gz."""
-    folder = Path(folder)
-    for name in (MANIFEST, RESULTS):
-        if not (folder / name).is_file():
-            if name == RESULTS and (folder / (RESULTS + ".gz")).is_file():
-                raise ConfigError(f"store {folder}", RESULTS + ".gz", "an unpacked results.jsonl: gunzip it first (docs/results/stores/README.md)")
-            raise FileNotFoundError(errno.ENOENT, "not in the store", str(folder / name))
-    return ResultsStore.read(folder)
-
-
 def _flights(results: ResultsStore, n_cells: int, seeds: object) -> dict[int, list[dict]]:
     """The store's flights that recorded metrics, by cell index (a store holds one row per cell and seed); a row
     whose fields this report reads are not what `mpcde sweep` writes for this sweep (``n_cells`` cells, ``seeds``)
@@ -201,7 +189,7 @@ def _flights(results: ResultsStore, n_cells: int, seeds: object) -> dict[int, li
         if missing:
             raise ConfigError(f"{where} (cell {r['cell']} seed {r['seed']}): metrics", missing,
                               "a flight's observed_area_swarm_m2 and success (a flight of a package without S_obs?)")
-        if not _finite(m["observed_area_swarm_m2"]) or m["observed_area_swarm_m2"] < 0:
+        if not is_finite(m["observed_area_swarm_m2"]) or m["observed_area_swarm_m2"] < 0:
             raise ConfigError(f"{where}: metrics.observed_area_swarm_m2", m["observed_area_swarm_m2"], "a finite area >= 0 [m^2]")
         if not isinstance(m["success"], bool):
             raise ConfigError(f"{where}: metrics.success", m["success"], "true or false")
@@ -211,30 +199,6 @@ def _flights(results: ResultsStore, n_cells: int, seeds: object) -> dict[int, li
         check_mode_fraction((agents or [{}])[0].get("yaw_mode_fraction"), f"{where}: metrics.agents[0].yaw_mode_fraction")
         by_cell[r["cell"]].append(r)
     return by_cell
-
-
-def check_place(r: dict, where: str, n_cells: int, seeds: object) -> None:
-    """ConfigError (one line, prefixed ``where``) unless row ``r``'s cell and seed are integers >= 0, its cell one of
-    the sweep's ``n_cells`` and its seed one the sweep names (``seeds``, when a list)."""
-    for key in ("cell", "seed"):
-        if not isinstance(r[key], int) or isinstance(r[key], bool) or r[key] < 0:
-            raise ConfigError(f"{where}: {key}", r[key], "an integer >= 0")
-    if r["cell"] >= n_cells:
-        raise ConfigError(f"{where}: cell", r["cell"], f"a cell of the sweep, < {n_cells}")
-    if isinstance(seeds, list) and r["seed"] not in seeds:
-        raise ConfigError(f"{where}: seed", r["seed"], "a seed the sweep names (sweep.seeds)")
-
-
-def check_mode_fraction(fraction: object, field: str) -> None:
-    """ConfigError (one line, naming ``field``) unless a drone's ``yaw_mode_fraction`` is null or a share in [0, 1]
-    for each of MODES."""
-    if fraction is not None and not (isinstance(fraction, dict) and all(_finite(fraction.get(k)) and 0 <= fraction[k] <= 1 for k in MODES)):
-        raise ConfigError(field, fraction, f"null or a share in [0, 1] for each of {', '.join(MODES)}")
-
-
-def _finite(x: object) -> bool:
-    """Whether ``x`` is a finite real number (not a bool)."""
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 def signed_rank_p(diff: list[float]) -> float | None:
@@ -267,27 +231,9 @@ def paired(table: list[dict], a: str, b: str) -> list[dict]:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Print the report of the stores named in ``argv`` (default ``sys.argv[1:]``); 2 on bad input (one line on stderr)."""
-    argv = sys.argv[1:] if argv is None else argv
-    try:
-        if not argv or any(a.startswith("-") for a in argv):
-            raise ConfigError("arguments", argv, "one or more STORE_DIR, folders `mpcde sweep ... --out STORE_DIR` wrote")
-        text = render(merged_cells([Path(a) for a in argv]))
-    except FileNotFoundError as e:
-        store = str(Path(e.filename).parent)
-        sys.stderr.write(f"table3_report: error: store={store!r}: no {Path(e.filename).name} there ({e.filename}): "
-                         "a folder `mpcde sweep` wrote, with at least one flight recorded\n")
-        return 2
-    except ConfigError as e:
-        sys.stderr.write(f"table3_report: error: {e}\n")
-        return 2
-    print(text, end="")
-    return 0
-
-
 def render(table: list[dict]) -> str:
-    """The report main() prints, as one string (the cell table, the margins, the paired tests, the modes)."""
+    """The report of ``table`` (:func:`cells` or :func:`merged_cells`) as `mpcde paper table3` prints it: the cell table,
+    the margins, the paired tests, the modes (and the stores, when several)."""
     w = max([20] + [len(label(c["method"])) for c in table])  # the method column: 20 unless a variant's name is longer
     lines = [f"{'density /100m^2':>15}  {'method':<{w}} {'flights':>7}  {'S_obs m^2 mean +- sd':>21}  {'success':>7}  {'95% CI':>9}  {'paper S_obs':>11}"]
     for c in table:
@@ -337,6 +283,3 @@ def margins(table: list[dict], method: str = "ours", against: str = "zhou") -> l
             out.append((di, c["density"], mean[(di, method)], mean[(di, against)]))
     return out
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())
