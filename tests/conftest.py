@@ -43,7 +43,7 @@ ORCA_EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "orca_stack"
 @pytest.fixture(scope="session")
 def orca_site(tmp_path_factory) -> Path:
     """A folder with examples/orca_stack installed into it, as ``pip install --target`` installs any package
-    (no dependencies: mpcde is the running one). Put it on ``sys.path`` or ``PYTHONPATH`` to have the stack.
+    (no dependencies: mpcde is the running one). Put it on ``PYTHONPATH`` to have the stack in a process.
 
     The build runs in a copy of the source, so the checkout gets no build/ or egg-info folder.
     """

@@ -51,7 +51,7 @@ CASES: dict[str, tuple[str | bytes, str]] = {
     "count_without_layout": ("drones: {count: 6}\n", "drones.count"),
     "odd_camera_width": ("camera: {width_px: 330}\n" + LAYOUT, "camera.width_px"),
     "horizon_2_64": ("dmpc: {qp: {horizon_steps: 18446744073709551616}}\n" + LAYOUT, "dmpc.qp.horizon_steps"),
-    "negative_gain": ("physics: {gains: {pos_damping: -1}}\n" + LAYOUT, "physics.gains.pos_damping"),
+    "controller_gains_are_constants": ("physics: {gains: {pos_damping: 0.5}}\n" + LAYOUT, "physics.gains"),  # a class constant
     "negative_robot_radius": ("physics: {quadrotor: {robot_radius_m: -0.1}}\n" + LAYOUT, "physics.quadrotor.robot_radius_m"),
     "goal_outside_arena": ("drones: {layout: explicit, starts: [[0, 0, 1.5]], goals: [[500, 0, 1.5]]}\n", "drones.goals"),
     "goal_too_high": ("drones: {layout: explicit, starts: [[0, 0, 1.5]], goals: [[1, 0, 1000]]}\n", "drones.goals"),
@@ -108,14 +108,12 @@ def _fly_generated(raw: bytes, tmp: Path) -> None:
 
 
 def test_generated_malformed_files_keep_the_promise_through_the_real_cli(tmp_path):
-    """Hypothesis's mutated and damaged built-ins (tests/unit/mpcde/config/test_malformed_scenarios.py), each in a fresh process."""
+    """Hypothesis's mutated and damaged built-ins (tests/scenario_strategies.py), each in a fresh process."""
     import shutil
 
+    import scenario_strategies as gen
     from hypothesis import HealthCheck, given, settings
     from hypothesis import strategies as st
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "unit" / "mpcde" / "config"))
-    import test_malformed_scenarios as gen
 
     @settings(max_examples=16, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
     @given(raw=st.one_of(gen.mutated_documents().map(str.encode), gen.damaged_texts()))
