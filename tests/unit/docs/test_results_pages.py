@@ -27,7 +27,8 @@ OPENING_LINES = 12
 PROVENANCE_LINES = 8
 EXEMPT = "<!-- not a result -->"
 
-COMMIT = re.compile(r"\b(?=[0-9a-f]*\d)(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b")
+# a short hash mixes digits and a-f; one of digits only (git prints those too) counts after "at" or "commit"
+COMMIT = re.compile(r"\b(?=[0-9a-f]*\d)(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b|(?<=\bat )\d{7,12}\b|(?<=\bcommit )\d{7,12}\b")
 DATE = re.compile(r"\b20\d\d-[01]\d-[0-3]\d\b")
 COMMAND = re.compile(r"`[^`]*\b(mpcde|make|python|pytest)\b[^`]*`")
 
@@ -132,3 +133,4 @@ def test_the_table_finder_sees_pipe_tables_and_report_blocks() -> None:
     assert provenance_missing(lines, 2) == []
     assert provenance_missing(["plain words", "| a |"], 1) == ["command", "commit", "date"]
     assert provenance_missing([EXEMPT, "| a |"], 1) == []
+    assert COMMIT.search("What holds at 3369254 on 2026-12-02") and not COMMIT.search("seeds 1000-1049, 2026-12-02")
