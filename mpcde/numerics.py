@@ -6,11 +6,9 @@ later, and the flight diverges. The libraries a flight uses pick their
 kernels by the CPU they run on: OpenBLAS a kernel per core type (SkylakeX,
 Haswell, Zen), numpy a SIMD level (x86-64-v3 or v4), torch's ATen and oneDNN
 an ISA, numba the host CPU, and ``perception.detector_precision: auto``
-bfloat16 where the CPU computes it natively. Measured (docs/results/
-reproducibility.md): the same commit, seeds and locked packages flew Fig. 10's
-100 flights with different per-seed metrics on two machines, and on one
-machine all 20 of 20 flights differ between its native kernels and the
-x86-64-v3 ones.
+bfloat16 where the CPU computes it natively. So the same commit, seeds and
+locked packages fly differently on two machines, and on one machine between
+its native kernels and the x86-64-v3 ones (docs/results/reproducibility.md).
 
 What. ``MPCDE_NUMERICS`` (environment) names the profile:
 

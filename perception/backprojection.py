@@ -39,9 +39,8 @@ std_px = centre_std_px + centre_std_box_fraction * box size. Then
 ray in the camera frame (:func:`ray_covariance`). Calibration: ``model_std_m``
 = 0.01 m, ``centre_std_px`` = 0.15 px, ``centre_std_box_fraction`` = 0.02 and
 ``across_floor_m`` = 0 fit the errors of render -> detect -> back-project with a
-perfect pose on the tracking tuning seeds 100-104 (``mpcde eval-tracking``'s
-pipeline source; the errors, and the former guesses that overstated them:
-docs/results/tracker.md). The white noise of the drone's own pose estimate
+perfect pose on the tracking tuning seeds (``mpcde eval-tracking``'s
+pipeline source; the errors: docs/results/tracker.md#back-projection-backprojectionpy). The white noise of the drone's own pose estimate
 is added (:func:`pose_noise_cov`): its position noise
 ``pose_pos_std_m`` moves every measurement with it, and its heading noise
 ``pose_yaw_std_rad`` swings the measurement about the vertical through the

@@ -35,19 +35,15 @@ but cut off: it lies in a pocket the start cannot reach inside the window (the
 unseen shadow behind a trunk at the window's edge, fenced by the trunk and its
 clearance band; in a thin altitude layer nothing leads round it). A* then
 exhausts the start's component, and the goal becomes the reachable voxel
-nearest the true goal, if it is at least a voxel nearer than the start
-(measured: a drone at rest at its flight level refused 562 times over 23 s,
-forest_swarm 2 m/s seed 41; ``docs/results/safety.md``). Without it a drone that has no plan to fly
-hovers for good: the window moves with the drone, the drone does not move, and
-the same clipped goal is refused at every frame (measured on Table III, density
-8 seed 17: 835 refusals, the drone never left its start;
-``docs/results/mp-cde.md``). The caller decides when to allow it
-(``goal_fallback=False`` refuses as before): the denied agent allows it only
+nearest the true goal, if it is at least a voxel nearer than the start.
+Without it a drone that has no plan to fly hovers for good: the window moves
+with the drone, the drone does not move, and the same clipped goal is refused
+at every frame (``docs/results/safety.md``, ``docs/results/mp-cde.md``). The
+caller decides when to allow it (``goal_fallback=False`` refuses as before): the denied agent allows it only
 while it has no plan, is stopping or has come to rest at its plan's end, because a drone still flying a plan moves
 its window and the clipped goal moves off the obstacle within a few frames,
-while the fallback's point may lie well to the side of the course (allowed in
-flight, it turned a radio_outage flight into a collision with a drone flying
-abreast). A goal inside the window that is blocked stays ``"goal_blocked"``:
+while the fallback's point may lie well to the side of the course, where a
+neighbour may fly abreast. A goal inside the window that is blocked stays ``"goal_blocked"``:
 the mission's goal itself is unreachable and no other point stands for it.
 
 The path is then shortcut greedily (from each kept point, the farthest later

@@ -29,12 +29,12 @@ enters as the C^2 cubic ``max(v, 0)^3`` (GCOPTER's choice):
   with ``s_n(t) = max(0, s0_n - rho (t - t0))``, ``s0_n = C_s + margin + r_n(t0) - d0``.
   With the full clearance from the first sample, a start inside it asks for
   an instantaneous jump in separation: the swarm penalty then outweighs the
-  obstacle penalty and the optimiser returns a plan through an obstacle (seen
+  obstacle penalty and the optimiser returns a plan through an obstacle (as
   when the ``auto`` agent hands a drone flying 0.4 m behind another, as DMPC
   allows, to MINCO's C_s = 0.7 m). Off by default (``swarm_recovery_mps = inf``):
   close to a neighbour the relaxed clearance is small, and a cubic penalty on
-  ``clr^2 - d^2`` is then weak; on radio_outage it did not lower the collision
-  totals (measured: docs/results/minco.md).
+  ``clr^2 - d^2`` is then weak, and it does not lower collisions
+  (docs/results/minco.md#swarm_recovery_mps-on-radio_outage-seeds-0-5).
 
 The gradient by ``T_i`` collects the growth of the sample spacing, the motion of
 the sample along the piece, and (swarm term only) the dependence of the

@@ -159,9 +159,9 @@ def opengl_projection_from_intrinsics(K: np.ndarray, width_px: int, height_px: i
     row ``H - 1 - y_w``. OpenCV's pixel ``(u, v)`` has its centre at integer
     ``(u, v)``, so K is reproduced with ``cx_gl = cx`` and ``cy_gl = cy + 1``.
     Measured (``tests/unit/sim/test_camera.py``): the silhouette edges of boxes
-    fall within the first covered pixel, with no half-pixel shift. (An earlier
-    ``c_gl = c + 0.5`` shifted every render by +0.5 px in u and -0.5 px in v,
-    which back-projection read as a 1-2 cm lateral bias at 2-6 m.) With image
+    fall within the first covered pixel, with no half-pixel shift
+    (``c_gl = c + 0.5`` would shift every render by +0.5 px in u and -0.5 px
+    in v, which back-projection reads as a lateral bias). With image
     row 0 at the top::
 
         P = [[2 fx / W, 0, 1 - 2 cx_gl / W, 0],

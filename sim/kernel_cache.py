@@ -4,9 +4,8 @@ Numba's on-disk cache (``@njit(cache=True)``) checks only the source file of
 the function it caches. A cached kernel that calls a kernel of another file
 keeps the callee's old machine code after that file changes: in this project
 ``planners/trajectory_variables.py`` calls ``planners/trajectory_penalty.py``,
-and a checkout that had compiled the former went on flying the old penalty
-after the penalty gained a term (measured: an optimiser test that passes on a
-fresh clone failed on the working checkout; docs/results/minco.md).
+and a checkout that has compiled the former goes on flying the old penalty
+after the penalty changes (docs/results/minco.md).
 
 :func:`use_versioned_cache` therefore points numba's cache at
 ``<base>/kernels-<digest>``, where the digest is a SHA-256 of every module of

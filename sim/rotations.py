@@ -78,7 +78,7 @@ def yaw_from_rotation(R: np.ndarray) -> np.ndarray:
 
 
 def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross products of (..., 3) arrays along the last axis (np.cross costs ~10x more at small N)."""
+    """Cross products of (..., 3) arrays along the last axis (np.cross costs several times more at small N)."""
     return np.stack(
         [a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2], a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]],
         axis=-1,

@@ -94,8 +94,8 @@ class MetricsAccumulator:
         """Account for one tick of duration ``dt_s`` [s] ending in state ``s``.
 
         Called at every physics tick, so written for small N: row norms as
-        sqrt(einsum) and the pair test on the upper triangle only (about 20 us
-        for 6 drones instead of 50 with ``np.linalg.norm`` and full matrices).
+        sqrt(einsum) and the pair test on the upper triangle only (cheaper than
+        ``np.linalg.norm`` and full matrices).
         """
         n = s.pos_world.shape[0]
         pos, vel = s.pos_world, s.vel_world

@@ -188,8 +188,8 @@ BUILTIN: tuple[Stack, ...] = (
 
 DEFAULT_KIND = "auto"
 """The ``planner.kind`` of a scenario that names none: the package's headline stack, DMPC over the radio that falls
-back to MP-CDE on its cameras. Chosen on the forest swarm's kept stores (docs/results/denied_default.md): it arrived
-in every flight at 0.5, 1 and 2 m/s where MP-CDE as published, on the same seeds, did not in 3 to 6 %."""
+back to MP-CDE on its cameras. Chosen on the forest swarm's kept stores: it arrives where MP-CDE as published,
+on the same seeds, does not (docs/results/denied_default.md)."""
 DEFAULT_KIND_WITHOUT_CAMERAS = "dmpc"
 """The ``planner.kind`` of a scenario that names none and renders no camera (``run.cameras: false``): ``auto``
 needs its cameras, the comm stack flies the same radio without them."""

@@ -308,7 +308,7 @@ def _run_pool(tasks: Sequence[FlightTask] | Callable[[], Sequence[FlightTask]], 
         # The manager thread closes the pool's wake-up pipe as it ends. Python 3.11's exit hook
         # (concurrent.futures.process._python_exit) writes to that pipe without the lock it is closed
         # under: a sweep that raised while the thread was still closing it printed an "OSError: [Errno 9]
-        # Bad file descriptor" traceback after our one line (CI, 9415af4). Once the thread has ended, the
+        # Bad file descriptor" traceback after our one line (seen in CI). Once the thread has ended, the
         # pipe is marked closed and the hook skips it.
         if manager is not None:
             manager.join(timeout=10)

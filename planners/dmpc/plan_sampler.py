@@ -18,7 +18,7 @@ class PlanSampler:
     into power-basis coefficients once per plan, p_i(s) = c0 + c1 s + c2 s^2 +
     c3 s^3 with s = (t - t_i) / h in [0, 1); the tails are constant velocity.
     Same values as :meth:`DmpcPlan.position` / ``velocity`` / ``acceleration``
-    (right limits at the samples), about 20 times cheaper per call.
+    (right limits at the samples), at a fraction of their cost per call.
 
     Args:
         plan: the plan to sample.

@@ -11,8 +11,8 @@ and its previous plan's state (p_plan(t), v_plan(t)). The next plan starts at
 Why not always the estimate: the plans' goal and formation costs act over the
 horizon, so each plan moves slowly in its first steps; restarting every plan
 from the estimate feeds the estimate's noise and the controller's lag into
-every first step, and the drones drift off their goals (measured:
-docs/results/dmpc_agent.md). Why not always the plan: a drone pushed off its
+every first step, and the drones drift off their goals
+(docs/results/dmpc_agent.md#the-8-drone-swap-replanning-from-the-estimate-against-from-the-plan). Why not always the plan: a drone pushed off its
 plan (a gust, a contact, a failed solve) must plan from where it is.
 
 Why the tolerance sits above the estimate's drift (:data:`TOLERANCE_M`,
@@ -23,9 +23,9 @@ is a random walk of ``pos_drift_m_per_sqrt_s`` = 5 mm/sqrt(s) per axis
 sigma 0.05 m) passes 0.1 m with probability 0.26 per drone and 0.3 m with
 under 1e-6. Past the tolerance every plan restarts from the estimate, the
 controller moves the drone by the drift to follow it, the estimate moves with
-the drone, and the next plan restarts lower again: a ratchet that held DMPC
-drones 0.3-0.7 m short of their goals and then sank them at the former 0.1 m
-(traced on the forest, docs/results/mp-cde.md, "`auto` at the current code").
+the drone, and the next plan restarts lower again: a ratchet that holds DMPC
+drones short of their goals and then sinks them
+(docs/results/dmpc_agent.md#the-tolerance-against-the-pose-estimates-drift-dmpcstate_tolerance_m-01---03-m).
 Limit: flights much longer than 100 s drift further (past 0.3 m with
 probability 0.007 per drone by 300 s). 0 for both tolerances always starts
 from the estimate.

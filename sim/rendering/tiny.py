@@ -13,11 +13,10 @@ so a flight does not depend on how cameras are spread over render workers
 
 - TinyRenderer's output depends on the parity of the number of
   ``getCameraImage`` calls the client has made: one colour channel of about one
-  pixel in a thousand renders comes out 1 lower or higher on odd calls. That was
-  enough to make ``radio_outage`` seed 3 (denied) end 0.5 s later with 1
-  worker than with 2. Each render is therefore followed by a 1x1 call
-  (0.77 ms against 4.5 ms for the 320 x 240 render, measured), so every real
-  render is an even call.
+  pixel in a thousand renders comes out 1 lower or higher on odd calls, enough
+  to change a perceiving flight with the number of render workers. Each render
+  is therefore followed by a 1x1 call (a small fraction of a 320 x 240
+  render's time), so every real render is an even call.
 - ``getBasePositionAndOrientation`` does not round-trip exactly through
   ``resetBasePositionAndOrientation`` (the base pose passes through the
   centre-of-mass frame; ~1e-16 m), so the drone hidden during its own camera's

@@ -3,8 +3,8 @@
 The equations are the controller module's (Lee, Leok, McClamroch 2010, with
 the clamped conditional integral and the tilt limit); :meth:`SE3Controller.step`
 calls :func:`se3_wrenches` at every physics tick, where the numpy form of the
-same law (:meth:`SE3Controller.step_numpy`, kept as the test's oracle) spent
-about 100 us per tick for 6 drones in small-array overhead (benchmarks/bench_sim.py).
+same law (:meth:`SE3Controller.step_numpy`, kept as the test's oracle) spends
+most of its time in small-array overhead (benchmarks/bench_sim.py).
 """
 
 from __future__ import annotations

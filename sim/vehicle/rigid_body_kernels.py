@@ -7,8 +7,9 @@ torque yielding first, then clipping to [0, f_max]), :meth:`MotorBank.step`
 and :meth:`sim.world.World.step` (F = sum_i f_i R e3 - c_d v, tau = R (sum_i r_i x f_i e3
 + sum_i s_i k_m w_i^2 e3)) compute in numpy; those numpy forms stay the tests'
 oracle. :func:`rotations_and_body_rates` is R(q) (normalised quaternion) and
-Omega_body = R^T omega_world. Together they replace ~60 us of small-array numpy
-per tick for 6 drones (benchmarks/bench_sim.py, docs/results/env.md).
+Omega_body = R^T omega_world. Together they replace the small-array numpy of
+every tick (benchmarks/bench_sim.py,
+docs/results/env.md).
 """
 
 from __future__ import annotations

@@ -22,8 +22,7 @@ MP-CDE's Fig. 3 hazard among drones: a drone observing tracked neighbours
 would otherwise fly on into space verified free seconds earlier, where a
 drone it has not seen now flies.
 
-Measured (forest_swarm: blind, along travel, active yaw; radio_outage
-contacts): docs/results/yaw_planner.md.
+The three headings compared: docs/results/yaw_planner.md.
 """
 
 from __future__ import annotations

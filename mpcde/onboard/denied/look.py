@@ -21,11 +21,10 @@ unknown space is the planner's business as before (MP-CDE's Eq. 1 ends the
 safe segment there), and trunks do not move; only free space ages, because
 only the drones move (the same reason as ``YawPlannerConfig.free_max_age_s``).
 
-Why it exists: every drone-drone contact left in the forest sweep at 0.5 and
-1 m/s is between two drones that did not have each other in view in the 2 s
-before contact, usually a follower closing on a neighbour ahead of it or
-beside its path while its camera looked elsewhere (observing, exploring, or
-the tracking mode's swing): docs/results/safety.md.
+Why it exists: it removes the drone-drone contacts that the camera cannot
+see coming, a follower closing on a neighbour ahead of it or beside its path
+while its camera looks elsewhere (observing, exploring, or the tracking
+mode's swing): docs/results/safety.md.
 
 The rule's state lives in :class:`FreshPathWatch` (when the corridor is
 checked next, the look under way, the rest after a point the camera could not
@@ -126,9 +125,9 @@ class FreshPathWatch:
     check then rests for ``fresh_path_rest_s`` instead of looking again, so the
     drone is never held for good. A hold whose stop the caller finds unsafe
     (``can_stop`` false: the agent's straight stopping piece would cut into the
-    obstacle band, as it did at 2 m/s on the forest) is begun as a glance
-    instead: the drone flies on along its obstacle-checked plan while the
-    camera turns to the point (``unsafe_stops`` counts them).
+    obstacle band) is begun as a glance instead: the drone flies on along its
+    obstacle-checked plan while the camera turns to the point (``unsafe_stops``
+    counts them).
 
     Args:
         config: the scenario's ``denied:`` settings (the ``fresh_path_*`` fields).
