@@ -2,13 +2,10 @@
 
 Four drones take up a 1.6 m square from starts scattered by up to 0.36 m and
 fly it 10 m (:mod:`mpcde.onboard.admm`; the radio at 50 Hz, one sub-round per
-ADMM exchange). Measured, seeds 0-3: ideal radio, all arrive in 10.48-10.50 s,
-min inter-drone distance 1.297-1.300 m, formation error chi 0.29-0.51 mm at
-the end (8-14 mm while cruising: the OCP's balance of the formation term
-against each drone's own line), no message missing; 20 % Bernoulli loss, the
-same arrival times and chi within 0.02 mm, 680-750 copies and 680-720 means
-missing per flight, all but 0-1 missed means resolved later. Local QP
-0.12-0.19 ms median per drone.
+ADMM exchange). With an ideal radio all arrive in formation, no message
+missing; with 20 % Bernoulli loss they arrive alike, and the missed means are
+resolved later. Measured figures:
+docs/results/admm_formation.md#the-admm-agent-in-the-physics-loop-formation_open.
 """
 
 from dataclasses import replace

@@ -39,9 +39,9 @@ def test_two_jobs_fly_the_same_flights_as_one(tmp_path):
     """--jobs only changes where flights run: the physics is identical step for step, and every row but the
     wall-clock one is identical, except that the tracking errors agree to 1e-6 (relative) rather than to the bit.
 
-    On an AMD EPYC machine (2026-11-27) comm's tracking RMSE differed in its eighth digit between one job and two,
-    at 864a1da as at later commits: the detector's arithmetic is not bit-stable across how a flight's frames are
-    split over processes there. comm's planner reads no camera data, so its flight is unchanged."""
+    On some CPUs the detector's arithmetic is not bit-stable across how a flight's frames are split over processes,
+    so comm's tracking RMSE may differ in its last digits between one job and two. comm's planner reads no camera
+    data, so its flight is unchanged."""
     kwargs = {"modes": ("placeholder", "comm"), "seeds": (1,), "duration_s": 3.0, "progress": False}
     one = run_compare(tmp_path / "one", "crossing", **kwargs)
     two = run_compare(tmp_path / "two", "crossing", jobs=2, **kwargs)

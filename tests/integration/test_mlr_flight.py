@@ -1,11 +1,10 @@
 """MLR-DMPC in the full simulator (physics + SE(3) controller, cameras off): six drones swap on a 3 m circle.
 
 Drones 0 and 1 host the two compute units (:mod:`mpcde.onboard.mlr`); 15 s
-simulated at most. Measured (seeds 0-3): ideal radio, min inter-drone
-distance 0.464-0.477 m, all 6 arrive in 7.3-8.2 s, no recovery; 20 %
-Bernoulli loss, min 0.455-0.469 m, all arrive in 10.4-14.2 s, 25-43 recovery
-requests and 68-134 tracker deprecations per flight, no QP failure, reference
-jumps 0. OSQP 2.2-2.9 ms median per QP.
+simulated at most. With an ideal radio all arrive without recovery; with 20 %
+Bernoulli loss all arrive after recovery requests and tracker deprecations,
+with no QP failure and no reference jump. Measured figures:
+docs/results/mlr_dmpc.md.
 """
 
 from dataclasses import replace

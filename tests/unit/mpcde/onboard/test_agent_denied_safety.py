@@ -317,9 +317,8 @@ def test_a_hold_ends_when_another_turn_has_replaced_its_look():
 
 def test_a_glances_own_point_found_stale_rests_the_check_and_does_not_skip_the_frames_replan(monkeypatch):
     """While a glance is under way, a stale point that is the glance's own (not refreshed yet) rests the check and
-    begins no hold, so the frame goes on to its safety check and due replan. The version flown for
-    fig6_fresh_portable (4b48cfa) returned as if a hold had begun, skipping both; that store's 1 m/s seed 5 flies
-    differently since."""
+    begins no hold, so the frame goes on to its safety check and due replan (returning as if a hold had begun
+    would skip both)."""
     from perception.types import OccupancySnapshot
 
     cfg = DeniedAgentConfig(fresh_path_age_s=1.0, start_delay_s=0.0)

@@ -134,7 +134,7 @@ def test_two_jobs_record_the_same_rows_as_one(tmp_path, tiny):
 
 def test_an_interrupted_pool_has_closed_its_wakeup_pipe_before_the_interrupt_reaches_the_caller(tmp_path, tiny, monkeypatch):
     """Python 3.11's exit hook writes to each process pool's wake-up pipe unless it is marked closed; a pool
-    still closing it when the interrupt was raised printed an EBADF traceback after the one-line message (CI, 9415af4)."""
+    still closing it when the interrupt was raised printed an EBADF traceback after the one-line message (seen in CI)."""
     from concurrent.futures import process
 
     real_append = ResultsStore.append

@@ -19,10 +19,6 @@ Distances are ellipsoidal (the constraints' metric). Two figures are checked:
   (``sim.vehicle.params`` robot_radius_m = 0.10 m, DESIGN.md metrics).
   Neither method constrains between its instants: at 2 v_max_mps = 4 m/s two
   drones move 0.8 m relative in one step of 0.2 s, so a step can cut a corner.
-
-Measured over seeds 0-4 (ideal exchange), at round times / continuous:
-on demand 0.405-0.465 / 0.388-0.459 m, BVC 0.408-0.530 / 0.311-0.522 m;
-with 20 % loss, continuous: on demand 0.397-0.444 m, BVC 0.339-0.537 m.
 """
 
 from __future__ import annotations
