@@ -100,8 +100,8 @@ class SyntheticMeasurements:
     ``across_std_base_m + across_std_per_range * r`` (the box centre's pixel
     error), ``r`` the range; then random misses, occlusions and false
     positives (Attributes). Defaults: fitted to the ``"pipeline"`` source's
-    measurements on the tuning seeds 100-104 (the noise with a perfect pose
-    estimate; ``mpcde eval-tracking`` scores seeds 0-9). The fit, and the
+    measurements on tuning seeds disjoint from those ``mpcde eval-tracking``
+    scores (the noise with a perfect pose estimate). The fit, and the
     former, harsher defaults (to stress the tracker): docs/results/tracking_eval.md.
 
     Observer pose error: the observer's own position and heading estimate come

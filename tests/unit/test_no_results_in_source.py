@@ -80,12 +80,8 @@ SUCCESS = re.compile(r"\b\d+(?:\.\d+)?\s*%\s*success", re.IGNORECASE)
 SOLE_HEX = re.compile(r"[0-9a-f]{7,64}")
 """A string token that is only this is a value the code holds, not prose."""
 
-KNOWN: dict[str, tuple[str, ...]] = {
-    "mpcde/evals/mlr.py": ("seeds 0",),
-    "mpcde/evals/tracking.py": ("seeds 100", "seeds 0"),
-}
-"""Matches left for now, by file: ``mpcde/evals/`` is being reworked by the move of the report scripts into
-the CLI (issue 66, item 4), which cleans its docstrings; delete an entry once its file is clean."""
+KNOWN: dict[str, tuple[str, ...]] = {}
+"""Matches allowed, by file, each with its reason in a comment; none today."""
 
 _STRING_PREFIX = re.compile(r"^[rbuRBUfF]*('''|\"\"\"|'|\")")
 
