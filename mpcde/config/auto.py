@@ -57,7 +57,7 @@ class AutoAgentConfig:
             never saw; the memory covers the first second of denied flight
             after the 1 s of silence, while the active yaw turns the camera to
             the remembered drones and the tracker takes them over
-            (docs/results/radio_outage.md).
+            (docs/results/radio_outage.md#tried-and-dropped).
         fusion: when a neighbour's plan is stale and how near its track must be
             (:class:`mpcde.onboard.fusion.FusionConfig`).
         handover: how the denied half takes over when the radio goes out.
@@ -72,7 +72,7 @@ class AutoAgentConfig:
             (``dmpc.qp.terminal_halt: false``) is replaced by the denied half's
             stopping piece. Chosen: ``halt``: it removes the contacts of the
             outage's first seconds that ``continue`` has, for a little more
-            mission time (docs/results/radio_outage.md).
+            mission time (docs/results/radio_outage.md#both-hand-overs-in-one-kept-store).
     """
 
     radio_silence_s: float = 1.0

@@ -39,7 +39,7 @@ class DeniedAgentConfig:
             apart by assignment rather than by sight. Not in MP-CDE. Why: drones on levels s apart
             cannot touch (contact is 2 robot radii, 0.2 m) while both hold their levels, seen or not,
             so it removes the contacts of neighbours that lost each other from the camera's view
-            (docs/results/safety.md). The id and N are the mission's assignment, as the goal is: no
+            (docs/results/safety.md#flight-levels). The id and N are the mission's assignment, as the goal is: no
             neighbour's state is read. inf (default): no levels, the paper's free altitude.
         flight_level_release_m: horizontal distance [m] from the goal at which a drone on flight
             levels leaves its level for the goal's altitude.
@@ -55,7 +55,7 @@ class DeniedAgentConfig:
             into the obstacle band is flown as a glance instead (the camera turns, the plan is kept).
             Not in MP-CDE. Why: a drone that only moves into space it looked at within this time sees a
             neighbour in its way unless the neighbour moved there since, so it removes the contacts of
-            drones that close outside each other's view (docs/results/safety.md). inf (default): off,
+            drones that close outside each other's view (docs/results/safety.md#look-before-moving). inf (default): off,
             the paper's stack.
         fresh_path_half_width_m: half width [m] of that corridor.
         fresh_path_near_m: the corridor starts this far ahead along the path [m] (the space the drone

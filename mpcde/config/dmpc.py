@@ -105,7 +105,7 @@ class DmpcAgentConfig:
             not only at its first predicted conflict). It also plans against
             every obstacle the plan can reach: ``obstacle_range_m`` is derived.
             On by default: it keeps the stack's plans apart under message loss
-            (docs/results/comm_safety.md).
+            (docs/results/comm_safety.md#the-full-outage-sweep-plain-cells-included).
             False: replan every round
             against shifted stale plans, with the QP as ``qp`` says
             (:meth:`replanning` gives the on-demand paper's plain DMPC).

@@ -25,7 +25,7 @@ reference (a stand-in for the low-level controller; Assumption 1 does not
 hold during it). MLR-DMPC's switches are always continuous (checked:
 ``max_reference_jump_m``). In this kinematic model the baseline's failure
 in the Fig. 4 setting (:mod:`mpcde.evals.mlr`) is not certain: it depends on
-which stale beliefs meet (per seed: docs/results/mlr_dmpc.md).
+which stale beliefs meet (per seed: docs/results/mlr_dmpc.md#eval-mlr-fig-3b-3c-and-4-in-the-kinematic-swarm).
 
 Collisions are pairs whose ellipsoidal distance ||Theta^-1 (p_i - p_j)|| of
 the ACTUAL positions is below ``collision_distance_m`` at any time of a fine

@@ -94,7 +94,7 @@ def make_scenario(
     its course stays inside it flies straight at a new speed in
     ``[1.0, 1.3] * speed_mps``. At 2 m/s it still overshoots the region now
     and then, and it turns back often (time inside and mean speed measured:
-    docs/results/tracking_eval.md). Height follows a gentle climb and descent,
+    docs/results/tracking_eval.md#make_scenario-how-the-target-paths-stay-in-view). Height follows a gentle climb and descent,
     ``z = z_obs + c + A sin(0.5 t + phase)`` with ``|c| <= 0.2`` m and
     ``A = min(0.4 speed_mps, 0.55)`` m. Integrated at 10
     sub-steps per frame.

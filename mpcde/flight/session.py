@@ -349,7 +349,7 @@ def _default_workers(agents: Sequence[OnboardAgent], detects: bool) -> int:
     A mapping stack (``maps_frames``) keeps map insertion, the ESDF and planning
     in the main process, which then needs a core to itself; the workers render
     and, when a detector runs, detect on the rest. Why one fewer only for
-    mapping stacks: docs/results/realtime.md ("Worker count").
+    mapping stacks: docs/results/realtime.md#worker-count.
     """
     cores = os.cpu_count() or 1
     if detects and any(getattr(a, "maps_frames", False) for a in agents):

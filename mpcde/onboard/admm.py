@@ -57,7 +57,7 @@ drone j, the entries of gamma on p_j (j's own and every copy of it) sum to
 zero, which is what makes Steps 5-7 the exact consensus step (4b)
 (:mod:`planners.dmpc.admm.formation`); a rule that breaks it (e.g. averaging
 with a neighbour's last received copy) leaves the multipliers a bias that
-never decays (what it did under loss: docs/results/admm_formation.md).
+never decays (what it did under loss: docs/results/admm_formation.md#a-loss-rule-that-broke-eq-5-dropped).
 
 1. A copy that did not reach its owner j is left out of j's average
    (xbar_j is the mean of p_j and the copies received), and j's means bundle
@@ -88,7 +88,8 @@ No collision avoidance and no obstacles: the OCP has neither, so the scenario
 check refuses obstacles and starts that are not in the goals' formation
 (:class:`mpcde.config.scenario.ScenarioConfig`).
 
-Measured (``formation_open``, ideal and lossy radio, against DMPC): docs/results/admm_formation.md.
+Measured (``formation_open``, ideal and lossy radio, against DMPC):
+docs/results/admm_formation.md#the-admm-agent-in-the-physics-loop-formation_open.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ Every drone runs the same shipped detector (:class:`perception.detector.detector
 on its OWN frame; nothing crosses between drones. The loop hands the frames of
 one camera tick to :meth:`BatchedDetector.detect` so that the network runs one
 forward pass over the batch (DESIGN.md: "Inference is batched across drones";
-measured: docs/results/detector.md), then gives each agent its own frame's
+measured: docs/results/detector.md#batched-across-drones-against-one-frame-at-a-time), then gives each agent its own frame's
 detections with its frame. Only agents that ask for detections (a
 ``detector_request`` that is not None) are served; with none, no detector is
 loaded.
@@ -13,15 +13,15 @@ Where it runs: with render workers, each worker runs the detector over its
 share of a tick's frames right after rendering them (:func:`frame_detector`,
 the render pool's frame processor; the main process then only reads the
 boxes), which moves the network off the main process's core (measured in
-``docs/results/realtime.md``). With none (``run.render_workers: 0``) the main
-process runs :meth:`BatchedDetector.detect`. A frame's detections do not
+``docs/results/realtime.md#the-detector-in-the-render-workers``). With none
+(``run.render_workers: 0``) the main process runs :meth:`BatchedDetector.detect`. A frame's detections do not
 depend on where they ran beyond float rounding of the batch size.
 
 Threads: in flight the detector shares the machine with the render workers,
 so :meth:`BatchedDetector.single_threaded` runs torch on one intra-op thread
 for the flight. With torch's default (one thread per core) its OpenMP team
 spin-waits on the cores the renderers need (measured in
-``docs/results/realtime.md``, "Thread oversubscription").
+``docs/results/realtime.md#thread-oversubscription``).
 """
 
 from __future__ import annotations

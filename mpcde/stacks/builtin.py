@@ -109,7 +109,8 @@ _DENIED_CHECKS = _checks(check_denied_ground_clearance, check_flight_levels)
 
 def _commit_obstacle_range_m(cfg: Any) -> float:
     """max(3.0, sqrt(2) v_max_mps K h + robot radius + obstacle margin) [m]: the reach of a DMPC plan flown to its halt
-    unrevised (``dmpc.commit_when_unheard``), over which every obstacle needs its plane (docs/results/comm_safety.md)."""
+    unrevised (``dmpc.commit_when_unheard``), over which every obstacle needs its plane
+    (docs/results/comm_safety.md#the-mechanism-dmpccommit_when_unheard-default-on-mpcdeonboarddmpcpy)."""
     d, qp = cfg.dmpc, cfg.dmpc.qp
     inflation = cfg.physics.quadrotor.robot_radius_m + d.obstacle_margin_m
     return max(type(d)().obstacle_range_m, float(np.sqrt(2.0) * qp.v_max_mps * qp.horizon_s) + inflation)
@@ -189,7 +190,7 @@ BUILTIN: tuple[Stack, ...] = (
 DEFAULT_KIND = "auto"
 """The ``planner.kind`` of a scenario that names none: the package's headline stack, DMPC over the radio that falls
 back to MP-CDE on its cameras. Chosen on the forest swarm's kept stores: it arrives where MP-CDE as published,
-on the same seeds, does not (docs/results/denied_default.md)."""
+on the same seeds, does not (docs/results/denied_default.md#the-decision-rule)."""
 DEFAULT_KIND_WITHOUT_CAMERAS = "dmpc"
 """The ``planner.kind`` of a scenario that names none and renders no camera (``run.cameras: false``): ``auto``
 needs its cameras, the comm stack flies the same radio without them."""

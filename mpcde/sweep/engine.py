@@ -123,8 +123,8 @@ def _exit_stopped() -> None:
     """A stopped pool worker's end: close its kept render pool, then exit with 143 at once.
 
     Once one worker has exited, the pool's manager sends SIGTERM to the others: a second SIGTERM must not cut
-    the close short (it stretched the sweep's exit: docs/results/sweeps.md), so further ones are ignored
-    (already from the first, :func:`_warm`)."""
+    the close short (it stretched the sweep's exit: docs/results/sweeps.md#the-render-pool-kept-across-a-workers-flights),
+    so further ones are ignored (already from the first, :func:`_warm`)."""
     _close_at_exit()
     os._exit(143)
 
@@ -261,7 +261,8 @@ _ONE_THREAD = {
     "PYTHONWARNINGS": "ignore::UserWarning:multiprocessing.resource_tracker",
 }  # fmt: skip
 """Each pool worker's BLAS and OpenMP libraries run one thread: ``jobs`` flights already fill the cores, and
-two processes each spinning two OpenBLAS threads oversubscribe them (measured: docs/results/sweeps.md)."""
+two processes each spinning two OpenBLAS threads oversubscribe them
+(measured: docs/results/sweeps.md#overhead-of-the-machinery-issue-27s-goal--12x-back-to-back--2)."""
 
 
 @contextmanager

@@ -306,7 +306,7 @@ class DeniedAgent(OnboardAgent):
         :meth:`perception.occupancy_map.OccupancyMap.clearance` on the hot
         path, the fresh snapshot's ESDF for a new plan. No escape rule for a
         plan starting inside the band in flight (tried and dropped:
-        docs/results/radio_outage.md); one handed over there has the escape's floor.
+        docs/results/radio_outage.md#tried-and-dropped); one handed over there has the escape's floor.
         """
         tau = np.linspace(max(t - traj.t0_s, 0.0), traj.total_duration, 40)
         d = distance(traj.pos(tau))

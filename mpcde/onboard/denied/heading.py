@@ -22,7 +22,8 @@ MP-CDE's Fig. 3 hazard among drones: a drone observing tracked neighbours
 would otherwise fly on into space verified free seconds earlier, where a
 drone it has not seen now flies.
 
-The three headings compared: docs/results/yaw_planner.md.
+The three headings compared:
+docs/results/history/yaw_planner.md#the-denied-agents-heading-blind-along-travel-active-yaw-forest_swarm-seed-0.
 """
 
 from __future__ import annotations

@@ -76,7 +76,7 @@ class FlightLevels:
            layer spans its altitude and the level. Climbing in place, before leaving
            the start, no drone crosses another's level on the way (a climb spread along
            the path left two drones 0.2 m apart at 1.58 m, both still between their
-           levels 5 s into the flight: docs/results/safety.md);
+           levels 5 s into the flight: docs/results/safety.md#flight-levels);
         2. then it flies to its goal carried to the level, held within b of it;
         3. within ``release_m`` of the goal horizontally it is released, for good: the
            goal itself, the layer down (or up) to the goal's altitude.

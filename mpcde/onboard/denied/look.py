@@ -24,7 +24,7 @@ only the drones move (the same reason as ``YawPlannerConfig.free_max_age_s``).
 Why it exists: it removes the drone-drone contacts that the camera cannot
 see coming, a follower closing on a neighbour ahead of it or beside its path
 while its camera looks elsewhere (observing, exploring, or the tracking
-mode's swing): docs/results/safety.md.
+mode's swing): docs/results/safety.md#look-before-moving.
 
 The rule's state lives in :class:`FreshPathWatch` (when the corridor is
 checked next, the look under way, the rest after a point the camera could not

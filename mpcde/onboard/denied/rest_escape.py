@@ -14,7 +14,7 @@ tracks before it moves; until the reference first leaves the band, a plan may
 then come no closer to the obstacles than the hover point is
 (:meth:`RestEscape.floor`, fixed at the first plan from it, to half a voxel).
 Not in MP-CDE. A drone that entered the band in flight gets no such rule
-(tried and dropped: docs/results/radio_outage.md).
+(tried and dropped: docs/results/radio_outage.md#tried-and-dropped).
 """
 
 from __future__ import annotations
@@ -62,8 +62,8 @@ class RestEscape:
         (0.75 clearance_m on the map's newest clearance) and no escape under way.
 
         From there every plan starts inside the band, so the agent refuses them all and the drone would hover
-        until the map changed (docs/results/radio_outage.md, "A drone at rest inside the band"). Only a drone at
-        rest qualifies: the same rule for plans begun inside the band in flight was tried and dropped.
+        until the map changed (docs/results/radio_outage.md#a-drone-at-rest-inside-the-band-turn-then-escape).
+        Only a drone at rest qualifies: the same rule for plans begun inside the band in flight was tried and dropped.
         """
         stop = agent.trajectory
         if not agent.braking or self.escaping or stop is None or t < stop.t0_s + stop.total_duration - 1e-9:
