@@ -16,7 +16,8 @@ Experiments (16 UAVs; :mod:`mpcde.evals.mlr_swarm` for the model and metrics):
 * ``fig3c_triggers`` (Sec. 5.3, Fig. 3c): the same with 3 CUs and the RR, DB
   and HT triggers (the HT row is the 3-CU row of ``fig3b_cus``, reused).
 
-Measured against the paper's Fig. 3b, 3c and 4: docs/results/mlr_dmpc.md.
+Measured against the paper's Fig. 3b, 3c and 4:
+docs/results/mlr_dmpc.md#eval-mlr-fig-3b-3c-and-4-in-the-kinematic-swarm.
 
 Writes ``out_dir/results.json`` (``{"rows": [...]}``, one row per
 experiment, variant and seed) and ``out_dir/table.md``, and prints the table.

@@ -361,7 +361,8 @@ def run_eval_tracking(
             detect -> back-project; both filters see the same measurements).
         seeds: one run per seed; seed ``s`` has ``1 + s % 3`` targets. Ten by
             default: at 0.5 m/s the AKF-KF gap is within the spread of
-            3-seed runs (measured: docs/results/tracking_eval.md).
+            3-seed runs (measured:
+            docs/results/tracking_eval.md#run_eval_tracking-ten-seeds-by-default).
         duration_s: length of each run [s].
         progress: show a tqdm progress bar.
         tracker_config: base tracker settings (its ``filter`` is overridden).
