@@ -27,7 +27,7 @@ this module takes:
 The depth camera sees the drone's near surface; the drone's position is its
 body centre, on average ``surface_to_centre_m`` farther along the ray, which is
 added along the unit ray (0.03 m, the median offset on validation renders;
-measured: docs/results/tracker.md).
+measured: docs/results/tracker.md#back-projection-backprojectionpy).
 
 Covariance (anisotropic, in world): along the ray the depth error dominates,
 std_r^2 = (pi / 2) sigma(d)^2 |r|^2 / n + model_std_m^2 (variance of a median of

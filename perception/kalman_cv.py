@@ -32,7 +32,7 @@ most one positive direction; ``D_k+`` is its positive part in the metric of
 ``M_k`` (non-zero only when the innovation is larger than ``M_k`` explains,
 ``q_k > 1``). It makes ``A_hat`` rank one, ``(K_v nu)(K_v nu)^T`` scaled, so
 no eigen-decomposition per track is needed (the Euclidean positive part is no
-more accurate and costs more; measured: docs/results/tracker.md).
+more accurate and costs more; measured: docs/results/tracker.md#the-adaptive-process-noise-kalman_cvpy-mp-cde-eq-11).
 
 The excess is mapped into the state through the gain, as in the classic
 covariance-matching estimate ``Q_hat = K C K^T``, but only through its velocity
@@ -42,7 +42,7 @@ about ``a dt`` per update, so ``K_v nu / dt`` estimates the acceleration ``a``.
 Why not ``A_hat = 4 D / dt^4`` (the direct DWNA reading of ``H Q H^T = D``): at
 25 Hz the true ``H Q H^T`` is far below the sampling noise of one
 ``nu nu^T``, and the ``4 / dt^4`` factor turns that noise into tens of m/s^2
-of phantom acceleration (measured: docs/results/tracker.md).
+of phantom acceleration (measured: docs/results/tracker.md#the-adaptive-process-noise-kalman_cvpy-mp-cde-eq-11).
 ``A_hat`` is capped at trace ``sigma_acc_max_mps2^2``.
 
 Relation to the literature: the velocity block of our ``Q = G A G^T`` is
@@ -51,7 +51,7 @@ Relation to the literature: the velocity block of our ``Q = G A G^T`` is
 ``D+`` instead of the raw ``C``, restricted to the velocity rows. We keep
 the excess form rather than the raw ``C`` or the excess smoothed before its
 positive part: it is what Eq. 11 writes, and it is the one that beats the KF
-at every speed (measured: docs/results/tracker.md).
+at every speed (measured: docs/results/tracker.md#the-adaptive-process-noise-kalman_cvpy-mp-cde-eq-11).
 
 Three implementations that must agree to 1e-9 (tests hold it):
 :class:`KalmanCV` wraps filterpy's ``KalmanFilter`` (the reference, and the
@@ -241,7 +241,9 @@ class KalmanCV:
         adapt_after: int = 1,
     ) -> None:
         """Start a track at ``pos_world`` (3,) [m] with covariance ``pos_cov_world`` (3, 3) and zero velocity."""
-        from filterpy.kalman import KalmanFilter  # imported here: filterpy pulls in scipy.stats, which the tracker's kernels never need (docs/results/sweeps.md)
+        # imported here: filterpy pulls in scipy.stats, which the tracker's kernels never need
+        # (docs/results/sweeps.md#overhead-of-the-machinery-issue-27s-goal--12x-back-to-back--2)
+        from filterpy.kalman import KalmanFilter
 
         self.kf = KalmanFilter(dim_x=6, dim_z=3)
         self.kf.x = np.concatenate([np.asarray(pos_world, float), np.zeros(3)]).reshape(6, 1)

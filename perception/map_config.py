@@ -67,7 +67,7 @@ class MapConfig:
             than a 0.15 m voxel, so the traversed rays still sweep every voxel
             column of the window; a quarter of the traversals costs a quarter
             of the time (``benchmarks/bench_map.py``; what it changes in the
-            map: ``docs/results/realtime.md``).
+            map: ``docs/results/realtime.md#the-map-the-esdf-and-the-planners``).
         clear_tail_voxels: length [voxels] of the traversed tail of a hit ray
             that is not traversed whole (default 2: the space just in front of
             a surface is cleared by every ray).

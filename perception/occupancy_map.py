@@ -38,7 +38,7 @@ transform.
 
 Back-projection is plain numpy: open3d's ``PointCloud.create_from_depth_image``
 costs about the same and is small next to the ray casting (measured:
-docs/results/occupancy_map.md), and it offers neither the detection mask nor
+docs/results/occupancy_map.md#back-projection-numpy-against-open3d), and it offers neither the detection mask nor
 the clearing rays of invalid pixels.
 """
 

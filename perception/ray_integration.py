@@ -1,7 +1,8 @@
 """Depth frame -> voxel updates: the rays of a frame (compiled, with its numpy reference) and the traversal that marks free and occupied voxels.
 
 What :class:`perception.occupancy_map.OccupancyMap` calls per frame; the stride-4 grid of whole rays and the
-stride-2 ray tails are its ``MapConfig.clear_stride`` and ``clear_tail_voxels`` (docs/results/occupancy_map.md).
+stride-2 ray tails are its ``MapConfig.clear_stride`` and ``clear_tail_voxels``
+(docs/results/realtime.md#the-map-the-esdf-and-the-planners).
 """
 
 from __future__ import annotations

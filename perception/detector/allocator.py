@@ -5,7 +5,7 @@ a handful of multi-megabyte tensors: the encoded input (6 frames x 4 channels
 x 320 x 240 float32 = 7.4 MB) and the early activations. glibc serves any
 block above ``M_MMAP_THRESHOLD`` (128 kB at start, adapting up to 32 MB only
 after frees) with a fresh ``mmap`` and returns it with ``munmap`` on free, so
-each call page-faults its buffers in again (measured: docs/results/detector.md).
+each call page-faults its buffers in again (measured: docs/results/detector.md#glibc-allocation-thresholds).
 This is the CPU tuning the PyTorch performance guide recommends (a caching
 allocator or glibc's mmap / trim thresholds).
 

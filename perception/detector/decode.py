@@ -79,7 +79,7 @@ def decode_outputs(
     neighbours' (the sigmoid is monotone, so this is the max-pool rule on
     scores), kept when its score is >= ``score_threshold``; the best
     ``max_detections`` by score, boxes from the size and offset heads, greedy
-    NMS (timings: docs/results/realtime.md). Arguments and result as the reference's.
+    NMS (timings: docs/results/realtime.md#the-detector-in-the-render-workers). Arguments and result as the reference's.
     """
     out = np.ascontiguousarray(outputs.detach().float().numpy())
     H, W = image_shape_px if image_shape_px is not None else (-1, -1)

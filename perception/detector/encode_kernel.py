@@ -6,7 +6,7 @@ oracle): RGB / 255 - 0.5, and for RGB-D a fourth channel
 read as ``DEPTH_SCALE_M``. The torch form stacks the frames, permutes,
 converts and concatenates (five passes over 7.4 MB for six 320 x 240 frames);
 this reads each frame once and writes the (B, H, W, C) buffer that a
-channels-last (B, C, H, W) tensor views (timings: docs/results/realtime.md).
+channels-last (B, C, H, W) tensor views (timings: docs/results/realtime.md#the-detector-in-the-render-workers).
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ need; the costly convolutions stay at stride 4 and 8. The "patch" stem
 (a 4x4 stride-4 convolution, as in ConvNeXt's patchify stem) reads each input
 pixel once and replaces two convolutions, the first of which works on only
 four input channels at stride 2; its cost against the "conv" stem is in
-``docs/results/detector.md``.
+``docs/results/detector.md#the-patch-stem-retrained-2026-11-26-issue-25``.
 
 Outputs on the (H/4, W/4) grid, cell (i, j) covering input pixels
 ``[4j, 4j + 4) x [4i, 4i + 4)``:
