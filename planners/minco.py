@@ -24,7 +24,7 @@ gradients ``dK/dc`` (6M, 3) and ``dK/dT`` (M,), ``A c = b`` gives
 ``dK/dT_i = dK/dT_i|_c - tr(G^T (dA/dT_i) c)``.
 
 Everything runs in numba-compiled kernels (``cache=True``); ``benchmarks/bench_minco.py``
-measures them against a vectorised numpy/scipy version (figures: docs/results/minco.md).
+measures them against a vectorised numpy/scipy version (figures: docs/results/minco.md#compiled-kernels-against-numpyscipy).
 Time convention: :class:`MincoTrajectory` evaluates at times from its own
 start, ``t in [0, sum T]`` (clipped); ``t0_s`` holds the absolute start time [s],
 so a caller with absolute time ``t_abs`` asks ``traj.pos(t_abs - traj.t0_s)``.

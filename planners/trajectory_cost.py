@@ -83,7 +83,7 @@ class PenaltyParameters:
         samples_per_piece: K, sample intervals per piece [-]; default 16 (GCOPTER).
         altitude_band_m: (z_lo, z_hi) world altitudes [m] the samples are held between by the penalty
             ``w_z max(z - z_hi, z_lo - z, 0)^3``, added to the obstacle term (not in MP-CDE: it keeps a
-            swarm in the layer its cameras' +-29 deg vertical view covers; docs/results/safety.md);
+            swarm in the layer its cameras' +-29 deg vertical view covers; docs/results/safety.md#candidates-that-did-not-remove-the-class);
             default (-inf, inf): off.
         weight_altitude: w_z [-]; default 1e5.
     """

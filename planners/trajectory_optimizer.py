@@ -56,7 +56,7 @@ class TrajectoryOptimizerConfig(PenaltyParameters):
     v_max_mps (2.0 m/s), a_max_mps2 (4.0 m/s^2), obstacle_clearance_m (0.4 m),
     swarm_clearance_m (C_s, 0.7 m, MP-CDE Table I), swarm_z_scale (c, 2.0), clearance_margin_m (0.1 m),
     uncertainty_sigma (1.0), max_uncertainty_inflation_m (0.5 m), swarm_recovery_mps (inf: off;
-    measured: docs/results/minco.md), weight_vel, weight_acc, weight_obstacle, weight_swarm (w_s)
+    measured: docs/results/minco.md#swarm_recovery_mps-on-radio_outage-seeds-0-5), weight_vel, weight_acc, weight_obstacle, weight_swarm (w_s)
     (1e5 each), samples_per_piece (K, 16). The optimiser adds:
 
     Attributes:

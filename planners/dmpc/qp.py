@@ -47,7 +47,8 @@ rows that the velocity and input limits already imply are culled
 (:meth:`DmpcProblem._fill_obstacles`); OSQP's Python wrapper is bypassed
 (:mod:`planners.dmpc.sparse_qp.osqp_core`); ``osqp_scaling = 4`` because OSQP
 re-runs its Ruiz equilibration in every refactorisation.
-Measured, with the alternatives tried: docs/results/dmpc_qp.md.
+Measured, with the alternatives tried:
+docs/results/dmpc_qp.md#why-the-qp-is-built-as-it-is-issue-6s-speed-goals-2026-11-22-to-2026-11-25.
 """
 
 from __future__ import annotations
@@ -298,7 +299,8 @@ class DmpcProblem:
             l[rs], u[rs] = 0.0, cfg.slack_max_m
             # An unused slot's slack is pinned to 0 (and priced 0 below): the same optimum, but
             # its bound no longer carries the multiplier xi = 5e4 that the linear price put on
-            # it, which slowed ADMM (measured: docs/results/dmpc_qp.md).
+            # it, which slowed ADMM (measured:
+            # docs/results/dmpc_qp.md#why-the-qp-is-built-as-it-is-issue-6s-speed-goals-2026-11-22-to-2026-11-25).
             u[self._rows.slack + n_coll : self._rows.slack + M] = 0.0
         else:
             chosen = self._nearest(own_prev, nb_pos, M)

@@ -4,7 +4,7 @@ Each DMPC round evaluates every neighbour's plan (a
 :class:`perception.types.NeighborPrediction`) and the drone's own previous plan
 (a :class:`planners.dmpc.types.DmpcPlan`) at the K S check times of the
 horizon. Calling ``NeighborPrediction.position`` once per neighbour costs too
-much of the round's Python time (measured: docs/results/dmpc_qp.md); here all
+much of the round's Python time (measured: docs/results/dmpc_qp.md#smaller-figures-from-qppy-and-samplingpy); here all
 plans with the same number of samples are evaluated in one set of numpy
 operations.
 

@@ -107,7 +107,7 @@ class YawPlannerConfig:
             exploring/observing regime and looks where it goes (MP-CDE Fig. 3,
             for neighbours that now fly where the camera saw free space): the
             observing mode cannot stare at known neighbours while an unseen
-            one closes in along the path (docs/results/yaw_planner.md).
+            one closes in along the path (docs/results/yaw_planner.md#free_max_age_s-10-s).
         free_distance: how Eq. 1's d_free is measured: ``"horizontal"`` (in the
             plane of the drone's altitude slab, to the nearest cell not verified
             free; default), ``"voxel"`` (the map's 3-D verified-free distance)
@@ -116,7 +116,7 @@ class YawPlannerConfig:
             as free while tau_s still ends where verified-free space does); see
             :mod:`planners.yaw.safety`. ``"occupied"`` is not the default: it
             lets the camera leave the path while unobserved space is near
-            (docs/results/mp-cde.md).
+            (docs/results/mp-cde.md#the-swarm-without-tracking-mode-and-with-d_free-read-literally).
         free_slab_half_height_m: half height [m] of the altitude slab of
             ``"horizontal"`` (chosen: 0.3 m, two voxels either side: the
             drone's height plus its altitude tracking error).
@@ -150,7 +150,7 @@ class YawPlannerConfig:
             swing's rate 4 sweep / period may not exceed
             ``yaw_rate_max_radps``. A swing small enough to keep travel always
             in view leaves a neighbour at 85-90 deg outside the frame at the
-            swing's extreme (docs/results/yaw_planner.md).
+            swing's extreme (docs/results/yaw_planner.md#tracking_sweep_deg-60-deg-every-21-s).
         tracking_sweep_period_s: period of that swing [s] (chosen 2.1 s: the
             shortest period at which a 60 deg swing turns within the 2 rad/s
             limit, 4 x 60 deg / 2.1 s = 1.99 rad/s, so the camera revisits

@@ -20,7 +20,7 @@ paper does not say):
   unobserved space just above and below the camera's 58 deg vertical field
   of view cap d_free near 1.5 m, so S(0) = d_free / v_max could never
   exceed tau_thr = 1.2 pi / 2 = 1.88 s at v_max = 1 m/s and the planner would
-  never leave the tracking mode (measured: docs/results/yaw_planner.md).
+  never leave the tracking mode (measured: docs/results/yaw_planner.md#free_distance-horizontal).
 * ``"occupied"``: in the same slab, the distance to the nearest occupied
   cell (unknown space counts as free): the paper's literal wording, "the
   Euclidean signed-distance (ESDF) value of the map".

@@ -44,7 +44,7 @@ which the previous step decided as its u_i[1], so a round may use the whole
 step h; the applied input is always ``result.input_now``. The first step
 fixes u_i[0] = 0 (or ``input_now_world``).
 
-Measured (Tables 2-3 analogue, distance to the optimum, sweep): docs/results/admm_formation.md.
+Measured (Tables 2-3 analogue, distance to the optimum, sweep): docs/results/admm_formation.md#benchmark-output.
 
 Left out: coupled constraints (1f) such as minimum distances (the paper's
 Sec. 5.2 needs dSQP for them); lost or late messages (Assumption 1 is

@@ -41,7 +41,7 @@ every step: their type never changes). Kept, they would do two harmful things:
 a violation at k = 1 (e.g. the drone is already faster than v_max_mps) would force
 the ONE slack up and so relax every other state constraint of the horizon by
 as much, for free; and OSQP needed thousands of iterations for such a QP
-(measured: docs/results/admm_formation.md).
+(measured: docs/results/admm_formation.md#development-measurements-scripts-not-kept).
 
 Shared by the ADMM subproblem (:mod:`planners.dmpc.admm.local_qp`, which adds
 the copies' formation terms) and the centralized QP

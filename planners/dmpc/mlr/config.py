@@ -71,7 +71,7 @@ class MlrConfig:
         weight_acc: Q on acceleration in [s^4/m^2] (chosen 0.05).
         weight_jerk: R on the jerk input in [s^6/m^2] (chosen 0.01; smaller
             weights on v, a and jerk need more OSQP iterations:
-            docs/results/mlr_dmpc.md).
+            docs/results/mlr_dmpc.md#qp-weights-tolerance-and-form).
         max_candidates: most trajectories a non-deprecated tracker can hold
             (old + new one: 2, Lemma 1); the QP is sized for
             (N - 1) x ``max_candidates`` x h_c BVC rows.
@@ -120,14 +120,14 @@ class MlrConfig:
             the CU message carries two trajectories); it only adds candidates
             to deprecated trackers, so Lemma 1 and the collision argument are
             untouched (:mod:`planners.dmpc.mlr.tracker`, step 0). Measured:
-            docs/results/mlr_dmpc.md.
+            docs/results/mlr_dmpc.md#the-16-uav-swap-under-loss-with-every-default.
         soft_rotation: the Appendix's B4 soft constraint: every BVC row of
             another trajectory is tightened by a slack eps >= 0 that the cost
             rewards (linear reward, small quadratic), more for a UAV to the
             right, so that approaching UAVs turn around each other. With
             eps = 0 the rows are Eq. 15's, so Theorem 1's shifted trajectory
             stays feasible and the guarantees hold (the paper, after Chen et
-            al. 2023). Chosen on: docs/results/mlr_dmpc.md.
+            al. 2023). Chosen on: docs/results/mlr_dmpc.md#what-each-measure-adds.
         soft_weight: reward per metre of slack, other UAV not to the right
             [1/m] (chosen 0.5).
         soft_weight_right: the same for a UAV to the right [1/m] (chosen 2.0).
@@ -143,7 +143,7 @@ class MlrConfig:
         deadlock_motion_m: planned motion below which a trajectory holds its
             UAV [m] (chosen 0.02).
         deadlock_rounds: how long such a trajectory lowers the priority
-            [rounds] (chosen 40: 8 s, docs/results/mlr_dmpc.md).
+            [rounds] (chosen 40: 8 s, docs/results/mlr_dmpc.md#what-each-measure-adds).
         trigger: event trigger of Appendix A: ``"rr"`` (round-robin, A1),
             ``"db"`` (distance-based, A2) or ``"ht"`` (hybrid, A3).
         priority_scale_rr: one 8-bit priority unit of RR in rounds (chosen 1).
@@ -151,7 +151,7 @@ class MlrConfig:
         priority_scale_ht: one unit of HT in [m x rounds] (chosen 0.1).
         osqp_eps_abs: OSQP absolute tolerance (chosen 1e-3: several times
             fewer iterations than 1e-4, and the BVC rows are still met well
-            within d̂_min - d_min; docs/results/mlr_dmpc.md; the terminal halt
+            within d̂_min - d_min; docs/results/mlr_dmpc.md#qp-weights-tolerance-and-form; the terminal halt
             is made exact afterwards, see :class:`planners.dmpc.mlr.qp.MlrProblem`).
         osqp_eps_rel: OSQP relative tolerance (chosen 1e-3).
         osqp_max_iter: OSQP iteration limit (chosen 20000).

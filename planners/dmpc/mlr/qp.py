@@ -145,7 +145,7 @@ class MlrProblem:
     Sparse form: z = [x_1; ...; x_{h_s}; u_0; ...; u_{h_s-1}] (9 h_s + 3 h_s,) with the
     dynamics x_{kappa+1} = A x_kappa + B u_kappa as equality rows, rather than the
     condensed form (U only, positions cubic in the jerk), which OSQP solved far more
-    slowly (measured: docs/results/mlr_dmpc.md); this one has a diagonal cost and BVC
+    slowly (measured: docs/results/mlr_dmpc.md#qp-weights-tolerance-and-form); this one has a diagonal cost and BVC
     rows of 3 entries (at a knot) or 12. The trajectory is rolled out from the solver's
     inputs U (exact dynamics), and U gets the minimum-norm correction that makes the
     terminal halt (13e) exact, so that a halted trajectory stays put after its horizon;

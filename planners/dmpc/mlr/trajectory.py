@@ -119,7 +119,7 @@ def positions_at_each(trajectories: "list[ReferenceTrajectory]", times_s: np.nda
 
     The same Eq. 12 evaluation as :meth:`ReferenceTrajectory.positions_at`,
     batched across trajectories (the event trigger needs one position per UAV
-    each round; one call per UAV costs far more: docs/results/mlr_dmpc.md).
+    each round; one call per UAV costs far more: docs/results/mlr_dmpc.md#qp-weights-tolerance-and-form).
 
     Args:
         trajectories: n trajectories (any input steps and lengths).

@@ -3,7 +3,7 @@
 osqp 1.x keeps its compiled solver in ``OSQP._solver``. The Python wrapper's
 per-call work around it (clipping the bounds again, caching data for
 derivatives, building result namespaces) costs more than a warm-started solve
-of these sizes (docs/results/dmpc_qp.md), so the QPs call the compiled object
+of these sizes (docs/results/dmpc_qp.md#smaller-figures-from-qppy-and-samplingpy), so the QPs call the compiled object
 with the arguments the wrapper would pass. :func:`solver_core` returns it, or,
 for an osqp without one, :class:`WrapperCore`: the same calls through the
 public wrapper. Bounds given to either are already within +-OSQP_INFTY.
