@@ -10,7 +10,7 @@ process: ``mpcde.fly`` of the scenario alone, not the interpreter's start.
 Printed: per profile the median wall time [s], the real-time factor, the
 detector's precision and the flight's minimum inter-drone distance; then the
 ratio portable / native. The distances differ between the profiles: the flight
-is chaotic and the kernels round differently (docs/results/reproducibility.md).
+is chaotic and the kernels round differently (docs/results/reproducibility.md#the-profile-mpcde_numerics-default-portable).
 
 Run: ``.venv/bin/python benchmarks/bench_numerics.py [--scenario forest_swarm] [--mode denied] [--duration 8] [--repeats 3]``
 """

@@ -64,7 +64,7 @@ class CameraConfig:
             :mod:`sim.rendering.raycast`, exact depth) or ``"tiny"``
             (PyBullet's TinyRenderer, :mod:`sim.rendering.tiny`, whose images the
             shipped detector was trained on); their cost and the detector's
-            scores on each are in ``docs/results/realtime.md``.
+            scores on each are in ``docs/results/realtime.md#the-analytic-renderer``.
     """
 
     width_px: int = 320

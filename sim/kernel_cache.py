@@ -5,14 +5,14 @@ the function it caches. A cached kernel that calls a kernel of another file
 keeps the callee's old machine code after that file changes: in this project
 ``planners/trajectory_variables.py`` calls ``planners/trajectory_penalty.py``,
 and a checkout that has compiled the former goes on flying the old penalty
-after the penalty changes (docs/results/minco.md).
+after the penalty changes (docs/results/minco.md#a-stale-compiled-penalty-numbas-cache-and-kernels-of-other-files-2026-11-26-seventh-sitting).
 
 :func:`use_versioned_cache` therefore points numba's cache at
 ``<base>/kernels-<digest>``, where the digest is a SHA-256 of every module of
 the project's packages that mentions numba (path and text). Any edit of such a
 module gives a new folder and a fresh compile of every kernel (once; the times
-are in docs/results/minco.md); unchanged sources reuse it across runs and
-processes of one checkout. Not across checkouts at different paths: inside the
+are in docs/results/minco.md#the-versioned-cache-across-checkouts-2026-11-29-thirtieth-and-thirty-first-sittings);
+unchanged sources reuse it across runs and processes of one checkout. Not across checkouts at different paths: inside the
 folder numba keys each entry by its source file's absolute folder (a SHA-1 of
 the path), so a checkout elsewhere compiles its own entries. A new clone at the
 same path reuses them: numba 0.68 stamps an entry with a SHA-256 of the source

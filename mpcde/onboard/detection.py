@@ -13,7 +13,7 @@ Where it runs: with render workers, each worker runs the detector over its
 share of a tick's frames right after rendering them (:func:`frame_detector`,
 the render pool's frame processor; the main process then only reads the
 boxes), which moves the network off the main process's core (measured in
-``docs/results/realtime.md#the-detector-in-the-render-workers``). With none
+``docs/results/realtime.md#where-the-time-goes``). With none
 (``run.render_workers: 0``) the main process runs :meth:`BatchedDetector.detect`. A frame's detections do not
 depend on where they ran beyond float rounding of the batch size.
 

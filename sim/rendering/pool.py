@@ -20,7 +20,7 @@ drone's own image and depth (the detector, :func:`mpcde.onboard.detection.frame_
 Each worker builds it once from a picklable ``(factory, argument)`` pair and
 runs it over its share of a tick's frames right after rendering them, so that
 work runs on the render workers' core, beside the main process instead of in
-it (measured: docs/results/realtime.md). Its outputs come back with the
+it (measured: docs/results/realtime.md#where-the-time-goes). Its outputs come back with the
 renders (:attr:`RenderPool.processed`), one per camera of the request, None
 for the drones not asked.
 """

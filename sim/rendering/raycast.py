@@ -23,7 +23,7 @@ for pixel in colour. It is the default (:class:`sim.camera.CameraConfig`
 ``renderer``), ``"tiny"`` remains selectable; how the shipped detector,
 trained on TinyRenderer's images, scores on this renderer's
 (``mpcde eval-detector --renderer``) and what it costs are in
-``docs/results/realtime.md``.
+``docs/results/realtime.md#the-analytic-renderer``.
 """
 
 from __future__ import annotations

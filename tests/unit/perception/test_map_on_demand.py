@@ -94,7 +94,7 @@ def test_clear_stride_keeps_every_hit_and_clears_almost_all_free_space(yaw) -> N
     assert np.array_equal(a == 1, b == 1)  # the same occupied voxels
     assert not np.any((a == -1) & (b != -1))  # nothing seen that the full traversal did not see
     free_a, free_b = (a == 0).sum(), (b == 0).sum()
-    assert free_b >= 0.95 * free_a  # the rest are grazed voxels that moving frames fill (docs/results/realtime.md)
+    assert free_b >= 0.95 * free_a  # the rest are grazed voxels that moving frames fill (docs/results/realtime.md#the-map-the-esdf-and-the-planners)
 
 
 def test_clear_stride_is_validated() -> None:

@@ -301,7 +301,7 @@ def test_formation_metrics_are_zero_for_the_goals_shape_anywhere_and_match_a_han
 
 # ---------------------------------------------------------------------- a drifted pose estimate
 
-DRIFT = np.array([0.0, 0.0, -0.15])  # the drift traced on the forest for DMPC (docs/results/mp-cde.md)
+DRIFT = np.array([0.0, 0.0, -0.15])  # the drift traced on the forest for DMPC (docs/results/history/mp-cde.md#auto-at-the-current-code-seventeenth-sitting)
 
 
 def test_a_drifted_estimate_starts_every_step_on_the_plan_at_the_default_tolerance() -> None:

@@ -4,7 +4,7 @@ The SE(3) controller tracks the plan with the true state, so a drone whose
 estimate has drifted by b sits b away from its own well-tracked plan in its
 own eyes. Past ``state_tolerance_m`` each round restarts from the estimate, the
 controller moves the drone by b to follow, and the estimate moves with it: the
-drone walks off by b per round (traced on the forest: docs/results/mp-cde.md).
+drone walks off by b per round (traced on the forest: docs/results/history/mp-cde.md#auto-at-the-current-code-seventeenth-sitting).
 Here the controller is ideal (the truth is the reference) and the estimate is
 the truth plus a constant drift of 0.15 m down, the size traced there.
 """

@@ -139,8 +139,8 @@ AKF_KEPT = "akf_pipeline_portable"
 
 
 def test_the_summary_rows_of_the_kept_stores_stand_verbatim_in_mp_cde_md(tmp_path, monkeypatch, unpack_kept_store, capsys):
-    """docs/results/mp-cde.md's summary rows for Fig. 10, Fig. 6 (MP-CDE and the stores kept beside it), Table III
-    and AKF vs KF are `mpcde paper summary`'s output on the stores and results kept in the repository, not typed
+    """The summary rows of docs/results/mp-cde.md#the-paper-beside-ours-in-one-table for Fig. 10, Fig. 6 (MP-CDE and
+    the stores kept beside it), Table III and AKF vs KF are `mpcde paper summary`'s output on the stores and results kept in the repository, not typed
     (issue 28, deliverable 4). The Fig. 6 report is built as its command in the rows names it, from runs/."""
     from mpcde.sweep.cross_report import build_cross_report
     from mpcde.sweep.report import build_report

@@ -352,7 +352,7 @@ def test_the_default_sweep_reaches_60_deg_within_the_rate_limit_and_leaves_trave
     from planners.yaw import sweep_offsets
 
     cfg = YawPlannerConfig(free_distance="voxel")
-    assert (cfg.tracking_sweep_deg, cfg.tracking_sweep_period_s) == (60.0, 2.1)  # the package's default (docs/results/safety.md)
+    assert (cfg.tracking_sweep_deg, cfg.tracking_sweep_period_s) == (60.0, 2.1)  # the package's default (docs/results/yaw_planner.md#tracking_sweep_deg-60-deg-every-21-s)
     heading = -0.4
     vel = np.array([math.cos(heading), math.sin(heading), 0.0])
     offsets = []
