@@ -117,7 +117,7 @@ def capsule_block_numpy(dist: np.ndarray, origin: np.ndarray, v: float, lo: np.n
     """Vectorised numpy reference of the compiled capsule kernel (the tests compare them to the bit): the capsule
     a-b (3,) [m] of radius ``r`` into ``dist`` (float32, in place) over the voxel box ``lo:hi``.
 
-    Until 0579244 the front end computed this with ``(P - a) @ ab``, a BLAS product whose rounding differs from
+    The front end once computed this with ``(P - a) @ ab``, a BLAS product whose rounding differs from
     the explicit sum here in the last float64 bit of ``s`` on a third of the voxels; after the float32 cast about
     one value in 10^9 differs (more often at the ``reach_m`` cut, where one side writes and the other does not)."""
     axes = [origin[k] + v * (np.arange(lo[k], hi[k]) + 0.5) for k in range(3)]

@@ -39,7 +39,7 @@ nearest the true goal, if it is at least a voxel nearer than the start.
 Without it a drone that has no plan to fly hovers for good: the window moves
 with the drone, the drone does not move, and the same clipped goal is refused
 at every frame (``docs/results/safety.md#the-long-2-ms-flight-a-goal-cut-off-in-a-thin-layer``,
-``docs/results/history/mp-cde.md#flown-again-with-the-front-ends-fallback-goal-d3adeb7-2026-11-27-eleventh-sitting``).
+``docs/results/history/mp-cde.md#the-front-ends-fallback-goal``).
 The caller decides when to allow it (``goal_fallback=False`` refuses as before): the denied agent allows it only
 while it has no plan, is stopping or has come to rest at its plan's end, because a drone still flying a plan moves
 its window and the clipped goal moves off the obstacle within a few frames,

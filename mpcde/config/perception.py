@@ -40,7 +40,7 @@ class PerceptionConfig:
         detector_precision: arithmetic of the detector's forward pass: "float32",
             "bfloat16", or "auto" (bfloat16 where the CPU has bfloat16 dot-product
             instructions, float32 elsewhere). Its time and its precision and recall
-            against float32: docs/results/detector.md#bfloat16-against-float32-2026-11-26-commit-5a4f1a3;
+            against float32: docs/results/detector.md#bfloat16-against-float32;
             metrics.json records the one used.
         tracker: neighbour tracker settings (MP-CDE Sec. IV-B, Table I).
         backprojection: detection back-projection settings (Eq. 7-8); its pose-noise

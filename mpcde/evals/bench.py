@@ -71,7 +71,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("env_reset", "an environment's reset with the render pool kept vs a new pool per episode", ("--quick",)),
     # quick: the crossing pair over the radio, whose stack compiles far fewer numba kernels for the native
     # profile (a cold cache) than the denied forest's MINCO and L-BFGS: the same script path, faster
-    # (docs/results/ci_time.md#the-numerics-benchmarks-quick-run-e2a1898-2026-11-29-thirtieth-sitting)
+    # (docs/results/ci_time.md#the-numerics-benchmarks-quick-run)
     Benchmark("numerics", "a perceiving flight under the portable numerics profile vs the CPU's native kernels",
               ("--scenario", "crossing", "--mode", "comm", "--duration", "1", "--repeats", "1")),
 )

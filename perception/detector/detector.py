@@ -50,7 +50,7 @@ def native_bfloat16(cpuinfo: str | None = None, max_isa: str | None = None) -> b
     and oneDNN is not capped below them.
 
     oneDNN computes a bfloat16 convolution natively on such a CPU (what it saves
-    the detector: docs/results/detector.md#bfloat16-against-float32-2026-11-26-commit-5a4f1a3); elsewhere it would emulate
+    the detector: docs/results/detector.md#bfloat16-against-float32); elsewhere it would emulate
     bfloat16 or refuse it, so "auto" keeps float32 there. The cap is
     ``ONEDNN_MAX_CPU_ISA``, which the portable numerics profile sets to AVX2
     (mpcde/numerics.py): "auto" then keeps float32 as on a CPU without bfloat16.

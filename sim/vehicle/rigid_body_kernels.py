@@ -9,7 +9,7 @@ and :meth:`sim.world.World.step` (F = sum_i f_i R e3 - c_d v, tau = R (sum_i r_i
 oracle. :func:`rotations_and_body_rates` is R(q) (normalised quaternion) and
 Omega_body = R^T omega_world. Together they replace the small-array numpy of
 every tick (benchmarks/bench_sim.py,
-docs/results/env.md#the-compiled-physics-tick-506c90d).
+docs/results/env.md#the-compiled-physics-tick).
 """
 
 from __future__ import annotations
