@@ -127,8 +127,8 @@ def main() -> None:
     # DmpcConfig's OSQP tolerances are class constants: a subclass solves it to MLR's
     at_mlr_tolerances = type("DmpcAtMlrTolerances", (DmpcConfig,), {"osqp_eps_abs": cfg.osqp_eps_abs, "osqp_eps_rel": cfg.osqp_eps_rel})
     dcfg = at_mlr_tolerances(model="triple", collision_mode="bvc", horizon_steps=15, step_s=0.2, terminal_halt=True,
-                             max_neighbours=15, r_min_m=cfg.d_hat_min_m, downwash=cfg.downwash, v_max_mps=cfg.v_max_mps,
-                             a_max_mps2=cfg.a_max_mps2, j_max_mps3=cfg.j_max_mps3, pos_min_world=cfg.pos_min_world,
+                             max_neighbours=15, r_min_m=cfg.d_hat_min_m, downwash=cfg.downwash, limits=cfg.limits,
+                             pos_min_world=cfg.pos_min_world,
                              pos_max_world=cfg.pos_max_world)
     problem = DmpcProblem(dcfg)
     grid = t0 + 0.2 * np.arange(16)

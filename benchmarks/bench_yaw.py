@@ -249,7 +249,7 @@ def main() -> None:
     def check():
         return first_stale_point(seen_snap, line, time_s, max_age_s=agent_cfg.fresh_path_age_s,
                                  half_width_m=agent_cfg.fresh_path_half_width_m, near_m=agent_cfg.fresh_path_near_m,
-                                 far_m=SPEED_MPS**2 / agent_cfg.a_max_mps2 + agent_cfg.fresh_path_distance_m)
+                                 far_m=SPEED_MPS**2 / agent_cfg.limits.a_max_mps2 + agent_cfg.fresh_path_distance_m)
 
     assert check() is None
     fresh_ms = median_ms(check, args.repeats)

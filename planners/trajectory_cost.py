@@ -51,6 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from perception.types import DistanceField, NeighborPrediction, OccupancySnapshot, trilinear_compiled
+from planners.limits import KinematicLimits, require_infinite_jerk
 from planners.trajectory_penalty import _inflation, _neighbor_state, _penalty_kernel, _sample_positions
 from sim.checks import ConfigError
 
@@ -65,8 +66,9 @@ class PenaltyParameters:
     optimiser's own settings; its ``penalty_parameters()`` gives this part alone.
 
     Attributes:
-        v_max_mps: speed limit [m/s]; default 2.0.
-        a_max_mps2: acceleration limit [m/s^2]; default 4.0.
+        limits: speed and acceleration limits of the norms ||v|| <= ``v_max_mps``
+            [m/s], ||a|| <= ``a_max_mps2`` [m/s^2] (Eq. 15; default 2.0 and 4.0);
+            MINCO's penalties bound no jerk, so ``j_max_mps3`` must be inf.
         obstacle_clearance_m: clearance C_o to obstacles on the distance field [m]; default 0.4.
         swarm_clearance_m: swarm clearance C_s [m]; default 0.7 (MP-CDE Table I).
         swarm_z_scale: c in E = diag(1, 1, 1/c), c >= 1 [-]; default 2.0 (not given in
@@ -88,8 +90,7 @@ class PenaltyParameters:
         weight_altitude: w_z [-]; default 1e5.
     """
 
-    v_max_mps: float = 2.0
-    a_max_mps2: float = 4.0
+    limits: KinematicLimits = KinematicLimits(2.0, 4.0)
     obstacle_clearance_m: float = 0.4
     swarm_clearance_m: float = 0.7
     swarm_z_scale: float = 2.0
@@ -109,7 +110,10 @@ class PenaltyParameters:
         lo, hi = self.altitude_band_m
         if not lo < hi or np.isnan(lo) or np.isnan(hi):
             raise ConfigError("altitude_band_m", self.altitude_band_m, "must be (z_lo, z_hi) with z_lo < z_hi")
-        for name in ("v_max_mps", "a_max_mps2", "swarm_clearance_m"):
+        if not isinstance(self.limits, KinematicLimits):
+            raise ConfigError("limits", self.limits, "a planners.limits.KinematicLimits")
+        require_infinite_jerk(self.limits, "MINCO's penalties bound speed and acceleration only (Eq. 15)")
+        for name in ("swarm_clearance_m",):
             if not getattr(self, name) > 0.0:
                 raise ConfigError(name, getattr(self, name), "must be > 0")
         for name in (
@@ -256,8 +260,8 @@ class TrajectoryCost:
         #: rho, z_lo, z_hi, w_z)
         self.parameter_vector = np.array(
             [
-                p.v_max_mps,
-                p.a_max_mps2,
+                p.limits.v_max_mps,
+                p.limits.a_max_mps2,
                 p.obstacle_clearance_m + p.clearance_margin_m,
                 p.swarm_clearance_m + p.clearance_margin_m,
                 1.0 / p.swarm_z_scale,

@@ -53,7 +53,7 @@ class TrajectoryOptimizerConfig(PenaltyParameters):
 
     The limits, clearances, penalty weights and K are the fields of
     :class:`planners.trajectory_cost.PenaltyParameters` (documented there, same defaults):
-    v_max_mps (2.0 m/s), a_max_mps2 (4.0 m/s^2), obstacle_clearance_m (0.4 m),
+    limits (2.0 m/s, 4.0 m/s^2), obstacle_clearance_m (0.4 m),
     swarm_clearance_m (C_s, 0.7 m, MP-CDE Table I), swarm_z_scale (c, 2.0), clearance_margin_m (0.1 m),
     uncertainty_sigma (1.0), max_uncertainty_inflation_m (0.5 m), swarm_recovery_mps (inf: off;
     measured: docs/results/minco.md#swarm_recovery_mps-on-radio_outage-seeds-0-5), weight_vel, weight_acc, weight_obstacle, weight_swarm (w_s)
@@ -249,7 +249,7 @@ def build_trajectory_problem(
         points.extend(a + (b - a) * (k / n) for k in range(1, n + 1))
     points = np.array(points)
     lengths = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    durations = np.maximum(lengths / (config.initial_speed_fraction * config.v_max_mps), 0.2)
+    durations = np.maximum(lengths / (config.initial_speed_fraction * config.limits.v_max_mps), 0.2)
     return TrajectoryProblem(start, goal, points[1:-1].copy(), durations, distance_field, neighbors, t0_s, config)
 
 
@@ -336,8 +336,8 @@ def solve(problem: TrajectoryProblem) -> TrajectoryOptimizerResult:
     terms = problem.last_terms
     T = problem.last_durations
     feasible = bool(
-        terms[4] <= 1.01 * cfg.v_max_mps
-        and terms[5] <= 1.01 * cfg.a_max_mps2
+        terms[4] <= 1.01 * cfg.limits.v_max_mps
+        and terms[5] <= 1.01 * cfg.limits.a_max_mps2
         and terms[6] >= cfg.obstacle_clearance_m
         and terms[7] >= cfg.swarm_clearance_m
     )

@@ -20,7 +20,8 @@ from mpcde.errors import ConfigError
 from planners.dmpc.admm.config import AdmmFormationConfig
 from planners.dmpc.formation_graph import FormationGraph, complete_edges, ring_edges
 from planners.dmpc.start_state import TOLERANCE_M, TOLERANCE_MPS
-from sim.checks import is_finite_at_least, require_non_negative, require_positive
+from planners.limits import KinematicLimits, require_infinite_jerk
+from sim.checks import is_finite_at_least, require_instance, require_non_negative, require_positive
 
 __all__ = ["EXCHANGES_PER_ITERATION", "AdmmAgentConfig", "GraphKind"]
 
@@ -53,8 +54,9 @@ class AdmmAgentConfig:
         weight_terminal_formation: q_f at k = K [1/m^2].
         weight_terminal_tracking: q_g at k = K [1/m^2].
         weight_slack: c on the soft-constraint slack squared (paper Remark 2).
-        v_max_mps: per-axis soft speed limit [m/s] (our DMPC: 2).
-        a_max_mps2: per-axis hard acceleration limit [m/s^2] (our DMPC: 4).
+        limits: per-axis soft speed and hard acceleration limits
+            (:class:`planners.limits.KinematicLimits`; our DMPC: 2 m/s, 4 m/s^2);
+            the acceleration is the input, so ``j_max_mps3`` stays inf.
         altitude_range_m: (lowest, highest) height of the soft position box [m]
             (chosen as MLR-DMPC's: 0.3-3 m).
         arena_margin_m: the box's x and y extent is the arena shrunk by this
@@ -93,8 +95,7 @@ class AdmmAgentConfig:
     weight_terminal_formation: float = _PLANNER.weight_terminal_formation
     weight_terminal_tracking: float = _PLANNER.weight_terminal_tracking
     weight_slack: float = _PLANNER.weight_slack
-    v_max_mps: float = _PLANNER.v_max_mps
-    a_max_mps2: float = _PLANNER.a_max_mps2
+    limits: KinematicLimits = _PLANNER.limits
     altitude_range_m: tuple[float, float] = (0.3, 3.0)
     arena_margin_m: float = 0.3
     graph: GraphKind = "complete"
@@ -110,11 +111,13 @@ class AdmmAgentConfig:
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise ConfigError(name, value, f"an integer >= {low}")
         positive = {
-            "step_s": "s", "rho": "", "weight_input": "s^4/m^2", "weight_slack": "", "v_max_mps": "m/s", "a_max_mps2": "m/s^2",
+            "step_s": "s", "rho": "", "weight_input": "s^4/m^2", "weight_slack": "",
             "max_start_offset_m": "m",
         }  # fmt: skip
         for name, unit in positive.items():
             require_positive(name, getattr(self, name), unit)
+        require_instance("limits", self.limits, KinematicLimits)
+        require_infinite_jerk(self.limits, "the double integrator's input is the acceleration")
         non_negative = {
             "weight_formation": "1/m^2", "weight_tracking": "1/m^2", "weight_terminal_formation": "1/m^2",
             "weight_terminal_tracking": "1/m^2", "arena_margin_m": "m", "state_tolerance_m": "m",
@@ -168,8 +171,8 @@ class AdmmAgentConfig:
             weight_tracking=self.weight_tracking, weight_input=self.weight_input,
             weight_terminal_formation=self.weight_terminal_formation,
             weight_terminal_tracking=self.weight_terminal_tracking, weight_slack=self.weight_slack,
-            pos_min_world=tuple(float(v) for v in lo), pos_max_world=tuple(float(v) for v in hi), v_max_mps=self.v_max_mps,
-            a_max_mps2=self.a_max_mps2, rho=self.rho, l_max=self.l_max, delay_compensation=True, warm_start=self.warm_start,
+            pos_min_world=tuple(float(v) for v in lo), pos_max_world=tuple(float(v) for v in hi), limits=self.limits,
+            rho=self.rho, l_max=self.l_max, delay_compensation=True, warm_start=self.warm_start,
         )  # fmt: skip
 
     def formation(self, goals_world: np.ndarray) -> FormationGraph:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from perception.map_config import MapConfig
+from planners.limits import KinematicLimits, require_infinite_jerk
 from planners.yaw.config import YawPlannerConfig
 from sim.checks import require_at_least, require_boolean, require_instance, require_non_negative, require_positive
 
@@ -16,8 +17,9 @@ class DeniedAgentConfig:
     """Settings of the MP-CDE agent.
 
     Attributes:
-        v_max_mps: speed limit of the optimiser [m/s].
-        a_max_mps2: acceleration limit [m/s^2].
+        limits: the optimiser's limits on the norms of speed and acceleration
+            (:class:`planners.limits.KinematicLimits`; MP-CDE Eq. 15, defaults
+            1 m/s and 3 m/s^2); MINCO bounds no jerk, so ``j_max_mps3`` stays inf.
         clearance_m: obstacle clearance of the trajectory on the ESDF [m].
         front_end_clearance_m: clearance required by the front-end search [m].
         replan_period_s: replan at least this often [s] (DESIGN.md: 0.5 s).
@@ -70,12 +72,11 @@ class DeniedAgentConfig:
         fresh_path_glance_distance_m: where the glances' corridor ends beyond the stopping distance [m].
         map: occupancy map settings.
         yaw: active yaw planner settings; its speed limit, yaw-rate limit, t_hold
-            and field of view are taken from ``v_max_mps``, ``yaw_rate_max_radps``,
+            and field of view are taken from ``limits.v_max_mps``, ``yaw_rate_max_radps``,
             ``perception.tracker.t_hold_s`` and the scenario's camera, so each is set once.
     """
 
-    v_max_mps: float = 1.0
-    a_max_mps2: float = 3.0
+    limits: KinematicLimits = KinematicLimits(1.0, 3.0)
     clearance_m: float = 0.4
     front_end_clearance_m: float = 0.45
     replan_period_s: float = 0.5
@@ -100,7 +101,7 @@ class DeniedAgentConfig:
 
     def __post_init__(self) -> None:
         units = {
-            "v_max_mps": "m/s", "a_max_mps2": "m/s^2", "clearance_m": "m", "front_end_clearance_m": "m",
+            "clearance_m": "m", "front_end_clearance_m": "m",
             "replan_period_s": "s", "yaw_rate_max_radps": "rad/s", "swarm_clearance_m": "m", "conflict_horizon_s": "s",
         }  # fmt: skip
         for name, unit in units.items():
@@ -117,5 +118,7 @@ class DeniedAgentConfig:
         require_at_least("swarm_z_scale", self.swarm_z_scale, 1.0)
         require_boolean("perceive_neighbours", self.perceive_neighbours)
         require_boolean("active_yaw", self.active_yaw)
+        require_instance("limits", self.limits, KinematicLimits)
+        require_infinite_jerk(self.limits, "MINCO's penalties bound speed and acceleration only (MP-CDE Eq. 15)")
         require_instance("map", self.map, MapConfig)
         require_instance("yaw", self.yaw, YawPlannerConfig)

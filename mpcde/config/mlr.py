@@ -10,7 +10,8 @@ import numpy as np
 
 from mpcde.errors import ConfigError
 from planners.dmpc.mlr.config import MlrConfig
-from sim.checks import is_finite_at_least, require_at_least, require_non_negative, require_positive
+from planners.limits import KinematicLimits
+from sim.checks import is_finite_at_least, require_at_least, require_instance, require_non_negative, require_positive
 
 __all__ = ["MlrAgentConfig", "TriggerKind"]
 
@@ -43,9 +44,8 @@ class MlrAgentConfig:
             2 x 0.1 m collision distance covers the motion between checks and
             the controller's tracking error).
         downwash: c >= 1 of Theta = diag(1, 1, c) (Eq. 2).
-        v_max_mps: per-axis speed limit [m/s] (Eq. 13d).
-        a_max_mps2: per-axis acceleration limit [m/s^2] (Eq. 13d).
-        j_max_mps3: per-axis jerk limit [m/s^3] (Eq. 13c).
+        limits: per-axis speed and acceleration (Eq. 13d) and jerk (Eq. 13c)
+            limits (:class:`planners.limits.KinematicLimits`).
         altitude_range_m: (lowest, highest) height of the flying box [m].
         arena_margin_m: the box's x and y extent is the arena shrunk by this
             on every side [m].
@@ -59,9 +59,7 @@ class MlrAgentConfig:
     horizon_rounds: int = _PLANNER.horizon_rounds
     d_hat_min_m: float = _PLANNER.d_hat_min_m
     downwash: float = _PLANNER.downwash
-    v_max_mps: float = _PLANNER.v_max_mps
-    a_max_mps2: float = _PLANNER.a_max_mps2
-    j_max_mps3: float = _PLANNER.j_max_mps3
+    limits: KinematicLimits = _PLANNER.limits
     altitude_range_m: tuple[float, float] = (0.3, 3.0)
     arena_margin_m: float = 0.3
     ignore_message_loss: bool = False
@@ -73,10 +71,13 @@ class MlrAgentConfig:
                 raise ConfigError(name, value, f"an integer >= {low}")
         if self.trigger not in get_args(TriggerKind):  # from_dict checks the Literal; this catches replace()
             raise ConfigError("trigger", self.trigger, f"allowed: {', '.join(repr(a) for a in get_args(TriggerKind))}")
-        units = {"round_s": "s", "d_hat_min_m": "m", "v_max_mps": "m/s", "a_max_mps2": "m/s^2", "j_max_mps3": "m/s^3"}
+        units = {"round_s": "s", "d_hat_min_m": "m"}
         for name, unit in units.items():
             require_positive(name, getattr(self, name), unit)
         require_at_least("downwash", self.downwash, 1.0)
+        require_instance("limits", self.limits, KinematicLimits)
+        if self.limits.j_max_mps3 == math.inf:
+            raise ConfigError("limits.j_max_mps3", self.limits.j_max_mps3, "a finite number > 0 [m/s^3]: the jerk is the input (Eq. 13c)")
         require_non_negative("arena_margin_m", self.arena_margin_m, "m")
         lo, hi = self.altitude_range_m
         if not (is_finite_at_least(lo, 0.0) and math.isfinite(hi) and lo < hi):
@@ -105,7 +106,7 @@ class MlrAgentConfig:
             raise ConfigError("mlr.arena_margin_m", self.arena_margin_m, f"less than half the arena {arena_size_m} [m]")
         return MlrConfig(
             n_uavs=int(n_uavs), n_cus=self.num_compute_units, round_s=self.round_s, horizon_rounds=self.horizon_rounds,
-            d_hat_min_m=self.d_hat_min_m, downwash=self.downwash, v_max_mps=self.v_max_mps, a_max_mps2=self.a_max_mps2,
-            j_max_mps3=self.j_max_mps3, pos_min_world=tuple(float(v) for v in lo), pos_max_world=tuple(float(v) for v in hi),
+            d_hat_min_m=self.d_hat_min_m, downwash=self.downwash, limits=self.limits,
+            pos_min_world=tuple(float(v) for v in lo), pos_max_world=tuple(float(v) for v in hi),
             trigger=self.trigger,
         )  # fmt: skip

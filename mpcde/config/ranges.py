@@ -18,6 +18,7 @@ from perception.backprojection_config import BackprojectionConfig
 from perception.map_config import MapConfig
 from perception.tracker_config import TrackerConfig
 from planners.dmpc.config import DmpcConfig
+from planners.limits import KinematicLimits
 from planners.yaw.config import YawPlannerConfig
 from sim.camera import CameraConfig
 from sim.faults import FaultsConfig
@@ -71,7 +72,7 @@ RANGES: dict[type, dict[str, B]] = {
         "pose_pos_std_m": B(0, 10, "m"), "pose_yaw_std_rad": B(0, 1, "rad"),
     },
     DeniedAgentConfig: {
-        "v_max_mps": B(0, 10, "m/s"), "a_max_mps2": B(0, 50, "m/s^2"), "clearance_m": B(0, 5, "m"),
+        "clearance_m": B(0, 5, "m"),
         "front_end_clearance_m": B(0, 5, "m"), "replan_period_s": B(0.02, 10, "s"), "yaw_rate_max_radps": B(0, 20, "rad/s"),
         "start_delay_s": B(0, 60, "s"), "swarm_clearance_m": B(0, 10, "m"), "swarm_z_scale": B(0.1, 10),
         "conflict_horizon_s": B(0, 30, "s"),
@@ -79,6 +80,9 @@ RANGES: dict[type, dict[str, B]] = {
         "fresh_path_age_s": B(0.01, 60, "s", inf="no look before moving"), "fresh_path_half_width_m": B(0, 5, "m"),
         "fresh_path_near_m": B(0, 10, "m"), "fresh_path_distance_m": B(0, 20, "m"), "fresh_path_rest_s": B(0.01, 60, "s"),
         "fresh_path_glance_age_s": B(0.01, 60, "s", inf="no glances"), "fresh_path_glance_distance_m": B(0, 20, "m"),
+    },
+    KinematicLimits: {
+        "v_max_mps": B(0, 20, "m/s"), "a_max_mps2": B(0, 100, "m/s^2"), "j_max_mps3": B(0, 1000, "m/s^3", inf="no jerk limit"),
     },
     MapConfig: {
         "voxel_m": B(0.02, 2, "m"), "window_size_m": B(1, 100, "m"), "max_range_m": B(0.1, 100, "m"),
@@ -94,7 +98,7 @@ RANGES: dict[type, dict[str, B]] = {
     DmpcConfig: {
         "horizon_steps": B(1, 100), "step_s": B(0.01, 5, "s"), "weight_goal": B(0, 1e8), "weight_formation": B(0, 1e8),
         "weight_smoothness": B(0, 1e8), "pos_min_world": B(-1000, 1000, "m"),
-        "pos_max_world": B(-1000, 1000, "m"), "v_max_mps": B(0, 20, "m/s"), "a_max_mps2": B(0, 100, "m/s^2"), "j_max_mps3": B(0, 1000, "m/s^3"),
+        "pos_max_world": B(-1000, 1000, "m"),
         "r_min_m": B(0, 10, "m"), "downwash": B(0.1, 10), "max_neighbours": B(1, 64), "max_obstacle_planes": B(0, 64),
     },
     DmpcAgentConfig: {
@@ -110,14 +114,14 @@ RANGES: dict[type, dict[str, B]] = {
     },
     MlrAgentConfig: {
         "num_compute_units": B(1, 32), "round_s": B(0.01, 5, "s"), "horizon_rounds": B(1, 100), "d_hat_min_m": B(0, 10, "m"),
-        "downwash": B(0.1, 10), "v_max_mps": B(0, 20, "m/s"), "a_max_mps2": B(0, 100, "m/s^2"), "j_max_mps3": B(0, 1000, "m/s^3"),
+        "downwash": B(0.1, 10),
         "altitude_range_m": B(0, 20, "m"), "arena_margin_m": B(0, 100, "m"),
     },
     AdmmAgentConfig: {
         "horizon_steps": B(1, 100), "step_s": B(0.01, 5, "s"), "l_max": B(1, 100), "rho": B(0, 1e6),
         "weight_formation": B(0, 1e8), "weight_tracking": B(0, 1e8), "weight_input": B(0, 1e8),
         "weight_terminal_formation": B(0, 1e8), "weight_terminal_tracking": B(0, 1e8), "weight_slack": B(0, 1e8),
-        "v_max_mps": B(0, 20, "m/s"), "a_max_mps2": B(0, 100, "m/s^2"), "altitude_range_m": B(0, 20, "m"),
+        "altitude_range_m": B(0, 20, "m"),
         "arena_margin_m": B(0, 100, "m"), "max_start_offset_m": B(0, 100, "m"), "state_tolerance_m": B(0, 10, "m"),
         "state_tolerance_mps": B(0, 10, "m/s"),
     },

@@ -9,11 +9,11 @@ flight. Derived fields (target <- source):
   and ``pose_yaw_std_rad`` <- ``pose_estimate.yaw_noise_rad``: a drone's
   back-projection uncertainty includes its own localisation noise, what its
   VIO reports (MP-CDE Eq. 8);
-* each stack's ``speed_fields`` (``denied.v_max_mps`` with ``mpcde``,
-  ``auto`` or ``minco_comm``, ``dmpc.qp.v_max_mps`` with ``dmpc`` or ``auto``;
+* each stack's ``speed_fields`` (``denied.limits.v_max_mps`` with ``mpcde``,
+  ``auto`` or ``minco_comm``, ``dmpc.qp.limits.v_max_mps`` with ``dmpc`` or ``auto``;
   :mod:`mpcde.stacks.builtin`) <- ``planner.cruise_speed_mps`` when it is
   set: the scenario's speed is each stack's speed limit;
-* ``denied.yaw.v_max_mps`` <- ``denied.v_max_mps``, ``denied.yaw.yaw_rate_max_radps``
+* ``denied.yaw.v_max_mps`` <- ``denied.limits.v_max_mps``, ``denied.yaw.yaw_rate_max_radps``
   <- ``denied.yaw_rate_max_radps``, ``denied.yaw.t_hold_s`` <-
   ``perception.tracker.t_hold_s``, ``denied.yaw.fov_h_deg`` / ``fov_v_deg`` <-
   ``camera.hfov_deg`` / ``vfov_deg``: the yaw planner predicts with the
@@ -21,7 +21,7 @@ flight. Derived fields (target <- source):
   as the tracker does, and covers the camera's field of view (Alg. 1);
 * a stack's own ``derived`` fields: ``radio.rate_hz`` <- ``2 admm.l_max / admm.step_s``
   with ``planner.kind: admm`` and ``admm.radio_rate_from_step``: one radio sub-round per ADMM exchange;
-  ``dmpc.obstacle_range_m`` <- max(3, sqrt(2) ``dmpc.qp.v_max_mps`` K h + the inflation) with ``dmpc`` or
+  ``dmpc.obstacle_range_m`` <- max(3, sqrt(2) ``dmpc.qp.limits.v_max_mps`` K h + the inflation) with ``dmpc`` or
   ``auto`` and ``dmpc.commit_when_unheard``: every obstacle a plan flown to its halt can reach gets its plane.
 
 Before the derivations, a stack's ``preset`` (:class:`mpcde.stacks.registry.Stack`) sets the
@@ -53,7 +53,7 @@ _MISSING = object()
 COMMON: tuple[Derivation, ...] = (
     Derivation("perception.backprojection.pose_pos_std_m", "pose_estimate.pos_noise_m", lambda c: c.pose_estimate.pos_noise_m),
     Derivation("perception.backprojection.pose_yaw_std_rad", "pose_estimate.yaw_noise_rad", lambda c: c.pose_estimate.yaw_noise_rad),
-    Derivation("denied.yaw.v_max_mps", "denied.v_max_mps", lambda c: c.denied.v_max_mps),
+    Derivation("denied.yaw.v_max_mps", "denied.limits.v_max_mps", lambda c: c.denied.limits.v_max_mps),
     Derivation("denied.yaw.yaw_rate_max_radps", "denied.yaw_rate_max_radps", lambda c: c.denied.yaw_rate_max_radps),
     Derivation("denied.yaw.t_hold_s", "perception.tracker.t_hold_s", lambda c: c.perception.tracker.t_hold_s),
     Derivation("denied.yaw.fov_h_deg", "camera.hfov_deg", lambda c: c.camera.hfov_deg),

@@ -73,9 +73,9 @@ class PlannerConfig:
         cruise_speed_mps: the swarm's speed [m/s] (MP-CDE's "target velocity"
             regimes, Sec. V-B: 0.5, 1 and 2 m/s), for every stack that flies a
             speed: the peak speed of the placeholder's and ADMM's lines, the
-            speed limit of MP-CDE's optimiser (``denied.v_max_mps``, with
+            speed limit of MP-CDE's optimiser (``denied.limits.v_max_mps``, with
             ``mpcde``, ``auto`` and ``minco_comm``) and DMPC's per-axis speed limit
-            (``dmpc.qp.v_max_mps``, with ``dmpc`` and ``auto``): each stack's
+            (``dmpc.qp.limits.v_max_mps``, with ``dmpc`` and ``auto``): each stack's
             ``speed_fields``, derived at load time (:mod:`mpcde.config.resolve`;
             a file that also sets one of those to another value is refused).
             null (the default): each stack's own setting (lines 1 m/s, MP-CDE

@@ -92,8 +92,8 @@ def check_admm(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> No
         allowed = f">= the ADMM radio rate {radio.rate_hz:g} Hz for planner.kind 'admm' (a tick per sub-round)"
         raise ConfigError("physics.physics_hz", cfg.physics.physics_hz, allowed)
     _refuse_obstacles(world, "admm", "the ADMM formation OCP has no obstacle constraints")
-    if cfg.planner.line_speed_mps > admm.v_max_mps:
-        allowed = f"<= admm.v_max_mps = {admm.v_max_mps:g} m/s for planner.kind 'admm' (the own reference's speed)"
+    if cfg.planner.line_speed_mps > admm.limits.v_max_mps:
+        allowed = f"<= admm.limits.v_max_mps = {admm.limits.v_max_mps:g} m/s for planner.kind 'admm' (the own reference's speed)"
         raise ConfigError("planner.cruise_speed_mps", cfg.planner.line_speed_mps, allowed)
     planner = admm.planner_config(cfg.world.arena_size_m)  # the soft position box fits the arena
     _require_inside_box(starts, goals, planner, "the ADMM position box", "admm")

@@ -96,7 +96,7 @@ class RadioMemory:
         if not plans:
             return tracks
         f = self.config.fusion
-        fused = fuse_neighbours(plans, tracks, t, f.stale_after_s, f.gate_m, self.comm.qp_config.v_max_mps)
+        fused = fuse_neighbours(plans, tracks, t, f.stale_after_s, f.gate_m, self.comm.qp_config.limits.v_max_mps)
         if count:  # planning calls (denied mode) only; the map asks at every frame in both modes
             self.remembered_plans += fused.fresh_plans + fused.stale_plans
         return fused.predictions

@@ -241,7 +241,7 @@ class DmpcAgent(SampledPlanAgent):
         if self.fusion is None:
             return out
         f = self.fusion
-        fused = fuse_neighbours(out, self.perception.predictions(time_s), time_s, f.stale_after_s, f.gate_m, self.qp_config.v_max_mps)
+        fused = fuse_neighbours(out, self.perception.predictions(time_s), time_s, f.stale_after_s, f.gate_m, self.qp_config.limits.v_max_mps)
         self.stats.substituted_plans += fused.substituted
         self.stats.unknown_tracks += fused.unknown_tracks
         return fused.predictions

@@ -113,11 +113,11 @@ def _commit_obstacle_range_m(cfg: Any) -> float:
     (docs/results/comm_safety.md#the-mechanism-dmpccommit_when_unheard-default-on-mpcdeonboarddmpcpy)."""
     d, qp = cfg.dmpc, cfg.dmpc.qp
     inflation = cfg.physics.quadrotor.robot_radius_m + d.obstacle_margin_m
-    return max(type(d)().obstacle_range_m, float(np.sqrt(2.0) * qp.v_max_mps * qp.horizon_s) + inflation)
+    return max(type(d)().obstacle_range_m, float(np.sqrt(2.0) * qp.limits.v_max_mps * qp.horizon_s) + inflation)
 
 
 _COMMIT_RANGE = Derivation(
-    "dmpc.obstacle_range_m", "sqrt(2) dmpc.qp.v_max_mps K h + the inflation (dmpc.commit_when_unheard: true)",
+    "dmpc.obstacle_range_m", "sqrt(2) dmpc.qp.limits.v_max_mps K h + the inflation (dmpc.commit_when_unheard: true)",
     _commit_obstacle_range_m, lambda c: c.dmpc.commit_when_unheard,
 )
 
@@ -147,22 +147,22 @@ BUILTIN: tuple[Stack, ...] = (
     ),
     Stack(
         "denied", _denied, "MP-CDE without radio: own detector, tracks, active yaw, A* + MINCO", kind="mpcde",
-        uses=Uses(cameras="required"), section="denied", check=_DENIED_CHECKS, speed_fields=("denied.v_max_mps",),
+        uses=Uses(cameras="required"), section="denied", check=_DENIED_CHECKS, speed_fields=("denied.limits.v_max_mps",),
     ),
     Stack(
         "mpcde_paper", _denied, "denied as MP-CDE publishes it: without look before moving or flight levels",
-        uses=Uses(cameras="required"), section="denied", check=_DENIED_CHECKS, speed_fields=("denied.v_max_mps",),
+        uses=Uses(cameras="required"), section="denied", check=_DENIED_CHECKS, speed_fields=("denied.limits.v_max_mps",),
         preset=PAPER_PRESET,
     ),
     Stack(
         "comm", _dmpc, "distributed MPC (OSQP) on the plans neighbours broadcast, known obstacles", kind="dmpc",
         uses=Uses(cameras="optional", radio=True, known_obstacles=True), section="dmpc", check=check_dmpc_round,
-        speed_fields=("dmpc.qp.v_max_mps",), flies_formation=_dmpc_formation, derived=(_COMMIT_RANGE,),
+        speed_fields=("dmpc.qp.limits.v_max_mps",), flies_formation=_dmpc_formation, derived=(_COMMIT_RANGE,),
     ),
     Stack(
         "auto", _auto, "comm, with tracks for stale plans; denied when the radio falls silent",
         uses=Uses(cameras="required", radio=True, known_obstacles=True), section="auto",
-        check=_checks(check_dmpc_round, _DENIED_CHECKS), speed_fields=("denied.v_max_mps", "dmpc.qp.v_max_mps"),
+        check=_checks(check_dmpc_round, _DENIED_CHECKS), speed_fields=("denied.limits.v_max_mps", "dmpc.qp.limits.v_max_mps"),
         flies_formation=_dmpc_formation, derived=(_COMMIT_RANGE,),
     ),
     Stack(
@@ -182,7 +182,7 @@ BUILTIN: tuple[Stack, ...] = (
     Stack(
         "minco_comm", _minco_comm, "the denied planner on radio plans, heading along travel (EGO-Swarm analogue)",
         uses=Uses(cameras="optional", radio=True), section="denied", check=check_denied_ground_clearance,
-        speed_fields=("denied.v_max_mps",),
+        speed_fields=("denied.limits.v_max_mps",),
     ),
 )  # fmt: skip
 """The built-in stacks, in the order ``--help`` lists them."""

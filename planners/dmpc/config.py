@@ -17,11 +17,13 @@ from typing import ClassVar
 
 import numpy as np
 
+from planners.limits import KinematicLimits
 from sim.checks import (
     ConfigError,
     require_at_least,
     require_boolean,
     require_box,
+    require_instance,
     require_integer_at_least,
     require_non_negative,
     require_positive,
@@ -73,10 +75,11 @@ class DmpcConfig:
         pos_min_world: (3,) lower corner of the position box in world [m]
             (chosen: a 40 m x 40 m arena, 0.2 m above the ground).
         pos_max_world: (3,) upper corner of the position box in world [m].
-        v_max_mps: per-axis speed limit in [m/s] (chosen: 2.0 m/s; the paper
-            reports mean speeds below 1 m/s).
-        a_max_mps2: per-axis acceleration limit in [m/s^2] (on-demand DMPC Sec. 4: 4).
-        j_max_mps3: per-axis jerk limit in [m/s^3], triple integrator only (chosen: 20).
+        limits: per-axis limits (:class:`planners.limits.KinematicLimits`):
+            speed ``v_max_mps`` [m/s] (chosen: 2.0 m/s; the paper reports mean
+            speeds below 1 m/s), acceleration ``a_max_mps2`` [m/s^2] (on-demand
+            DMPC Sec. 4: 4) and jerk ``j_max_mps3`` [m/s^3], triple integrator
+            only (chosen: 20).
         r_min_m: minimum ellipsoidal inter-drone distance in [m] (on-demand DMPC
             Sec. 5 flight: 0.4 m).
         downwash: c >= 1, vertical stretch of the collision ellipsoid,
@@ -160,9 +163,7 @@ class DmpcConfig:
     slack_max_m: ClassVar[float] = 10.0
     pos_min_world: tuple[float, float, float] = (-20.0, -20.0, 0.2)
     pos_max_world: tuple[float, float, float] = (20.0, 20.0, 10.0)
-    v_max_mps: float = 2.0
-    a_max_mps2: float = 4.0
-    j_max_mps3: float = 20.0
+    limits: KinematicLimits = KinematicLimits(2.0, 4.0, 20.0)
     r_min_m: float = 0.4
     downwash: float = 2.0
     collision_mode: str = "on_demand"
@@ -198,7 +199,8 @@ class DmpcConfig:
         require_positive("weight_slack_quadratic", self.weight_slack_quadratic)
         require_positive("slack_max_m", self.slack_max_m)
         require_box("pos_min_world", self.pos_min_world, "pos_max_world", self.pos_max_world)
-        for name in ("v_max_mps", "a_max_mps2", "j_max_mps3", "r_min_m", "neighbourhood_factor"):
+        require_instance("limits", self.limits, KinematicLimits)
+        for name in ("r_min_m", "neighbourhood_factor"):
             require_positive(name, getattr(self, name))
         require_at_least("downwash", self.downwash, 1.0)
         if self.collision_mode not in _COLLISION_MODES:

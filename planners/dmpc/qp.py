@@ -255,10 +255,10 @@ class DmpcProblem:
         u[rp] = (np.asarray(cfg.pos_max_world)[None] - free_pos).ravel()
         rv = slice(self._rows.vel, self._rows.vel + 3 * K)
         free_vel = mats.A0_vel @ x0
-        l[rv], u[rv] = -cfg.v_max_mps - free_vel, cfg.v_max_mps - free_vel
+        l[rv], u[rv] = -cfg.limits.v_max_mps - free_vel, cfg.limits.v_max_mps - free_vel
         ra = slice(self._rows.acc, self._rows.acc + 3 * K)
         free_acc = mats.A0_acc @ x0
-        l[ra], u[ra] = -cfg.a_max_mps2 - free_acc, cfg.a_max_mps2 - free_acc
+        l[ra], u[ra] = -cfg.limits.a_max_mps2 - free_acc, cfg.limits.a_max_mps2 - free_acc
         if cfg.terminal_halt:  # v[K] = 0 (a[K] = 0): DMPC-Swarm Eq. 13e
             last = slice(self._rows.vel + 3 * K - 3, self._rows.vel + 3 * K)
             l[last] = u[last] = -free_vel[-3:]
@@ -267,7 +267,7 @@ class DmpcProblem:
                 l[last] = u[last] = -free_acc[-3:]
         if cfg.model == "triple":
             rj = slice(self._rows.jerk, self._rows.jerk + 3 * K)
-            l[rj], u[rj] = -cfg.j_max_mps3, cfg.j_max_mps3
+            l[rj], u[rj] = -cfg.limits.j_max_mps3, cfg.limits.j_max_mps3
 
         # Collision rows.
         slack_cols = np.arange(self._n_slack)

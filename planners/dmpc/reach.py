@@ -38,7 +38,7 @@ def reach_boxes(config: DmpcConfig, x0: np.ndarray) -> list[ReachBox]:
     """The velocity box and the input box of p[1..K] (module docstring) from state ``x0``.
 
     Args:
-        config: the QP's settings (model, K, h, v_max_mps, a_max_mps2, j_max_mps3).
+        config: the QP's settings (model, K, h, limits).
         x0: (6,) ``[p, v]`` or (9,) ``[p, v, a]`` initial state [m, m/s, m/s^2].
 
     Returns:
@@ -50,14 +50,14 @@ def reach_boxes(config: DmpcConfig, x0: np.ndarray) -> list[ReachBox]:
     t = k * h
     p0, v0 = x0[:3], x0[3:6]
     # |p[k] - p0| <= h (|v0| + v_max_mps) / 2 + (k - 1) h v_max_mps  (sum of trapezoids)
-    half_v = h * (np.abs(v0)[None] + config.v_max_mps) / 2 + (k - 1) * h * config.v_max_mps
+    half_v = h * (np.abs(v0)[None] + config.limits.v_max_mps) / 2 + (k - 1) * h * config.limits.v_max_mps
     if config.model == "double":
         centre_a = p0[None] + t * v0[None]
-        half_a = np.broadcast_to(config.a_max_mps2 * t**2 / 2, (K, 3))  # |p[k] - f_k| <= a_max_mps2 t_k^2 / 2
+        half_a = np.broadcast_to(config.limits.a_max_mps2 * t**2 / 2, (K, 3))  # |p[k] - f_k| <= a_max_mps2 t_k^2 / 2
     else:
-        half_v = half_v + k * h**3 * config.j_max_mps3 / 12  # Simpson term of each step
+        half_v = half_v + k * h**3 * config.limits.j_max_mps3 / 12  # Simpson term of each step
         centre_a = p0[None] + t * v0[None] + t**2 * x0[6:9][None] / 2
-        half_a = np.broadcast_to(config.j_max_mps3 * t**3 / 6, (K, 3))  # |p[k] - f_k| <= j_max_mps3 t_k^3 / 6
+        half_a = np.broadcast_to(config.limits.j_max_mps3 * t**3 / 6, (K, 3))  # |p[k] - f_k| <= j_max_mps3 t_k^3 / 6
     return [(np.broadcast_to(p0, (K, 3)), half_v), (centre_a, half_a)]
 
 

@@ -71,9 +71,9 @@ def test_single_drone_through_the_formation_obstacles_touches_none(obstacles, re
 
 def test_invalid_dmpc_parameter_is_one_line_exit_2(tmp_path, capsys):
     path = tmp_path / "bad.yaml"
-    path.write_text("planner:\n  kind: dmpc\ndmpc:\n  qp:\n    v_max_mps: -1.0\n")
+    path.write_text("planner:\n  kind: dmpc\ndmpc:\n  qp:\n    limits:\n      v_max_mps: -1.0\n")
     out = tmp_path / "run"
     code = main(["fly", str(path), "--out", str(out), "--quiet", "--no-cameras"])
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and "dmpc.qp.v_max_mps" in err[0]
+    assert code == 2 and len(err) == 1 and "dmpc.qp.limits.v_max_mps" in err[0]
     assert not out.exists()

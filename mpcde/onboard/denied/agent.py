@@ -135,7 +135,7 @@ class DeniedAgent(OnboardAgent):
         self.t_hold_s = (perception_config or PerceptionConfig()).tracker.t_hold_s
         self.yaw_config = c.yaw  # its speed and rate limits, t_hold and field of view derived at load (mpcde/config/resolve.py)
         self.optimizer = TrajectoryOptimizerConfig(
-            v_max_mps=c.v_max_mps, a_max_mps2=c.a_max_mps2, obstacle_clearance_m=c.clearance_m,
+            limits=c.limits, obstacle_clearance_m=c.clearance_m,
             swarm_clearance_m=c.swarm_clearance_m, swarm_z_scale=c.swarm_z_scale,
         )
         # detector_request: what the loop's batched detector reads (None: no detections)
@@ -411,7 +411,7 @@ class DeniedAgent(OnboardAgent):
     def _stopping_piece(self, t: float, pva: np.ndarray) -> MincoTrajectory:
         """One minimum-jerk piece from ``pva`` (3, 3) at ``t`` [s] to rest, over 2 |v| / a_max (>= 0.3 s)."""
         p, v, a = pva
-        T = max(2.0 * float(np.linalg.norm(v)) / self.config.a_max_mps2, 0.3)
+        T = max(2.0 * float(np.linalg.norm(v)) / self.config.limits.a_max_mps2, 0.3)
         stop = p + 0.5 * v * T  # a comfortable stopping distance along the current velocity
         return minco_s3(np.stack([p, v, a]), np.stack([stop, np.zeros(3), np.zeros(3)]), np.zeros((0, 3)), np.array([T]), t0_s=t)
 

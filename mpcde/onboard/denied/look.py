@@ -274,7 +274,7 @@ class LookBeforeMoving:
         brakes first, then the heading turns to the point at the rate limit. Whether a hold began."""
         if not (self.enabled and agent.trajectory is not None and not agent.braking and self.watch.due(t)):
             return False
-        d_stop = float(np.linalg.norm(agent.state_at(t)[1])) ** 2 / agent.config.a_max_mps2
+        d_stop = float(np.linalg.norm(agent.state_at(t)[1])) ** 2 / agent.config.limits.a_max_mps2
         look = self.watch.check(agent.map.snapshot(), agent.trajectory, t, d_stop, glancing, lambda: agent.can_stop(t))
         if look is None:
             return False

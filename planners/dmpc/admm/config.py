@@ -16,10 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planners.limits import KinematicLimits, require_infinite_jerk
 from sim.checks import (
     ConfigError,
     require_boolean,
     require_box,
+    require_instance,
     require_integer_at_least,
     require_non_negative,
     require_positive,
@@ -72,9 +74,10 @@ class AdmmFormationConfig:
         pos_min_world: (3,) lower corner of the soft position box [m]
             (chosen: our DMPC's 40 m x 40 m arena, 0.2 m above the ground).
         pos_max_world: (3,) upper corner of the soft position box [m].
-        v_max_mps: per-axis soft speed limit |v| <= v_max_mps + s in [m/s] (our DMPC: 2).
-        a_max_mps2: per-axis hard input limit |u| <= a_max_mps2 in [m/s^2] (our DMPC and
-            on-demand DMPC Sec. 4: 4).
+        limits: per-axis limits (:class:`planners.limits.KinematicLimits`): soft
+            speed |v| <= ``v_max_mps`` + s [m/s] (our DMPC: 2) and hard input
+            |u| <= ``a_max_mps2`` [m/s^2] (our DMPC and on-demand DMPC Sec. 4: 4);
+            ``j_max_mps3`` must be inf (the input is the acceleration).
         rho: ADMM penalty parameter rho (Eq. 4a, 4c), in the cost's units per
             squared decision variable (paper Sec. 5.1: 1, tuned in
             {0.1, 1, 10, 100}; kept after the same sweep on our OCP,
@@ -120,8 +123,7 @@ class AdmmFormationConfig:
     weight_slack: float = 1.0e4
     pos_min_world: tuple[float, float, float] = (-20.0, -20.0, 0.2)
     pos_max_world: tuple[float, float, float] = (20.0, 20.0, 10.0)
-    v_max_mps: float = 2.0
-    a_max_mps2: float = 4.0
+    limits: KinematicLimits = KinematicLimits(2.0, 4.0)
     rho: float = 1.0
     l_max: int = 5
     delay_compensation: bool = True
@@ -142,8 +144,8 @@ class AdmmFormationConfig:
         require_positive("weight_input", self.weight_input)
         require_positive("weight_slack", self.weight_slack)
         require_box("pos_min_world", self.pos_min_world, "pos_max_world", self.pos_max_world)
-        require_positive("v_max_mps", self.v_max_mps)
-        require_positive("a_max_mps2", self.a_max_mps2)
+        require_instance("limits", self.limits, KinematicLimits)
+        require_infinite_jerk(self.limits, "the double integrator's input is the acceleration")
         require_positive("rho", self.rho)
         require_integer_at_least("l_max", self.l_max, 1)
         require_boolean("delay_compensation", self.delay_compensation)

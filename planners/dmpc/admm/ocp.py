@@ -184,12 +184,12 @@ def own_bounds(
     lo[: 6 * K] = hi[: 6 * K] = 0.0
     lo[:6] = hi[:6] = A @ x0  # x[1] - B u[0] = A x0   (1c)
     r = 6 * K
-    lo[r : r + 3 * K], hi[r : r + 3 * K] = -config.a_max_mps2, config.a_max_mps2
+    lo[r : r + 3 * K], hi[r : r + 3 * K] = -config.limits.a_max_mps2, config.limits.a_max_mps2
     if input_now_world is not None:
         lo[r : r + 3] = hi[r : r + 3] = np.asarray(input_now_world, float).reshape(3)  # u[0] = u(t)
     r += 3 * K
     p_min, p_max = np.tile(config.pos_min_world, K), np.tile(config.pos_max_world, K)
-    for low, high in ((p_min, _INF), (-_INF, p_max), (-config.v_max_mps, _INF), (-_INF, config.v_max_mps)):
+    for low, high in ((p_min, _INF), (-_INF, p_max), (-config.limits.v_max_mps, _INF), (-_INF, config.limits.v_max_mps)):
         lo[r : r + 3 * K], hi[r : r + 3 * K] = low, high
         if input_now_world is not None:  # x[1] is data with u[0] fixed: its soft rows are left free
             lo[r : r + 3], hi[r : r + 3] = -_INF, _INF

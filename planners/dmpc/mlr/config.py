@@ -13,11 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planners.limits import KinematicLimits
 from sim.checks import (
     ConfigError,
     require_at_least,
     require_boolean,
     require_box,
+    require_instance,
     require_integer_at_least,
     require_non_negative,
     require_positive,
@@ -60,9 +62,10 @@ class MlrConfig:
             (chosen 0.005, above OSQP's tolerance, so that solutions met only
             to tolerance still keep d̂_min; see :func:`planners.dmpc.mlr.qp.time_varying_bvc`).
         downwash: c >= 1 of Theta = diag(1, 1, c) (Eq. 2; chosen: 1.5).
-        v_max_mps: per-axis speed limit |v| <= v_max_mps in [m/s] (X̂, Eq. 13d; chosen: 1.0).
-        a_max_mps2: per-axis acceleration limit in [m/s^2] (X̂; chosen: 3.0).
-        j_max_mps3: per-axis jerk limit |u| <= j_max_mps3 in [m/s^3] (Û, Eq. 13c; chosen: 10).
+        limits: per-axis limits (:class:`planners.limits.KinematicLimits`):
+            speed |v| <= ``v_max_mps`` [m/s] (X̂, Eq. 13d; chosen: 1.0),
+            acceleration ``a_max_mps2`` [m/s^2] (X̂; chosen: 3.0) and jerk
+            |u| <= ``j_max_mps3`` [m/s^3] (Û, Eq. 13c; chosen: 10).
         pos_min_world: (3,) lower corner of the flying space in [m] (X̂;
             chosen: a 6 m x 6 m hall, 0.2 m above the ground).
         pos_max_world: (3,) upper corner in [m] (chosen: 2.8 m high).
@@ -167,9 +170,7 @@ class MlrConfig:
     d_hat_min_m: float = 0.45
     bvc_margin_m: float = 0.005
     downwash: float = 1.5
-    v_max_mps: float = 1.0
-    a_max_mps2: float = 3.0
-    j_max_mps3: float = 10.0
+    limits: KinematicLimits = KinematicLimits(1.0, 3.0, 10.0)
     pos_min_world: tuple[float, float, float] = (-3.0, -3.0, 0.2)
     pos_max_world: tuple[float, float, float] = (3.0, 3.0, 2.8)
     weight_pos: float = 1.0
@@ -212,7 +213,10 @@ class MlrConfig:
         if self.collision_checks_per_round % self.input_steps_per_round:
             allowed = f"a multiple of input_steps_per_round={self.input_steps_per_round}"
             raise ConfigError("collision_checks_per_round", self.collision_checks_per_round, allowed)
-        for name in ("d_hat_min_m", "v_max_mps", "a_max_mps2", "j_max_mps3", "weight_pos"):
+        require_instance("limits", self.limits, KinematicLimits)
+        if self.limits.j_max_mps3 == float("inf"):
+            raise ConfigError("limits.j_max_mps3", self.limits.j_max_mps3, "a finite number > 0 [m/s^3]: the jerk is the input (Eq. 13c)")
+        for name in ("d_hat_min_m", "weight_pos"):
             require_positive(name, getattr(self, name))
         for name in ("weight_vel", "weight_acc", "weight_jerk", "bvc_margin_m"):
             require_non_negative(name, getattr(self, name))

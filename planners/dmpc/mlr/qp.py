@@ -299,14 +299,14 @@ class MlrProblem:
         l, u = self._l, self._u
         l[:9] = u[:9] = self._A1 @ x0  # x_1 - B u_0 = A x_0 (13b); other dynamics rows stay 0
         l[9:self._row_state] = u[9:self._row_state] = 0.0
-        lo = np.r_[np.asarray(cfg.pos_min_world), np.full(3, -cfg.v_max_mps), np.full(3, -cfg.a_max_mps2)]
-        hi = np.r_[np.asarray(cfg.pos_max_world), np.full(3, cfg.v_max_mps), np.full(3, cfg.a_max_mps2)]
+        lo = np.r_[np.asarray(cfg.pos_min_world), np.full(3, -cfg.limits.v_max_mps), np.full(3, -cfg.limits.a_max_mps2)]
+        hi = np.r_[np.asarray(cfg.pos_max_world), np.full(3, cfg.limits.v_max_mps), np.full(3, cfg.limits.a_max_mps2)]
         rs = slice(self._row_state, self._row_jerk)
         l[rs], u[rs] = np.tile(lo, hs), np.tile(hi, hs)  # 13d (T_b = T_s)
         last = self._row_jerk - 6  # v, a of the last state: 13e, f̂(x(HT + T), 0) = 0
         l[last:self._row_jerk] = u[last:self._row_jerk] = 0.0
         rj = slice(self._row_jerk, self._row_bvc)
-        l[rj], u[rj] = -cfg.j_max_mps3, cfg.j_max_mps3  # 13c
+        l[rj], u[rj] = -cfg.limits.j_max_mps3, cfg.limits.j_max_mps3  # 13c
         rb = slice(self._row_bvc, self._row_bvc + self._max_rows_bvc)
         l[rb], u[rb] = -_INF, _INF
         n_slots = self._max_rows_bvc // hc

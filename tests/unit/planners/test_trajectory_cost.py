@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from perception.types import NeighborPrediction, OccupancySnapshot
+from planners.limits import KinematicLimits
 from planners.minco import MincoS3
 from planners.trajectory_cost import NeighborTable, PenaltyParameters, TrajectoryCost
 from planners.trajectory_penalty import _neighbor_state
@@ -76,7 +77,7 @@ def _assert_gradients_match_finite_differences(cost, head, tail, q, T, gq, gt, h
 
 @pytest.fixture
 def cost():
-    params = PenaltyParameters(v_max_mps=1.5, a_max_mps2=2.0, samples_per_piece=8, max_uncertainty_inflation_m=5.0)
+    params = PenaltyParameters(limits=KinematicLimits(1.5, 2.0), samples_per_piece=8, max_uncertainty_inflation_m=5.0)
     field = CylinderField([[3.0, 0.6], [5.5, 0.0]], [0.5, 0.4])
     return TrajectoryCost(params, 10.0, field, _neighbors(10.0))
 
@@ -106,7 +107,7 @@ def test_every_penalty_is_active_in_the_test_problem(cost):
 def test_each_penalty_gradient_matches_finite_differences(term):
     weights = {k: 0.0 for k in ("weight_vel", "weight_acc", "weight_obstacle", "weight_swarm")}
     weights[f"weight_{term}"] = 1.0
-    params = PenaltyParameters(v_max_mps=1.5, a_max_mps2=2.0, samples_per_piece=8, max_uncertainty_inflation_m=5.0, **weights)
+    params = PenaltyParameters(limits=KinematicLimits(1.5, 2.0), samples_per_piece=8, max_uncertainty_inflation_m=5.0, **weights)
     field = CylinderField([[3.0, 0.6], [5.5, 0.0]], [0.5, 0.4])
     cost = TrajectoryCost(params, 10.0, field, _neighbors(10.0))
     head, tail, q, T = _problem()
@@ -131,8 +132,8 @@ def test_penalty_values_match_a_brute_force_trapezoid(cost):
         w = np.full(K + 1, T[i] / K)
         w[[0, -1]] *= 0.5
         v, a, x = traj.vel(t_loc), traj.acc(t_loc), traj.pos(t_loc)  # C^4 joints: either piece at a joint
-        vel += np.sum(w * np.maximum((v**2).sum(1) - p.v_max_mps**2, 0) ** 3) * p.weight_vel
-        acc += np.sum(w * np.maximum((a**2).sum(1) - p.a_max_mps2**2, 0) ** 3) * p.weight_acc
+        vel += np.sum(w * np.maximum((v**2).sum(1) - p.limits.v_max_mps**2, 0) ** 3) * p.weight_vel
+        acc += np.sum(w * np.maximum((a**2).sum(1) - p.limits.a_max_mps2**2, 0) ** 3) * p.weight_acc
         d, _ = cost.distance_field.distance_and_gradient(x)
         obs += np.sum(w * np.maximum(p.obstacle_clearance_m + p.clearance_margin_m - d, 0) ** 3) * p.weight_obstacle
         for nb in _neighbors(cost.t0_s):
@@ -148,7 +149,7 @@ def test_penalty_values_match_a_brute_force_trapezoid(cost):
 
 
 def test_penalties_vanish_inside_the_limits():
-    params = PenaltyParameters(v_max_mps=50.0, a_max_mps2=50.0)
+    params = PenaltyParameters(limits=KinematicLimits(50.0, 50.0))
     cost = TrajectoryCost(params, 0.0, None, [])
     head, tail, q, T = _problem()
     terms, gq, gt = _total_cost(cost, head, tail, q, T)
@@ -157,7 +158,7 @@ def test_penalties_vanish_inside_the_limits():
 
 
 @pytest.mark.parametrize(
-    "field, value", [("v_max_mps", 0.0), ("swarm_z_scale", 0.5), ("samples_per_piece", 1), ("weight_swarm", -1.0), ("swarm_recovery_mps", 0.0)]
+    "field, value", [("limits", 2.0), ("swarm_z_scale", 0.5), ("samples_per_piece", 1), ("weight_swarm", -1.0), ("swarm_recovery_mps", 0.0)]
 )
 def test_invalid_parameters_raise_one_line_value_error(field, value):
     with pytest.raises(ValueError, match=field):
@@ -210,7 +211,7 @@ def _close_neighbour(t0: float) -> list[NeighborPrediction]:
 
 def _relaxed_cost(rho: float, start: bool = True) -> TrajectoryCost:
     params = PenaltyParameters(
-        v_max_mps=50.0, a_max_mps2=50.0, weight_vel=0.0, weight_acc=0.0, weight_obstacle=0.0,
+        limits=KinematicLimits(50.0, 50.0), weight_vel=0.0, weight_acc=0.0, weight_obstacle=0.0,
         samples_per_piece=8, max_uncertainty_inflation_m=5.0, swarm_recovery_mps=rho,
     )  # fmt: skip
     head = _problem()[0]

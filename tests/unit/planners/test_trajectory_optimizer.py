@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from perception.types import NeighborPrediction, OccupancySnapshot
+from planners.limits import KinematicLimits
 from planners.trajectory_optimizer import (
     TrajectoryOptimizationError,
     TrajectoryOptimizerConfig,
@@ -64,7 +65,7 @@ def test_time_map_round_trips_and_its_derivative_matches_finite_differences():
 
 def test_total_cost_gradient_matches_finite_differences():
     field = CylinderField([[3.0, 0.3], [7.0, -0.2]], [0.4, 0.3])
-    cfg = TrajectoryOptimizerConfig(v_max_mps=1.0, a_max_mps2=0.3, samples_per_piece=8, initial_speed_fraction=1.0)
+    cfg = TrajectoryOptimizerConfig(limits=KinematicLimits(1.0, 0.3), samples_per_piece=8, initial_speed_fraction=1.0)
     nb = NeighborPrediction.constant_velocity(
         1, "perception", 0.0, [5.0, -0.5, 1.2], [0.0, 0.1, 0.0], np.diag([0.01] * 3 + [0.02] * 3)
     )
@@ -107,18 +108,18 @@ def test_trajectory_past_cylinders_keeps_its_clearance_on_the_true_field():
 
 
 def test_speed_and_acceleration_limits_hold_after_optimisation():
-    cfg = TrajectoryOptimizerConfig(v_max_mps=1.5, a_max_mps2=1.5)
+    cfg = TrajectoryOptimizerConfig(limits=KinematicLimits(1.5, 1.5))
     result = solve(build_trajectory_problem(START, GOAL, STRAIGHT, None, [], 0.0, cfg))
     _, _, vel, acc = _dense(result.trajectory)
     speed = np.linalg.norm(vel, axis=1).max()
     accel = np.linalg.norm(acc, axis=1).max()
     # soft constraints: within 1 % of the limits, and the limits are active (the time weight pushes into them)
-    assert speed <= 1.01 * cfg.v_max_mps and accel <= 1.01 * cfg.a_max_mps2
-    assert speed >= 0.95 * cfg.v_max_mps
+    assert speed <= 1.01 * cfg.limits.v_max_mps and accel <= 1.01 * cfg.limits.a_max_mps2
+    assert speed >= 0.95 * cfg.limits.v_max_mps
     unconstrained = solve(
-        build_trajectory_problem(START, GOAL, STRAIGHT, None, [], 0.0, TrajectoryOptimizerConfig(v_max_mps=50.0, a_max_mps2=50.0))
+        build_trajectory_problem(START, GOAL, STRAIGHT, None, [], 0.0, TrajectoryOptimizerConfig(limits=KinematicLimits(50.0, 50.0)))
     )
-    assert np.linalg.norm(_dense(unconstrained.trajectory)[2], axis=1).max() > 1.5 * cfg.v_max_mps
+    assert np.linalg.norm(_dense(unconstrained.trajectory)[2], axis=1).max() > 1.5 * cfg.limits.v_max_mps
 
 
 @pytest.mark.parametrize("solver", ["lbfgs", "scipy"])
@@ -177,7 +178,7 @@ def test_non_finite_field_raises_the_optimizer_error_carrying_the_problem():
     "field, value",
     [
         ("weight_time", -1.0),
-        ("v_max_mps", 0.0),
+        ("limits", 2.0),
         ("swarm_z_scale", 0.9),
         ("max_iterations", 0),
         ("solver", "newton"),

@@ -14,6 +14,7 @@ from mpcde.config.io import from_dict
 from mpcde.config.resolve import derivations, resolve
 from mpcde.config.scenario import ScenarioConfig, load_scenario
 from mpcde.errors import ConfigError
+from planners.limits import KinematicLimits
 
 
 def _get(cfg, path):
@@ -30,7 +31,7 @@ def write(tmp_path, text):
 
 def test_every_derived_field_equals_its_source_after_loading(tmp_path):
     p = write(tmp_path, "pose_estimate:\n  pos_noise_m: 0.05\n  yaw_noise_rad: 0.02\ncamera:\n  hfov_deg: 80.0\n"
-                        "denied:\n  v_max_mps: 1.5\nperception:\n  tracker:\n    t_hold_s: 0.8\n")  # fmt: skip
+                        "denied:\n  limits:\n    v_max_mps: 1.5\nperception:\n  tracker:\n    t_hold_s: 0.8\n")  # fmt: skip
     cfg = load_scenario(p)
     assert cfg.perception.backprojection.pose_pos_std_m == 0.05 and cfg.perception.backprojection.pose_yaw_std_rad == 0.02
     assert (cfg.denied.yaw.v_max_mps, cfg.denied.yaw.t_hold_s, cfg.denied.yaw.fov_h_deg) == (1.5, 0.8, 80.0)
@@ -43,11 +44,11 @@ def test_every_derived_field_equals_its_source_after_loading(tmp_path):
 @pytest.mark.parametrize(
     "text, field, source",
     [
-        ("denied:\n  yaw:\n    v_max_mps: 5\n", "denied.yaw.v_max_mps", "denied.v_max_mps"),
+        ("denied:\n  yaw:\n    v_max_mps: 5\n", "denied.yaw.v_max_mps", "denied.limits.v_max_mps"),
         ("perception:\n  backprojection:\n    pose_pos_std_m: 0.3\n", "perception.backprojection.pose_pos_std_m", "pose_estimate.pos_noise_m"),
         ("denied:\n  yaw:\n    fov_h_deg: 90\n", "denied.yaw.fov_h_deg", "camera.hfov_deg"),
-        ("planner:\n  kind: mpcde\n  cruise_speed_mps: 2.0\ndenied:\n  v_max_mps: 1.0\n", "denied.v_max_mps", "planner.cruise_speed_mps"),
-        ("planner:\n  kind: dmpc\n  cruise_speed_mps: 0.5\ndmpc:\n  qp:\n    v_max_mps: 2.0\n", "dmpc.qp.v_max_mps", "planner.cruise_speed_mps"),
+        ("planner:\n  kind: mpcde\n  cruise_speed_mps: 2.0\ndenied:\n  limits:\n    v_max_mps: 1.0\n", "denied.limits.v_max_mps", "planner.cruise_speed_mps"),
+        ("planner:\n  kind: dmpc\n  cruise_speed_mps: 0.5\ndmpc:\n  qp:\n    limits:\n      v_max_mps: 2.0\n", "dmpc.qp.limits.v_max_mps", "planner.cruise_speed_mps"),
         ("planner:\n  kind: admm\nradio:\n  rate_hz: 5.0\nworld:\n  obstacle_density_per_100m2: 0\n"
          "drones:\n  starts: [[0, 0, 1.5], [1, 0, 1.5]]\n  goals: [[3, 0, 1.5], [4, 0, 1.5]]\n", "radio.rate_hz", "2 admm.l_max"),
     ],
@@ -64,12 +65,12 @@ def test_the_cruise_speed_is_every_stack_s_speed(kind):
     the lines' peak speed); unset, each keeps its own default."""
     default = mpcde.load_scenario("forest_swarm", mode={"min_jerk_line": "placeholder", "mpcde": "denied", "dmpc": "comm", "auto": "auto"}[kind])
     assert default.planner.cruise_speed_mps is None and default.planner.line_speed_mps == 1.0
-    assert (default.denied.v_max_mps, default.dmpc.qp.v_max_mps) == (1.0, 2.0)
+    assert (default.denied.limits.v_max_mps, default.dmpc.qp.limits.v_max_mps) == (1.0, 2.0)
     cfg = load_scenario("forest_swarm", {"planner": {"kind": kind, "cruise_speed_mps": 0.5}})
     assert cfg.planner.line_speed_mps == 0.5
-    assert cfg.denied.v_max_mps == (0.5 if kind in ("mpcde", "auto") else 1.0)
-    assert cfg.denied.yaw.v_max_mps == cfg.denied.v_max_mps
-    assert cfg.dmpc.qp.v_max_mps == (0.5 if kind in ("dmpc", "auto") else 2.0)
+    assert cfg.denied.limits.v_max_mps == (0.5 if kind in ("mpcde", "auto") else 1.0)
+    assert cfg.denied.yaw.v_max_mps == cfg.denied.limits.v_max_mps
+    assert cfg.dmpc.qp.limits.v_max_mps == (0.5 if kind in ("dmpc", "auto") else 2.0)
 
 
 def test_mlr_refuses_a_cruise_speed():
@@ -83,15 +84,15 @@ def test_a_derived_value_that_breaks_its_section_names_the_whole_path(tmp_path):
 
 
 def test_a_set_value_equal_to_its_derivation_is_accepted(tmp_path):
-    cfg = load_scenario(write(tmp_path, "denied:\n  v_max_mps: 1.5\n  yaw:\n    v_max_mps: 1.5\n"))
+    cfg = load_scenario(write(tmp_path, "denied:\n  limits:\n    v_max_mps: 1.5\n  yaw:\n    v_max_mps: 1.5\n"))
     assert cfg.denied.yaw.v_max_mps == 1.5
 
 
 def test_code_built_configs_are_refused_the_same_way():
     cfg = from_dict(ScenarioConfig, {"denied": {"yaw": {"v_max_mps": 4.0}}})
-    with pytest.raises(ConfigError, match=r"^denied\.yaw\.v_max_mps=4\.0: derived from denied\.v_max_mps"):
+    with pytest.raises(ConfigError, match=r"^denied\.yaw\.v_max_mps=4\.0: derived from denied\.limits\.v_max_mps"):
         resolve(cfg)
-    edited = replace(cfg, denied=replace(cfg.denied, v_max_mps=4.0))
+    edited = replace(cfg, denied=replace(cfg.denied, limits=KinematicLimits(4.0, 3.0)))
     assert resolve(edited).denied.yaw.v_max_mps == 4.0
 
 
@@ -99,7 +100,7 @@ def test_the_cli_refuses_an_overridden_setting_with_exit_status_2_and_writes_not
     p = write(tmp_path, "denied:\n  yaw:\n    v_max_mps: 5\n")
     assert main(["fly", str(p), "--mode", "denied", "--out", str(tmp_path / "run"), "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("mpcde: error: denied.yaw.v_max_mps=5: derived from denied.v_max_mps")
+    assert len(err) == 1 and err[0].startswith("mpcde: error: denied.yaw.v_max_mps=5: derived from denied.limits.v_max_mps")
     assert not (tmp_path / "run").exists()
 
 
@@ -128,7 +129,7 @@ def test_a_committing_dmpc_plans_against_every_obstacle_its_plan_can_reach():
     qp, d = cfg.dmpc.qp, cfg.dmpc
     reach = math.sqrt(2.0) * 1.0 * qp.horizon_steps * qp.step_s + cfg.physics.quadrotor.robot_radius_m + d.obstacle_margin_m
     assert d.commit_when_unheard and d.obstacle_range_m == pytest.approx(max(3.0, reach))
-    with pytest.raises(ConfigError, match=r"^dmpc\.obstacle_range_m=5\.0: derived from sqrt\(2\) dmpc\.qp\.v_max_mps"):
+    with pytest.raises(ConfigError, match=r"^dmpc\.obstacle_range_m=5\.0: derived from sqrt\(2\) dmpc\.qp\.limits\.v_max_mps"):
         load_scenario("formation_square", {"planner": {"kind": "dmpc"}, "dmpc": {"obstacle_range_m": 5.0}})
     plain = {"commit_when_unheard": False, "obstacle_range_m": 5.0, "qp": {"collision_mode": "on_demand", "terminal_halt": False}}
     assert load_scenario("formation_square", {"planner": {"kind": "dmpc"}, "dmpc": plain}).dmpc.obstacle_range_m == 5.0

@@ -237,7 +237,7 @@ def test_a_failed_local_qp_ends_the_step_and_the_drone_keeps_its_plan(monkeypatc
 @pytest.mark.parametrize(
     ("field", "value"),
     [("horizon_steps", 1), ("l_max", 0), ("step_s", 0.0), ("rho", -1.0), ("weight_input", 0.0),
-     ("weight_formation", -1.0), ("v_max_mps", float("nan")), ("altitude_range_m", (2.0, 1.0)), ("graph", "star"),
+     ("weight_formation", -1.0), ("limits", 2.0), ("altitude_range_m", (2.0, 1.0)), ("graph", "star"),
      ("warm_start", 1), ("max_start_offset_m", 0.0)],
 )  # fmt: skip
 def test_invalid_admm_settings_name_their_field(field: str, value: object) -> None:

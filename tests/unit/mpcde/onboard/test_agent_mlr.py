@@ -22,6 +22,7 @@ from mpcde.stacks.build import make_agent
 from mpcde.onboard.mlr import MlrAgent
 from planners.dmpc.collision import ellipsoidal_distance
 from planners.dmpc.mlr.types import MlrBundle
+from planners.limits import KinematicLimits
 from sim.rotations import quat_xyzw_from_yaw
 from sim.types import PoseEstimate, RadioMessage
 
@@ -156,7 +157,7 @@ def test_a_bundle_of_an_earlier_round_is_dropped_and_counted() -> None:
 
 @pytest.mark.parametrize(
     ("field", "value"),
-    [("num_compute_units", 0), ("horizon_rounds", 1), ("trigger", "fifo"), ("v_max_mps", -1.0), ("d_hat_min_m", 0.0),
+    [("num_compute_units", 0), ("horizon_rounds", 1), ("trigger", "fifo"), ("limits", 1.0), ("d_hat_min_m", 0.0),
      ("downwash", 0.5), ("altitude_range_m", (2.0, 1.0)), ("arena_margin_m", float("nan"))],
 )  # fmt: skip
 def test_invalid_mlr_settings_name_their_field(field: str, value: object) -> None:
@@ -166,8 +167,8 @@ def test_invalid_mlr_settings_name_their_field(field: str, value: object) -> Non
 
 
 def test_planner_config_takes_n_from_the_scenario_and_the_box_from_the_arena() -> None:
-    cfg = MlrAgentConfig(num_compute_units=3, trigger="db", v_max_mps=1.5).planner_config(7, (12.0, 10.0))
-    assert (cfg.n_uavs, cfg.n_cus, cfg.trigger, cfg.v_max_mps) == (7, 3, "db", 1.5)
+    cfg = MlrAgentConfig(num_compute_units=3, trigger="db", limits=KinematicLimits(1.5, 3.0, 10.0)).planner_config(7, (12.0, 10.0))
+    assert (cfg.n_uavs, cfg.n_cus, cfg.trigger, cfg.limits.v_max_mps) == (7, 3, "db", 1.5)
     assert cfg.pos_min_world == (-5.7, -4.7, 0.3) and cfg.pos_max_world == (5.7, 4.7, 3.0)
 
 

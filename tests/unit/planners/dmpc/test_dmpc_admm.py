@@ -257,9 +257,9 @@ def test_closed_loop_with_five_warm_started_iterations_closes_the_formation_with
     # still a tight formation for drones 1.4 m apart.
     assert chi[20:].max() < 0.01
     # Soft speed limit: c s^2 with c = 1e4 lets the slack rise a little (measured up to 2.5e-3 m/s, seeds 0-2, 7).
-    assert np.abs(run["vel"]).max() <= CONFIG.v_max_mps + 0.01
+    assert np.abs(run["vel"]).max() <= CONFIG.limits.v_max_mps + 0.01
     # Hard input box, up to OSQP's tolerance eps = 1e-4 (measured up to 4.3e-5 m/s^2 above a_max_mps2).
-    assert np.abs(run["acc"]).max() <= CONFIG.a_max_mps2 + 1e-3
+    assert np.abs(run["acc"]).max() <= CONFIG.limits.a_max_mps2 + 1e-3
     # After the first 2 s the decided inputs stay near the centralized optimum of the same OCP
     # (measured up to 8.5e-3 m/s^2, seeds 0-2, 7; the paper reports < 2e-2 for its robots after the start-up).
     assert run["du"].max() < 0.05
@@ -328,8 +328,7 @@ def test_formation_error_is_the_rms_edge_error_and_translation_invariant():
         ("weight_formation", -1.0),
         ("weight_input", 0.0),
         ("weight_slack", float("nan")),
-        ("v_max_mps", float("inf")),
-        ("a_max_mps2", -4.0),
+        ("limits", 2.0),
         ("rho", 0.0),
         ("l_max", 0),
         ("delay_compensation", "yes"),

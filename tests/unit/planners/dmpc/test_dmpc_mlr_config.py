@@ -25,7 +25,7 @@ from planners.dmpc.model import rollout
         ("trigger", "fifo", "trigger='fifo': one of rr, db, ht"),
         ("max_candidates", 0, "max_candidates=0: an integer >= 1"),
         ("osqp_polish", 1, "osqp_polish=1: True or False"),
-        ("v_max_mps", True, "v_max_mps=True: a finite number > 0"),
+        ("limits", 1.0, "limits=1.0: a KinematicLimits (a mapping of its fields in a scenario file)"),
     ],
 )
 def test_invalid_fields_are_refused_with_a_one_line_message(field: str, value: object, message: str) -> None:

@@ -46,11 +46,11 @@ def test_solution_meets_every_constraint_and_the_kkt_conditions(rng: np.random.G
     traj = res.trajectory
     assert traj.meta == TrajectoryId(0, 1) and traj.t_start_s == t0
     np.testing.assert_allclose(traj.x0, own.states_at(np.array([t0]))[0])  # 13b: starts on the current trajectory
-    assert np.all(np.abs(traj.inputs) <= cfg.j_max_mps3 + 1e-6)  # 13c
+    assert np.all(np.abs(traj.inputs) <= cfg.limits.j_max_mps3 + 1e-6)  # 13c
     knots = traj.knots[1:]
     assert np.all(knots[:, :3] >= np.array(cfg.pos_min_world) - 1e-6)  # 13d
     assert np.all(knots[:, :3] <= np.array(cfg.pos_max_world) + 1e-6)
-    assert np.all(np.abs(knots[:, 3:6]) <= cfg.v_max_mps + 1e-6) and np.all(np.abs(knots[:, 6:9]) <= cfg.a_max_mps2 + 1e-6)
+    assert np.all(np.abs(knots[:, 3:6]) <= cfg.limits.v_max_mps + 1e-6) and np.all(np.abs(knots[:, 6:9]) <= cfg.limits.a_max_mps2 + 1e-6)
     np.testing.assert_allclose(traj.knots[-1, 3:9], 0.0, atol=1e-10)  # 13e, exact
     after = traj.states_at(traj.t_end_s + np.array([0.5, 5.0]))
     np.testing.assert_allclose(after[:, :3], traj.knots[-1, :3][None].repeat(2, 0), atol=1e-9)  # halted

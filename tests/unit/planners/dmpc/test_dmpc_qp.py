@@ -71,11 +71,11 @@ def test_solution_satisfies_its_constraints_and_the_kkt_conditions(case: str) ->
     np.testing.assert_allclose(result.vel_world, states[1:, 3:6], atol=1e-9)
     # Box limits.
     tol = 1e-6
-    assert np.all(np.abs(result.vel_world) <= cfg.v_max_mps + tol)
-    assert np.all(np.abs(result.acc_world) <= cfg.a_max_mps2 + tol)
+    assert np.all(np.abs(result.vel_world) <= cfg.limits.v_max_mps + tol)
+    assert np.all(np.abs(result.acc_world) <= cfg.limits.a_max_mps2 + tol)
     assert np.all(result.pos_world >= np.asarray(cfg.pos_min_world) - tol)
     if cfg.model == "triple":
-        assert np.all(np.abs(result.inputs) <= cfg.j_max_mps3 + tol)
+        assert np.all(np.abs(result.inputs) <= cfg.limits.j_max_mps3 + tol)
     if cfg.terminal_halt:
         np.testing.assert_allclose(result.vel_world[-1], 0.0, atol=1e-6)
     if "obstacles" in kwargs:
@@ -231,8 +231,7 @@ INVALID = [
     ("weight_slack_quadratic", 0.0),
     ("pos_min_world", (0.0, 0.0)),
     ("pos_max_world", (-30.0, 0.0, 1.0)),
-    ("v_max_mps", 0.0),
-    ("a_max_mps2", -4.0),
+    ("limits", 2.0),
     ("r_min_m", 0.0),
     ("downwash", 0.5),
     ("collision_mode", "voronoi"),
@@ -262,7 +261,7 @@ def test_invalid_parameters_are_rejected_with_a_one_line_message(field: str, val
 
 def test_defaults_follow_the_paper() -> None:
     cfg = DmpcConfig()
-    assert (cfg.horizon_steps, cfg.step_s, cfg.a_max_mps2, cfg.neighbourhood_factor) == (15, 0.2, 4.0, 3.0)
+    assert (cfg.horizon_steps, cfg.step_s, cfg.limits.a_max_mps2, cfg.neighbourhood_factor) == (15, 0.2, 4.0, 3.0)
     assert dataclasses.is_dataclass(cfg) and cfg.state_dim == 6 and cfg.horizon_s == pytest.approx(3.0)
     with pytest.raises(dataclasses.FrozenInstanceError):
         cfg.r_min_m = 1.0  # type: ignore[misc]

@@ -27,12 +27,12 @@ def test_every_input_within_the_limits_stays_in_both_boxes(model: str, rng: np.r
             v, a = state[3:6], state[6:9] if model == "triple" else 0.0
             want = rng.choice([-1.0, 1.0], 3) * rng.uniform(0.5, 2.0, 3) if model == "double" else rng.uniform(-1.0, 1.0, 3)
             if model == "double":  # |u| <= a_max_mps2 and |v + h u| <= v_max_mps
-                lo, hi = np.maximum(-cfg.a_max_mps2, (-cfg.v_max_mps - v) / h), np.minimum(cfg.a_max_mps2, (cfg.v_max_mps - v) / h)
-                want = want * cfg.a_max_mps2
+                lo, hi = np.maximum(-cfg.limits.a_max_mps2, (-cfg.limits.v_max_mps - v) / h), np.minimum(cfg.limits.a_max_mps2, (cfg.limits.v_max_mps - v) / h)
+                want = want * cfg.limits.a_max_mps2
             else:  # |j| <= j_max_mps3, |a + h j| <= a_max_mps2, |v + h a + h^2 j / 2| <= v_max_mps
-                lo = np.maximum.reduce([np.full(3, -cfg.j_max_mps3), (-cfg.a_max_mps2 - a) / h, (-cfg.v_max_mps - v - h * a) / (h * h / 2)])
-                hi = np.minimum.reduce([np.full(3, cfg.j_max_mps3), (cfg.a_max_mps2 - a) / h, (cfg.v_max_mps - v - h * a) / (h * h / 2)])
-                want = want * cfg.j_max_mps3
+                lo = np.maximum.reduce([np.full(3, -cfg.limits.j_max_mps3), (-cfg.limits.a_max_mps2 - a) / h, (-cfg.limits.v_max_mps - v - h * a) / (h * h / 2)])
+                hi = np.minimum.reduce([np.full(3, cfg.limits.j_max_mps3), (cfg.limits.a_max_mps2 - a) / h, (cfg.limits.v_max_mps - v - h * a) / (h * h / 2)])
+                want = want * cfg.limits.j_max_mps3
             if np.any(lo > hi):
                 ok = False
                 break
@@ -41,7 +41,7 @@ def test_every_input_within_the_limits_stays_in_both_boxes(model: str, rng: np.r
         if not ok:
             continue
         states = rollout(model, h, x0, inputs)
-        assert np.all(np.abs(states[1:, 3:6]) <= cfg.v_max_mps + 1e-9)
+        assert np.all(np.abs(states[1:, 3:6]) <= cfg.limits.v_max_mps + 1e-9)
         checked += 1
         for b, (centre, half) in enumerate(boxes):
             excess = np.abs(states[1:, :3] - centre) - half
