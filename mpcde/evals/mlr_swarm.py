@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from planners.dmpc.collision import ellipsoidal_distance
-from planners.dmpc.mlr.compute_unit import ComputeUnit, CuStepReport, summarize_reports
+from planners.dmpc.mlr.compute_unit import ComputeUnit, CuStepReport, planned_motion_m, summarize_reports
 from planners.dmpc.mlr.config import MlrConfig
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory
 from planners.dmpc.mlr.uav import Uav, initial_trajectory
@@ -139,6 +139,14 @@ class MlrRunResult:
         qp_iterations_median: median OSQP iterations.
         max_reference_jump_m: largest position jump of a reference at a switch [m].
         cu_deaf_drops: messages dropped at deaf CUs.
+        cu_rounds, cu_modes, deprecations_by_cause, rounds_all_deprecated,
+            recovery_answered: where the CU rounds went
+            (:func:`planners.dmpc.mlr.compute_unit.summarize_reports`).
+        halts_begun / halts_released: times a UAV came to rest on its
+            reference (motion left in it < ``MlrConfig.deadlock_motion_m``)
+            away from its target (farther than ``arrival_tolerance_m``), and
+            times such a UAV's reference moved it on; halted_uav_rounds: UAV
+            rounds spent so.
         radio: the radio's counts (sent, delivered, lost by cause).
         positions_world: (rounds + 1, N, 3) actual positions at the round boundaries [m].
     """
@@ -160,6 +168,14 @@ class MlrRunResult:
     qp_iterations_median: float
     max_reference_jump_m: float
     cu_deaf_drops: int
+    cu_rounds: int
+    cu_modes: dict[str, int]
+    deprecations_by_cause: dict[str, int]
+    rounds_all_deprecated: int
+    recovery_answered: int
+    halts_begun: int
+    halts_released: int
+    halted_uav_rounds: int
     radio: dict[str, Any]
     positions_world: np.ndarray = field(repr=False, compare=False)
 
@@ -252,6 +268,8 @@ def run_mlr_swarm(
     min_dist, pairs, max_jump, deaf_drops = np.inf, {}, 0.0, 0
     positions = [start.copy()]
     iu = np.triu_indices(N, 1)
+    halted = np.zeros(N, bool)
+    halts_begun = halts_released = halted_rounds = 0
     k = 0
     for k in range(n_rounds):
         t = k * T
@@ -266,6 +284,12 @@ def run_mlr_swarm(
             if switched:
                 max_jump = max(max_jump, motion.switch(i, old, uav.reference, t))
             payloads += [(i, m) for m in out]
+            at_rest = planned_motion_m(uav.reference, max(t, uav.reference.t_start_s)) < mlr.deadlock_motion_m
+            now_halted = at_rest and float(np.linalg.norm(p[0] - goals[formation][i])) > cfg.arrival_tolerance_m
+            halts_begun += int(now_halted and not halted[i])
+            halts_released += int(halted[i] and not now_halted)
+            halted_rounds += int(now_halted)
+            halted[i] = now_halted
         for w, cu in enumerate(cus):
             msg, report = cu.step(k, inbox[N + w])
             reports.append(report)
@@ -320,6 +344,14 @@ def run_mlr_swarm(
         qp_iterations_median=summary["qp_iterations_median"],
         max_reference_jump_m=max_jump,
         cu_deaf_drops=deaf_drops,
+        cu_rounds=summary["cu_rounds"],
+        cu_modes=summary["cu_modes"],
+        deprecations_by_cause=summary["deprecations_by_cause"],
+        rounds_all_deprecated=summary["rounds_all_deprecated"],
+        recovery_answered=summary["recovery_answered"],
+        halts_begun=halts_begun,
+        halts_released=halts_released,
+        halted_uav_rounds=halted_rounds,
         radio=radio.stats(),
         positions_world=np.array(positions),
     )

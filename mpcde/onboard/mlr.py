@@ -248,7 +248,6 @@ class MlrAgent(PlanFollowingAgent):
             "max_reference_jump_m": s.max_reference_jump_m,
             "recovery_replies": s.replies,
             "late_bundles": s.late_bundles,
-            "cu_rounds": len(s.cu_reports),
             **cu,
             "qp_solve_ms": [round(r.qp.solve_time_s * 1e3, 5) for r in s.cu_reports if r.qp is not None],
         }

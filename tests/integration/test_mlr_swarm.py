@@ -28,6 +28,10 @@ def test_ideal_radio_16_uav_swap_arrives_without_collision() -> None:
     assert res.collisions == 0 and res.min_distance_m >= SWAP16.mlr.d_hat_min_m - 0.01
     assert np.isfinite(res.arrival_time_s)
     assert res.rounds_with_mlr == 0 and res.deprecated_trackers == 0 and res.qp_failures == 0
+    # every CU round planned or had nothing to plan; no recovery, no UAV left at rest away from its goal
+    assert res.cu_rounds == 3 * res.rounds == sum(res.cu_modes.values())
+    assert res.cu_modes["compute"] + res.cu_modes["idle"] == res.cu_rounds and res.rounds_all_deprecated == 0
+    assert sum(res.deprecations_by_cause.values()) == 0 and res.halts_released == res.halts_begun
 
 
 @pytest.mark.slow

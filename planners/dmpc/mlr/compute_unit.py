@@ -75,7 +75,7 @@ from planners.dmpc.mlr.trigger import consensus, event_set, quantize, raw_priori
 from planners.dmpc.mlr.types import CuTrajectoryMessage, RecoveryReply, RecoveryRequest, UavStateMessage
 from planners.dmpc.sparse_qp.qp_result import DmpcSolveError
 
-__all__ = ["ComputeUnit", "CuStepReport", "summarize_reports"]
+__all__ = ["ComputeUnit", "CuStepReport", "planned_motion_m", "summarize_reports"]
 
 
 @dataclass(frozen=True)
@@ -93,6 +93,9 @@ class CuStepReport:
         deprecated: UAVs whose tracker is deprecated after the update.
         tracker_update: what Alg. 2 did.
         qp: the QP result when one was solved.
+        answered: whether the recovery request this CU sent in round k - 2
+            was answered: the requested UAV's reply, sent in the donated slot
+            of round k - 1, is in this round's inbox (None when it sent none).
     """
 
     round_index: int
@@ -102,6 +105,7 @@ class CuStepReport:
     deprecated: tuple[int, ...]
     tracker_update: TrackerUpdate
     qp: MlrQpResult | None = None
+    answered: bool | None = None
 
 
 class ComputeUnit:
@@ -145,6 +149,8 @@ class ComputeUnit:
         self._heard_requests: set[int] = set()  # CUs whose request this CU received last round
         self._pending_replies: set[int] = set()  # UAVs asked for by those requests: they reply this round
         self._a_et_prev: tuple[int, ...] | None = None  # A_ET(k - 1) if formed from every CU slot of k - 2
+        self._asked: int | None = None  # the UAV requested two rounds ago: its reply is read now
+        self._asked_now: int | None = None  # the UAV requested last round
 
     def step(self, round_index: int, inbox: Sequence[object]) -> tuple[object | None, CuStepReport]:
         """Alg. 1 for round k = ``round_index`` with the payloads received in round k - 1.
@@ -171,6 +177,9 @@ class ComputeUnit:
             for m in cu_msgs.values()
             if isinstance(m, CuTrajectoryMessage) and m.repeat_uav_id is not None
         }
+        asked, self._asked = self._asked, self._asked_now
+        self._asked_now = None
+        answered = None if asked is None else (w in replies and replies[w].uav_id == asked)
         missed: list[int] = []
         if self.ignore_message_loss:
             update = self.trackers.update_ignoring_loss(new)
@@ -200,17 +209,18 @@ class ComputeUnit:
         if self._donate_now:  # Alg. 1 Line 30: the slot belongs to the requested UAV this round
             self._donate_now = False
             self._own_last = None
-            return None, CuStepReport(k, "donate", None, a_et, deprecated, update)
+            return None, CuStepReport(k, "donate", None, a_et, deprecated, update, answered=answered)
         if deprecated and not self.ignore_message_loss:  # MLR, Lines 22-32
             uav = self._recovery_target(k, deprecated, update)
             if uav is None:  # wait a round (lazy recovery): metadata or another CU's reply restores them
                 msg = CuTrajectoryMessage(w, k, self._priorities(k, None), **self._repeat(own))
                 self._own_last = msg
-                return msg, CuStepReport(k, "wait", None, a_et, deprecated, update)
+                return msg, CuStepReport(k, "wait", None, a_et, deprecated, update, answered=answered)
             msg = RecoveryRequest(w, k, self._priorities(k, None), uav)
+            self._asked_now = uav
             self._donate_now = True
             self._own_last = msg
-            return msg, CuStepReport(k, "request", uav, a_et, deprecated, update)
+            return msg, CuStepReport(k, "request", uav, a_et, deprecated, update, answered=answered)
         uav = selected_uav(a_et, k, w, cfg.n_cus)  # Lines 14-15
         result, mode = None, "idle"
         if unified[uav] > 0 and len(self.trackers[uav].candidates) == 1:
@@ -224,7 +234,7 @@ class ComputeUnit:
         else:
             msg = CuTrajectoryMessage(w, k, self._priorities(k, uav), uav, result.trajectory, **self._repeat(own))
         self._own_last = msg
-        return msg, CuStepReport(k, mode, uav if mode != "idle" else None, a_et, deprecated, update, result)
+        return msg, CuStepReport(k, mode, uav if mode != "idle" else None, a_et, deprecated, update, result, answered)
 
     def _repeat(self, own: object | None) -> dict[str, Any]:
         """The repeat fields of this round's message: last round's own trajectory (``repeat_trajectory``), else none."""
@@ -281,7 +291,7 @@ class ComputeUnit:
             calc = t.meta.calc_round
             if calc < self.first_round or k - calc > cfg.deadlock_rounds or dist[i] <= cfg.arrived_m:
                 continue
-            out[i] = _planned_motion_m(t, max(t_now, t.t_start_s)) < cfg.deadlock_motion_m
+            out[i] = planned_motion_m(t, max(t_now, t.t_start_s)) < cfg.deadlock_motion_m
         return out
 
     def _priorities(self, k: int, just_computed: int | None) -> np.ndarray:
@@ -301,7 +311,7 @@ class ComputeUnit:
         return q
 
 
-def _planned_motion_m(traj: ReferenceTrajectory, t_from_s: float) -> float:
+def planned_motion_m(traj: ReferenceTrajectory, t_from_s: float) -> float:
     """Largest distance [m] of ``traj``'s positions from ``t_from_s`` on (its knots) from its position at ``t_from_s``."""
     times = np.r_[t_from_s, traj.t_start_s + traj.input_step_s * np.arange(1, traj.inputs.shape[0] + 1)]
     times = times[times >= t_from_s]
@@ -316,13 +326,31 @@ def summarize_reports(reports: Sequence[CuStepReport]) -> dict[str, Any]:
     donated or waited), ``deprecated_trackers`` (tracker deprecations summed),
     ``recovery_requests``, ``computations`` (rounds that solved a QP),
     ``qp_failures``, ``qp_solve_ms_median`` / ``qp_solve_ms_max`` (OSQP update +
-    solve [ms]), ``qp_step_ms_median`` (build + solve [ms]), ``qp_iterations_median``.
+    solve [ms]), ``qp_step_ms_median`` (build + solve [ms]), ``qp_iterations_median``;
+    where the CU rounds went: ``cu_rounds`` (reports), ``cu_modes`` (mode ->
+    CU rounds: ``compute``, ``idle``, ``failed`` planned or could not;
+    ``request``, ``donate`` in recovery; ``wait`` waiting on a deprecated
+    tracker), ``deprecations_by_cause`` (cause -> trackers, :class:`TrackerUpdate`'s
+    ``causes``), ``rounds_all_deprecated`` (CU rounds in which a slot
+    unaccounted for deprecated every tracker) and ``recovery_answered``
+    (requests whose reply reached the requesting CU).
     """
     qps = [r.qp for r in reports if r.qp is not None]
     nan = float("nan")
     solve_ms = [q.solve_time_s * 1e3 for q in qps]
     step_ms = [(q.solve_time_s + q.build_time_s) * 1e3 for q in qps]
+    modes = dict.fromkeys(("compute", "idle", "failed", "request", "donate", "wait"), 0)
+    causes = dict.fromkeys(("slot", "suspect", "unnamed", "ambiguous", "crowded"), 0)
+    for r in reports:
+        modes[r.mode] += 1
+        for cause, _ in r.tracker_update.causes:
+            causes[cause] += 1
     return {
+        "cu_rounds": len(reports),
+        "cu_modes": modes,
+        "deprecations_by_cause": causes,
+        "rounds_all_deprecated": sum(r.tracker_update.all_deprecated for r in reports),
+        "recovery_answered": sum(r.answered is True for r in reports),
         "rounds_with_mlr": len({r.round_index for r in reports if r.mode in ("request", "donate", "wait")}),
         "deprecated_trackers": sum(len(r.tracker_update.newly_deprecated) for r in reports),
         "recovery_requests": sum(r.mode == "request" for r in reports),

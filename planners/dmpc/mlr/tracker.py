@@ -95,11 +95,19 @@ class TrackerUpdate:
         newly_deprecated: UAVs whose tracker became deprecated in this update.
         restored: UAVs whose deprecated tracker was restored (reply or metadata).
         all_deprecated: a CU slot was unaccounted for (step 4).
+        causes: (cause, UAV) for each newly deprecated tracker, the first step
+            that deprecated it: ``"unnamed"`` (step 1: its UAV named a
+            trajectory the tracker lacks), ``"ambiguous"`` (step 2: its state
+            message was lost and it holds several candidates), ``"slot"``
+            (step 4: a CU slot unaccounted for), ``"suspect"`` (step 4b: the
+            UAV a missed CU message can have carried) or ``"crowded"``
+            (step 2b: more candidates than ``keep_ambiguous`` allows).
     """
 
     newly_deprecated: tuple[int, ...]
     restored: tuple[int, ...]
     all_deprecated: bool
+    causes: tuple[tuple[str, int], ...] = ()
 
 
 class InformationTrackers:
@@ -163,6 +171,7 @@ class InformationTrackers:
                 a CU message of the previous round (step 0).
         """
         before = [e.deprecated for e in self.entries]
+        cause: dict[int, str] = {}  # the first step that deprecated each tracker that was not
         restored = []
         for i, traj in (late or {}).items():  # step 0
             e = self.entries[i]
@@ -175,12 +184,18 @@ class InformationTrackers:
             if i in following:  # step 1 (Line 6)
                 match = [c for c in entry.candidates if c.meta == following[i]]
                 self.entries[i] = TrackerEntry((match[0],)) if match else TrackerEntry(entry.candidates, True, True)
+                if not match:
+                    cause.setdefault(i, "unnamed")
             elif len(entry.candidates) > max(keep_ambiguous, 1):  # step 2 (Line 13); 2b keeps up to K
                 self.entries[i] = TrackerEntry(entry.candidates, True, entry.missing)
+                cause.setdefault(i, "ambiguous")
         if not all_cu_slots_accounted:  # step 4 (Line 18)
             self.entries = [TrackerEntry(e.candidates, True, e.missing) for e in self.entries]
+            for i in range(len(self.entries)):
+                cause.setdefault(i, "slot")
         for i in suspects:  # step 4b
             self.entries[i] = TrackerEntry(self.entries[i].candidates, True, self.entries[i].missing)
+            cause.setdefault(i, "suspect")
         for i, traj in new_trajectories.items():  # step 5 (Line 22)
             e = self.entries[i]
             cands = tuple(c for c in e.candidates if c.meta != traj.meta) + (traj,)
@@ -188,13 +203,14 @@ class InformationTrackers:
                 cands = cands[-self.max_kept:]
             elif len(cands) > max(keep_ambiguous, 2):  # step 2b: too many to keep usable
                 self.entries[i] = TrackerEntry(cands[-self.max_kept:], True, e.missing)
+                cause.setdefault(i, "crowded")
                 continue
             self.entries[i] = TrackerEntry(cands, e.deprecated, e.missing)
         for i, e in enumerate(self.entries):
             if before[i] and not e.deprecated:
                 restored.append(i)
         newly = tuple(i for i, e in enumerate(self.entries) if e.deprecated and not before[i])
-        return TrackerUpdate(newly, tuple(restored), not all_cu_slots_accounted)
+        return TrackerUpdate(newly, tuple(restored), not all_cu_slots_accounted, tuple((cause[i], i) for i in newly))
 
     def update_ignoring_loss(self, new_trajectories: Mapping[int, ReferenceTrajectory]) -> TrackerUpdate:
         """Baseline (Sec. 5.4, Gräfe et al. 2022): assume every UAV got its newest known trajectory."""

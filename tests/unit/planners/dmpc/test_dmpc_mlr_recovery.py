@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planners.dmpc.mlr.compute_unit import ComputeUnit
+from planners.dmpc.mlr.compute_unit import ComputeUnit, summarize_reports
 from planners.dmpc.mlr.config import MlrConfig
 from planners.dmpc.mlr.trajectory import ReferenceTrajectory, TrajectoryId
 from planners.dmpc.mlr.types import CuTrajectoryMessage, RecoveryReply, RecoveryRequest, UavStateMessage
@@ -108,3 +108,31 @@ def test_a_cu_in_mlr_never_sends_a_trajectory(lazy: bool) -> None:
         if rep.deprecated:
             assert rep.mode in ("request", "donate", "wait")
             assert msg is None or isinstance(msg, RecoveryRequest) or msg.trajectory is None
+
+
+def test_the_reports_say_why_trackers_went_and_whether_a_request_was_answered() -> None:
+    cu = _cu(lazy=False)
+    cu.step(0, [])
+    _, rep = cu.step(1, [_state(i, 0) for i in range(3)])  # CU 1's message lost: a slot unaccounted for
+    assert rep.tracker_update.causes == (("slot", 0), ("slot", 1), ("slot", 2)) and rep.answered is None
+    assert rep.mode == "request"
+    asked = rep.uav_id
+    _, rep = cu.step(2, [_state(i, 1) for i in range(3) if i != asked] + [CuTrajectoryMessage(1, 1, _prio())])
+    assert rep.mode == "donate" and rep.answered is None  # the reply is sent in this round's donated slot
+    reply = RecoveryReply(asked, 0, 2, initial_trajectory(_cfg(), STARTS[asked]))
+    _, rep = cu.step(3, [reply, CuTrajectoryMessage(1, 2, _prio())])
+    assert rep.answered is True
+    # a state message naming a trajectory the tracker lacks
+    _, rep = cu.step(4, [_state(0, 3, UNKNOWN), _state(1, 3), _state(2, 3), CuTrajectoryMessage(1, 3, _prio())])
+    assert ("unnamed", 0) in rep.tracker_update.causes
+
+
+def test_the_summary_counts_where_the_cu_rounds_went() -> None:
+    cu = _cu(lazy=False)
+    reports = [cu.step(0, [])[1], cu.step(1, [_state(i, 0) for i in range(3)])[1]]
+    reports.append(cu.step(2, [CuTrajectoryMessage(1, 1, _prio())])[1])
+    s = summarize_reports(reports)
+    assert s["cu_rounds"] == 3 and sum(s["cu_modes"].values()) == 3
+    assert s["cu_modes"]["request"] == 1 and s["cu_modes"]["donate"] == 1
+    assert s["deprecations_by_cause"]["slot"] == 3 and s["rounds_all_deprecated"] == 1
+    assert s["recovery_answered"] == 0
