@@ -146,6 +146,11 @@ def build_parser() -> argparse.ArgumentParser:
         default=["fig4_swap", "fig3b_cus", "fig3c_triggers"], help="which of the paper's experiments (default all)",
     )  # fmt: skip
     em.add_argument("--seeds", type=int, default=1, help="runs per row (seeds 0..N-1)")
+    em.add_argument(
+        "--sweep", type=Path, default=None, metavar="FILE",
+        help="instead: a loss sweep file (data/sweeps/mlr/): swarm sizes, radios, MlrConfig variants, seeds",
+    )  # fmt: skip
+    em.add_argument("--jobs", type=int, default=1, help="with --sweep: runs in parallel processes")
     paper.add_parser(sub)
     ex = sub.add_parser("explain", help="re-fly every colliding flight of a sweep's store and name each collision's cause, per cell")
     ex.add_argument("sweep", type=Path, help="the sweep YAML the store was flown from")
@@ -329,7 +334,14 @@ def _cmd_eval_mlr(args: argparse.Namespace) -> int:
     from mpcde.evals.mlr import run_eval_mlr
 
     _at_least("--seeds", args.seeds, 1)
+    _at_least("--jobs", args.jobs, 1)
     _check_out_dir(args.out)
+    if args.sweep is not None:
+        from mpcde.evals.mlr_loss import load_loss_sweep, run_loss_sweep
+
+        run_loss_sweep(load_loss_sweep(args.sweep), args.out, args.jobs)  # prints its table
+        print(f"-> {args.out / 'results.json'}, {args.out / 'table.md'}, {args.out / 'arrivals.png'}")
+        return 0
     run_eval_mlr(args.out, seeds=args.seeds, experiments=tuple(dict.fromkeys(args.experiments)))  # prints its table
     print(f"-> {args.out / 'results.json'}")
     return 0

@@ -136,3 +136,46 @@ def test_the_summary_counts_where_the_cu_rounds_went() -> None:
     assert s["cu_modes"]["request"] == 1 and s["cu_modes"]["donate"] == 1
     assert s["deprecations_by_cause"]["slot"] == 3 and s["rounds_all_deprecated"] == 1
     assert s["recovery_answered"] == 0
+
+
+STARTS4 = np.array([[0.0, 0.0, 1.0], [1.5, 0.0, 1.0], [0.0, 1.5, 1.0], [1.5, 1.5, 1.0]])
+
+
+def _cu4(shared: bool) -> ComputeUnit:
+    cfg = MlrConfig(n_uavs=4, n_cus=3, horizon_rounds=5, shared_event_set=shared)
+    return ComputeUnit(cfg, 0, [initial_trajectory(cfg, p) for p in STARTS4], STARTS4 + 1.0)
+
+
+def _states4(k: int) -> list[UavStateMessage]:
+    return [UavStateMessage(i, k, STARTS4[i], np.zeros(3), STARTS4[i] + 1.0, INITIAL_ID) for i in range(4)]
+
+
+def _prio4() -> np.ndarray:
+    return np.full(4, 5, np.uint8)
+
+
+def test_a_shared_event_set_names_the_suspect_of_a_missed_slot_instead_of_every_tracker() -> None:
+    update, deprecated = {}, {}
+    for on in (False, True):
+        cu = _cu4(on)
+        cu.step(0, [])
+        # round 1: CU 1's round-0 message lost, so CU 0's own A_ET(1) is not formed from every slot
+        cu.step(1, _states4(0) + [CuTrajectoryMessage(2, 0, _prio4())])
+        # round 2: CU 2's round-1 message lost; CU 1 heard every slot of round 0 and says which A_ET(1) it formed
+        peer = CuTrajectoryMessage(1, 1, _prio4(), event_set=(3, 1, 2) if on else None)
+        _, rep = cu.step(2, _states4(1) + [peer])
+        update[on], deprecated[on] = rep.tracker_update, rep.deprecated
+    # round 1 deprecated every tracker; round 2's state messages restore them (step 1), and then
+    assert update[False].all_deprecated and deprecated[False] == (0, 1, 2, 3)  # the missed slot deprecates all again
+    # only the UAV CU 2 selected in round 1, rank (1 + 2) mod 3 of A_ET(1) = UAV 3, can have a trajectory CU 0 missed
+    assert not update[True].all_deprecated and deprecated[True] == (3,) and update[True].restored == (0, 1, 2)
+
+
+def test_a_cu_says_which_event_set_it_formed_only_when_it_heard_every_slot() -> None:
+    cu = _cu4(True)
+    msg, _ = cu.step(0, [])
+    assert msg.event_set is None  # the first round: there was no round before to hear
+    msg, _ = cu.step(1, _states4(0) + [CuTrajectoryMessage(1, 0, _prio4()), CuTrajectoryMessage(2, 0, _prio4())])
+    assert msg.event_set is not None and len(msg.event_set) == 3
+    msg, _ = cu.step(2, _states4(1) + [CuTrajectoryMessage(1, 1, _prio4())])  # CU 2's message lost
+    assert msg is None or msg.event_set is None
