@@ -19,6 +19,7 @@ import numpy as np
 from planners.limits import KinematicLimits, require_infinite_jerk
 from sim.checks import (
     ConfigError,
+    require_at_least,
     require_boolean,
     require_box,
     require_instance,
@@ -82,7 +83,17 @@ class AdmmFormationConfig:
             squared decision variable (paper Sec. 5.1: 1, tuned in
             {0.1, 1, 10, 100}; kept after the same sweep on our OCP,
             docs/results/admm_formation.md#figures-quoted-in-other-docstrings).
-        l_max: ADMM iterations per MPC step (paper Sec. 5.1: 5).
+        l_max: ADMM iterations per MPC step (paper Sec. 5.1: 5); with dSQP,
+            per SQP iteration (Algorithm 3 Step 5; Sec. 5.2: 3).
+        solver: ``"admm"`` (Algorithm 2: the convex OCP, no coupled
+            constraints) or ``"dsqp"`` (Algorithm 3: an outer SQP whose QPs
+            ADMM solves, with the minimum-distance constraints of Eq. 8
+            between neighbours, :mod:`planners.dmpc.admm.distance`).
+        sqp_iterations: q_max, dSQP's outer iterations per MPC step (Sec. 5.2: 5).
+        d_min_m: d of Eq. 8, the minimum ellipsoidal distance between
+            neighbours' planned positions [m] (Sec. 5.2: 0.4 m).
+        downwash: c >= 1 of Theta = diag(1, 1, c) in the distance (DMPC-Swarm
+            Eq. 2; 1 is the paper's Euclidean norm; chosen 2.0, our DMPC's).
         delay_compensation: paper Remark 1: u_i[0] is fixed to the input that
             is already being applied on [t, t + h) (decided in the previous
             step) and the step decides u_i[1], applied from t + h, so the
@@ -126,6 +137,10 @@ class AdmmFormationConfig:
     limits: KinematicLimits = KinematicLimits(2.0, 4.0)
     rho: float = 1.0
     l_max: int = 5
+    solver: str = "admm"
+    sqp_iterations: int = 5
+    d_min_m: float = 0.4
+    downwash: float = 2.0
     delay_compensation: bool = True
     warm_start: bool = True
     osqp_eps_abs: float = 1e-4
@@ -148,6 +163,11 @@ class AdmmFormationConfig:
         require_infinite_jerk(self.limits, "the double integrator's input is the acceleration")
         require_positive("rho", self.rho)
         require_integer_at_least("l_max", self.l_max, 1)
+        if self.solver not in ("admm", "dsqp"):
+            raise ConfigError("solver", self.solver, "one of admm, dsqp")
+        require_integer_at_least("sqp_iterations", self.sqp_iterations, 1)
+        require_positive("d_min_m", self.d_min_m)
+        require_at_least("downwash", self.downwash, 1.0)
         require_boolean("delay_compensation", self.delay_compensation)
         require_boolean("warm_start", self.warm_start)
         require_positive("osqp_eps_abs", self.osqp_eps_abs)
@@ -155,6 +175,11 @@ class AdmmFormationConfig:
         require_integer_at_least("osqp_max_iter", self.osqp_max_iter, 1)
         require_boolean("osqp_adaptive_rho", self.osqp_adaptive_rho)
         require_positive("osqp_rho", self.osqp_rho)
+
+    @property
+    def iterations_per_step(self) -> int:
+        """ADMM iterations of one MPC step: l_max, or q_max l_max with dSQP."""
+        return self.l_max * (self.sqp_iterations if self.solver == "dsqp" else 1)
 
     @property
     def horizon_s(self) -> float:

@@ -46,8 +46,26 @@ fixes u_i[0] = 0 (or ``input_now_world``).
 
 Measured (Tables 2-3 analogue, distance to the optimum, sweep): docs/results/admm_formation.md#benchmark-output.
 
-Left out: coupled constraints (1f) such as minimum distances (the paper's
-Sec. 5.2 needs dSQP for them); lost or late messages (Assumption 1 is
+**dSQP** (Algorithm 3, ``config.solver == "dsqp"``). With the Gauss-Newton
+Hessian (Remark 4) and a quadratic f_i, dSQP's QP (6) is the ADMM QP with the
+minimum-distance rows of Eq. 8 linearised at the SQP iterate
+(:mod:`planners.dmpc.admm.local_qp`). Its inner ADMM (Steps 4-13) is
+Algorithm 2 on the step Delta z = z - z^q with Delta zbar^0 = 0; in absolute
+variables that is zbar^0 = z^q, the averaging and the multiplier update
+unchanged (the projection onto ker E is linear and z^q is in it), and Step 14,
+z^{q+1} = z^q + Delta zbar, is the current zbar; gamma is carried across SQP
+iterations (Step 14). So an MPC step runs q_max l_max ADMM iterations, and
+every l_max of them (at the start of each SQP iteration) the drone
+re-linearises the distance rows of the pairs it holds
+(:func:`planners.dmpc.admm.distance.owned_partners`) at its zbar, which the
+last averaging made consensual. In a cold step (no warm start) the copies are
+guesses (each neighbour where it would be in formation), so the first SQP
+iteration leaves the rows free and linearises from the second on. The
+messages are ADMM's: nothing more per SQP iteration. Eq. 7's dynamic
+stopping test needs network-wide norms and is not run onboard: q_max and
+l_max are fixed, as in the paper's experiments (Sec. 5.3).
+
+Left out: lost or late messages (Assumption 1 is
 assumed here, :func:`solve_admm_round` is the ideal network;
 :mod:`mpcde.onboard.admm` flies over a lossy radio with
 :meth:`AdmmFormationAgent.add_to_copy_multiplier`); the triple integrator.
@@ -62,6 +80,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from planners.dmpc.admm.config import AdmmFormationConfig
+from planners.dmpc.admm.distance import owned_partners
 from planners.dmpc.admm.local_qp import LocalAdmmQp
 from planners.dmpc.admm.ocp import DroneLayout, shift_decision, shift_dual
 from planners.dmpc.admm.types import AdmmStepResult, CopyMessage, MeanMessage
@@ -87,7 +106,9 @@ class AdmmFormationAgent:
         if self.drone_id in neighbour_offsets:
             raise ValueError(f"neighbour_offsets: drone {self.drone_id} lists itself as a neighbour")
         self.config = config
-        self._qp = LocalAdmmQp(config, self.drone_id, dict(neighbour_offsets))
+        partners = owned_partners(self.drone_id, neighbour_offsets) if config.solver == "dsqp" else ()
+        self._qp = LocalAdmmQp(config, self.drone_id, dict(neighbour_offsets), partners)
+        self._cold = True  # the current step started without a warm start
         self._offsets = {int(j): np.asarray(d, float).reshape(3) for j, d in neighbour_offsets.items()}
         self._z: np.ndarray | None = None  # z_i^l (n_i,)
         self._zbar: np.ndarray | None = None  # zbar_i^l (n_i,)
@@ -202,6 +223,7 @@ class AdmmFormationAgent:
             gamma = np.zeros(lay.size)  # satisfies Eq. (5)
             self._qp.warm_start(zbar, np.zeros(self._qp.A.shape[0]))
         self._zbar, self._gamma = zbar, gamma
+        self._cold = not warm
         self._state, self._t0_s = state.copy(), float(t_now_s)
         self._bounds_pending = True
         self._phase = "local"
@@ -212,6 +234,8 @@ class AdmmFormationAgent:
         """Step 3 (Eq. 4a: local QP with OSQP) and Step 4 (send each copy w_ji to its owner j)."""
         self._expect("local")
         t0 = time.perf_counter()
+        if self._qp.distance is not None and self.iteration % self.config.l_max == 0:  # dSQP Step 3: linearise at z^q
+            self._qp.linearise(self._zbar, free=self._cold and self.iteration == 0)
         sol, y = self._qp.solve(self._gamma, self._zbar, update_bounds=self._bounds_pending)
         t1 = time.perf_counter()
         self._bounds_pending = False
@@ -357,7 +381,8 @@ def solve_admm_round(agents: Sequence[AdmmFormationAgent], l_max: int | None = N
     Args:
         agents: one agent per drone, unique ids; the neighbour lists must be
             symmetric (j is a neighbour of i iff i is one of j).
-        l_max: iterations to run (default: ``config.l_max`` of the first agent).
+        l_max: iterations to run (default: ``config.iterations_per_step`` of the
+            first agent: l_max, or q_max l_max with dSQP).
 
     Returns:
         one :class:`AdmmStepResult` per agent, in the order of ``agents``.
@@ -369,7 +394,7 @@ def solve_admm_round(agents: Sequence[AdmmFormationAgent], l_max: int | None = N
         for j in a.neighbour_ids:
             if j not in by_id or a.drone_id not in by_id[j].neighbour_ids:
                 raise ValueError(f"agents: drone {a.drone_id} lists {j} as a neighbour but not the reverse")
-    iterations = agents[0].config.l_max if l_max is None else int(l_max)
+    iterations = agents[0].config.iterations_per_step if l_max is None else int(l_max)
     if iterations < 1:
         raise ValueError(f"l_max={l_max!r}: an integer >= 1")
     for _ in range(iterations):

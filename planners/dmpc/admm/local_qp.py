@@ -23,6 +23,16 @@ Remark 1, inequalities in every step without; the free k = 1 soft rows stay
 free), and OSQP's adaptive step size is off by default (``osqp_adaptive_rho``;
 ``rho_updates`` counts its refactorisations when on), so no call refactorises.
 The unit tests hold this with a recording proxy around the solver object.
+
+**dSQP** (Algorithm 3) adds the linearised minimum-distance rows of the pairs
+the drone holds (:class:`planners.dmpc.admm.distance.DistanceRows`) below the
+own rows. With the Gauss-Newton Hessian (Remark 4) and f_i quadratic, QP (6)
+in the step Delta z is this same QP in z = z^q + Delta z (the cost
+1/2 Dz' H Dz + grad f(z^q)' Dz is f_i(z^q + Dz) - f_i(z^q), the linear rows
+are exact), so dSQP's local QP is the ADMM one with those rows:
+:meth:`LocalAdmmQp.linearise` writes their values at the SQP iterate (one
+OSQP matrix update, hence one refactorisation, per SQP iteration); an ADMM
+iteration still changes only q.
 """
 
 from __future__ import annotations
@@ -34,8 +44,10 @@ import osqp
 import scipy.sparse as sp
 
 from planners.dmpc.admm.config import AdmmFormationConfig
+from planners.dmpc.admm.distance import DistanceRows
 from planners.dmpc.admm.ocp import DroneLayout, own_bounds, own_constraint_matrix, own_cost
 from planners.dmpc.sparse_qp.osqp_core import solver_core
+from planners.dmpc.sparse_qp.pattern import SparsePattern
 
 __all__ = ["AdmmLocalQpError", "LocalAdmmQp", "LocalSolve"]
 
@@ -90,17 +102,35 @@ class LocalAdmmQp:
         config: the settings.
         drone_id: i (for error messages).
         neighbour_offsets: {j: d_ij (3,)} desired p_i - p_j [m] per neighbour.
+        distance_partners: the neighbours whose minimum-distance rows this
+            drone holds (dSQP; :func:`planners.dmpc.admm.distance.owned_partners`),
+            () for ADMM without them.
     """
 
-    def __init__(self, config: AdmmFormationConfig, drone_id: int, neighbour_offsets: dict[int, np.ndarray]) -> None:
+    def __init__(self, config: AdmmFormationConfig, drone_id: int, neighbour_offsets: dict[int, np.ndarray],
+                 distance_partners: tuple[int, ...] = ()) -> None:  # fmt: skip
         self.config = config
         self.drone_id = int(drone_id)
         self.layout = DroneLayout(config.horizon_steps, tuple(sorted(neighbour_offsets)))
         lay, K = self.layout, config.horizon_steps
         self._offsets = {j: np.asarray(neighbour_offsets[j], float).reshape(3) for j in lay.neighbour_ids}
         n, n_own = lay.size, lay.own_size
-        A_own = own_constraint_matrix(config)
-        self.A = sp.hstack([A_own, sp.csc_matrix((A_own.shape[0], n - n_own))], format="csc")
+        A_own = own_constraint_matrix(config).tocoo()
+        self.distance = None
+        if distance_partners:
+            self.distance = DistanceRows(lay, tuple(distance_partners), config.d_min_m, config.downwash,
+                                         first_step_free=config.delay_compensation)  # fmt: skip
+        pattern = SparsePattern()
+        pattern.add(A_own.row, A_own.col, A_own.data)
+        m_own = A_own.shape[0]
+        rows = m_own
+        if self.distance is not None:
+            self._distance_slice = self.distance.add_to(pattern, m_own)
+            rows += self.distance.count
+        self.A, self._coo_to_csc = pattern.to_csc((rows, n))
+        self._m_own = m_own
+        self._distance_free = True  # until the first linearisation
+        self._bounds_dirty = False  # bounds changed since they were last sent to OSQP
         H_own, _, _ = own_cost(config, np.zeros((K, 3)))
         # Half of each edge's formation term (module docstring): (w_f/2) ||p - w_j - d||^2
         # -> Hessian w_f [I, -I; -I, I] on (p, w_j).
@@ -117,7 +147,9 @@ class LocalAdmmQp:
         self.P = sp.triu(self.H + config.rho * sp.eye(n), format="csc")  # H_i + rho I  (4a)
         self.g = np.zeros(n)
         self.cost_constant = 0.0
-        self.lower, self.upper = own_bounds(config, np.zeros(6), np.zeros(3) if config.delay_compensation else None)
+        self.lower, self.upper = self._with_distance_bounds(
+            *own_bounds(config, np.zeros(6), np.zeros(3) if config.delay_compensation else None)
+        )
         self._q = np.zeros(n)
         solver = osqp.OSQP()
         solver.setup(
@@ -143,7 +175,7 @@ class LocalAdmmQp:
             input_now_world: (3,) u(t) [m/s^2] fixing u[0] (Remark 1), or None.
         """
         cfg, lay = self.config, self.layout
-        self.lower, self.upper = own_bounds(cfg, state_world, input_now_world)
+        self.lower, self.upper = self._with_distance_bounds(*own_bounds(cfg, state_world, input_now_world))
         _, g_own, c_own = own_cost(cfg, reference_world)
         g = np.zeros(lay.size)
         g[: lay.own_size] = g_own
@@ -155,6 +187,30 @@ class LocalAdmmQp:
             g[lay.copy(j)] += w_f * d_k
             c += 0.5 * float(np.sum(w_f * d_k**2))
         self.g, self.cost_constant = g, c
+
+    def _with_distance_bounds(self, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.distance is None:
+            return lower, upper
+        d_lo, d_hi = self.distance.bounds(free=self._distance_free)
+        return np.r_[lower, d_lo], np.r_[upper, d_hi]
+
+    def linearise(self, zbar: np.ndarray, free: bool = False, fallback_world: np.ndarray | None = None) -> None:
+        """dSQP Algorithm 3 Step 3: the distance rows linearised at the iterate ``zbar`` (n_i,).
+
+        Sends the new matrix values to OSQP now (one refactorisation) and the
+        rows' bounds with the next solve; ``free`` leaves every distance row
+        unbounded (a cold step's first SQP iteration, whose copies are
+        guesses). ``fallback_world`` (3,): direction for coinciding plans.
+        """
+        if self.distance is None:
+            raise RuntimeError(f"drone {self.drone_id}: no distance rows (ADMM without dSQP)")
+        data = self.A.data
+        data[self._coo_to_csc[self._distance_slice]] = self.distance.values(zbar, fallback_world)
+        self._core.update_data_mat(P_x=None, P_i=None, A_x=data, A_i=None)
+        if bool(free) != self._distance_free:
+            self._distance_free = bool(free)
+            self.lower[self._m_own :], self.upper[self._m_own :] = self.distance.bounds(free=self._distance_free)
+            self._bounds_dirty = True
 
     def warm_start(self, x: np.ndarray, y: np.ndarray) -> None:
         """Start OSQP's next solve from primal ``x`` (n_i,) and dual ``y`` (m_i,)."""
@@ -180,8 +236,9 @@ class LocalAdmmQp:
         q = self._q
         np.subtract(self.g + gamma, self.config.rho * zbar, out=q)  # q = g_i + gamma - rho zbar  (4a)
         core = self._core
-        if update_bounds:
+        if update_bounds or self._bounds_dirty:
             core.update_data_vec(q=q, l=self.lower, u=self.upper)
+            self._bounds_dirty = False
         else:
             core.update_data_vec(q=q, l=None, u=None)
         core.solve()
