@@ -43,7 +43,7 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || [ requirements-lock.t
     # CPU index (README).
     pip_install "torch==2.13.0"
     # Every other dependency at the version in requirements-lock.txt (why: that file's header).
-    pip_install -c requirements-lock.txt -e ".[dev,ray,env]"
-    "$VENV/bin/python" -c "import torch, pybullet, open3d, osqp, filterpy, cv2, imageio_ffmpeg, ray, hypothesis, pettingzoo, gymnasium; print('[setup] torch', torch.__version__, '| pybullet ok | open3d', open3d.__version__)"
+    pip_install -c requirements-lock.txt -e ".[dev,ray,env,nlp]"
+    "$VENV/bin/python" -c "import torch, pybullet, open3d, osqp, filterpy, cv2, imageio_ffmpeg, ray, hypothesis, pettingzoo, gymnasium, casadi; print('[setup] torch', torch.__version__, '| pybullet ok | open3d', open3d.__version__)"
     touch "$stamp"
 fi

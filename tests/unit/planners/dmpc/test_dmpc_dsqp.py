@@ -94,3 +94,39 @@ def test_the_sqp_outer_loop_on_a_two_robot_swap_meets_the_distance_within_its_sl
     assert res[0].iterations == 200 and max(r.primal_residual[-1] for r in res) < 2e-3  # consensus reached
     plain, _ = _swap(AdmmFormationConfig(solver="admm", rho=100.0, l_max=200))
     assert plain.min() < 0.2  # the ADMM without the constraint flies them within 0.2 m
+
+
+def test_the_nlp_reference_is_the_centralized_qp_where_no_distance_binds():
+    """IPOPT on the non-convex OCP = OSQP on the convex one when every pair stays far apart (same assembly)."""
+    from planners.dmpc.admm.centralized import centralized_formation_qp
+    from planners.dmpc.admm.centralized_nlp import centralized_formation_nlp
+    from planners.dmpc.formation_graph import FormationGraph
+
+    cfg = AdmmFormationConfig(solver="dsqp")
+    slots = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]])
+    graph = FormationGraph(slots, ((0, 1), (0, 2), (1, 2)))
+    rng = np.random.default_rng(2)
+    states = np.c_[slots + rng.uniform(-0.3, 0.3, (3, 3)) + [0.0, 0.0, 1.5], rng.uniform(-0.5, 0.5, (3, 3))]
+    refs = np.stack([np.tile(s + [1.0, 0.5, 1.5], (cfg.horizon_steps, 1)) for s in slots])
+    u_now = rng.uniform(-1.0, 1.0, (3, 3))
+    qp = centralized_formation_qp(cfg, graph, states, refs, u_now)
+    nlp = centralized_formation_nlp(cfg, graph, states, refs, u_now)
+    assert nlp.success and abs(nlp.cost - qp.cost) <= 1e-6 * qp.cost
+    assert np.abs(nlp.acc_world - qp.acc_world).max() < 1e-4
+
+
+def test_the_nlp_reference_keeps_the_swap_apart_where_the_qp_does_not():
+    from planners.dmpc.admm.centralized import centralized_formation_qp
+    from planners.dmpc.admm.centralized_nlp import centralized_formation_nlp
+    from planners.dmpc.formation_graph import FormationGraph
+
+    cfg = AdmmFormationConfig(solver="dsqp")
+    goals = np.array([[1.0, 0.0, 1.5], [-1.0, 0.0, 1.5]])
+    states = np.c_[[[-1.0, 0.05, 1.5], [1.0, -0.05, 1.5]], np.zeros((2, 3))]
+    refs = np.stack([np.tile(g, (cfg.horizon_steps, 1)) for g in goals])
+    graph = FormationGraph(goals - goals.mean(axis=0), ((0, 1),))
+    nlp = centralized_formation_nlp(cfg, graph, states, refs, np.zeros((2, 3)))
+    qp = centralized_formation_qp(cfg, graph, states, refs, np.zeros((2, 3)))
+    gap = lambda pos: np.linalg.norm((pos[0] - pos[1]) * THETA_INV, axis=1)[2:].min()  # noqa: E731
+    assert nlp.success and gap(nlp.pos_world) >= cfg.d_min_m - nlp.slack[1] - 1e-6 and nlp.slack[1] < 0.01
+    assert gap(qp.pos_world) < 0.2 and nlp.cost > qp.cost  # the constraint costs: the QP's optimum is not feasible
