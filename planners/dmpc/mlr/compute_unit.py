@@ -189,12 +189,9 @@ class ComputeUnit:
                 if not (v == w or v in cu_msgs or v in replies or v in self._heard_requests)
             ]
             suspects: set[int] = set()
-            a_et_prev = self._a_et_prev
-            if a_et_prev is None and cfg.shared_event_set:  # a peer that heard every slot of round k - 2 formed it
-                a_et_prev = next((m.event_set for m in cu_msgs.values() if m.event_set is not None), None)
-            if missed and cfg.precise_cu_loss and a_et_prev is not None:
+            if missed and cfg.precise_cu_loss and self._a_et_prev is not None:
                 # Only the UAV that CU v selected in round k - 1 can have a trajectory this CU missed.
-                suspects = {selected_uav(a_et_prev, k - 1, v, cfg.n_cus) for v in missed}
+                suspects = {selected_uav(self._a_et_prev, k - 1, v, cfg.n_cus) for v in missed}
             update = self.trackers.update(
                 {i: m.following for i, m in states.items()}, new,
                 {r.uav_id: r.trajectory for r in replies.values()}, not missed or bool(suspects), suspects,
@@ -207,7 +204,6 @@ class ComputeUnit:
         a_et = event_set(unified, cfg.n_cus)
         # A_ET(k) is every computing CU's A_ET(k) when this CU heard every CU slot of round k - 1 (see step 1b).
         self._a_et_prev = a_et if k != self.first_round and not self.ignore_message_loss and not missed else None
-        shared = {"event_set": self._a_et_prev} if cfg.shared_event_set else {}
 
         deprecated = self.trackers.deprecated_ids
         if self._donate_now:  # Alg. 1 Line 30: the slot belongs to the requested UAV this round
@@ -217,10 +213,10 @@ class ComputeUnit:
         if deprecated and not self.ignore_message_loss:  # MLR, Lines 22-32
             uav = self._recovery_target(k, deprecated, update)
             if uav is None:  # wait a round (lazy recovery): metadata or another CU's reply restores them
-                msg = CuTrajectoryMessage(w, k, self._priorities(k, None), **self._repeat(own), **shared)
+                msg = CuTrajectoryMessage(w, k, self._priorities(k, None), **self._repeat(own))
                 self._own_last = msg
                 return msg, CuStepReport(k, "wait", None, a_et, deprecated, update, answered=answered)
-            msg = RecoveryRequest(w, k, self._priorities(k, None), uav, **shared)
+            msg = RecoveryRequest(w, k, self._priorities(k, None), uav)
             self._asked_now = uav
             self._donate_now = True
             self._own_last = msg
@@ -234,9 +230,9 @@ class ComputeUnit:
             except DmpcSolveError:
                 mode = "failed"
         if result is None:
-            msg = CuTrajectoryMessage(w, k, self._priorities(k, None), **self._repeat(own), **shared)
+            msg = CuTrajectoryMessage(w, k, self._priorities(k, None), **self._repeat(own))
         else:
-            msg = CuTrajectoryMessage(w, k, self._priorities(k, uav), uav, result.trajectory, **self._repeat(own), **shared)
+            msg = CuTrajectoryMessage(w, k, self._priorities(k, uav), uav, result.trajectory, **self._repeat(own))
         self._own_last = msg
         return msg, CuStepReport(k, mode, uav if mode != "idle" else None, a_et, deprecated, update, result, answered)
 

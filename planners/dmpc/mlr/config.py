@@ -124,17 +124,6 @@ class MlrConfig:
             to deprecated trackers, so Lemma 1 and the collision argument are
             untouched (:mod:`planners.dmpc.mlr.tracker`, step 0). Measured:
             docs/results/mlr_dmpc.md#the-16-uav-swap-under-loss-with-every-default.
-        shared_event_set: every CU message carries the A_ET(k) its CU formed
-            when it formed it from every CU slot of round k - 1
-            (``CuTrajectoryMessage.event_set``). A CU that missed a slot of
-            round k, and whose own A_ET(k) was not formed from every slot,
-            takes A_ET(k) from such a message to name the one UAV the missed
-            message can have carried (``precise_cu_loss``) instead of
-            deprecating every tracker. Sound because a CU computes only with no
-            tracker deprecated, hence only after hearing every slot of the
-            round before, so every computing CU and every CU that heard every
-            slot formed A_ET(k) from the same priority vectors (Eq. 11). Not
-            in DMPC-Swarm (a protocol change of M indices per message).
         soft_rotation: the Appendix's B4 soft constraint: every BVC row of
             another trajectory is tightened by a slack eps >= 0 that the cost
             rewards (linear reward, small quadratic), more for a UAV to the
@@ -194,7 +183,6 @@ class MlrConfig:
     precise_cu_loss: bool = True
     keep_ambiguous: bool = True
     repeat_trajectory: bool = True
-    shared_event_set: bool = False
     soft_rotation: bool = True
     soft_weight: float = 0.5
     soft_weight_right: float = 2.0
@@ -240,7 +228,6 @@ class MlrConfig:
         require_boolean("precise_cu_loss", self.precise_cu_loss)
         require_boolean("keep_ambiguous", self.keep_ambiguous)
         require_boolean("repeat_trajectory", self.repeat_trajectory)
-        require_boolean("shared_event_set", self.shared_event_set)
         require_boolean("soft_rotation", self.soft_rotation)
         for name in ("soft_weight", "soft_weight_right"):
             require_non_negative(name, getattr(self, name))

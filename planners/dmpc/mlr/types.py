@@ -73,10 +73,6 @@ class CuTrajectoryMessage:
             sent again so that a CU that lost that message gets it one round
             late (:mod:`planners.dmpc.mlr.tracker`, step 0); None otherwise.
             Not in DMPC-Swarm: it doubles the message's trajectory payload.
-        event_set: with ``MlrConfig.shared_event_set``, A_ET(k) as this CU
-            formed it, when it formed it from every CU slot of round k - 1
-            (then it is every computing CU's A_ET(k)); None otherwise. Not in
-            DMPC-Swarm: M UAV indices more per message.
     """
 
     cu_id: int
@@ -86,7 +82,6 @@ class CuTrajectoryMessage:
     trajectory: ReferenceTrajectory | None = None
     repeat_uav_id: int | None = None
     repeat_trajectory: ReferenceTrajectory | None = None
-    event_set: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         _frozen_vector(self, "priorities", dtype=np.uint8)
@@ -107,14 +102,12 @@ class RecoveryRequest:
         round_index: k.
         priorities: (N,) uint8 J_{i,w}(k) (the CU still takes part in the consensus).
         uav_id: the UAV whose trajectory is requested.
-        event_set: as :attr:`CuTrajectoryMessage.event_set`.
     """
 
     cu_id: int
     round_index: int
     priorities: np.ndarray
     uav_id: int
-    event_set: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         _frozen_vector(self, "priorities", dtype=np.uint8)

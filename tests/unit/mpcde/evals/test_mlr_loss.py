@@ -37,7 +37,7 @@ def _write(tmp_path: Path, text: str) -> Path:
     [
         (("uavs: [3]", "uavs: [3], speed: 2"), "swarm.speed=2: unknown key"),
         (("loss_probability: 0.3", "loss_probability: 1.5"), "conditions.lossy.loss_probability=1.5: "),
-        (("mlr: {}", "mlr: {shared_event_set: 1}"), "variants.plain.mlr.shared_event_set=1: "),
+        (("mlr: {}", "mlr: {repeat_trajectory: 1}"), "variants.plain.mlr.repeat_trajectory=1: "),
         (("mlr: {}", "mlr: {n_uavs: 5}"), "variants.plain.mlr.n_uavs=5: unknown key"),
         (("mlr: {}", "mlr: {soft_weight: -1.0}"), "variants.plain.mlr.soft_weight=-1.0: "),
         (("compute_units: 2", "compute_units: 3"), "variants.plain.compute_units=3: an integer < swarm.uavs = 3"),
@@ -59,7 +59,9 @@ def test_the_cli_refuses_it_with_exit_status_2_and_writes_nothing(tmp_path, caps
 
 
 def test_the_kept_sweep_files_load():
-    for path in sorted((ROOT / "data" / "sweeps" / "mlr").glob("*.yaml")):
+    paths = sorted((ROOT / "data" / "sweeps" / "mlr").glob("*.yaml"))
+    assert paths
+    for path in paths:
         sweep = load_loss_sweep(path)
         assert sweep.runs() and len(sweep.seeds) >= 10
 
