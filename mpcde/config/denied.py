@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from perception.map_config import MapConfig
 from planners.limits import KinematicLimits, require_infinite_jerk
@@ -59,7 +60,8 @@ class DeniedAgentConfig:
             neighbour in its way unless the neighbour moved there since, so it removes the contacts of
             drones that close outside each other's view (docs/results/safety.md#look-before-moving). inf (default): off,
             the paper's stack.
-        fresh_path_half_width_m: half width [m] of that corridor.
+        fresh_path_half_width_m: half width [m] of that corridor (a class constant, as the next three and
+            ``fresh_path_glance_distance_m``: no scenario or sweep sets them).
         fresh_path_near_m: the corridor starts this far ahead along the path [m] (the space the drone
             is already in is never seen again: the camera's minimum range).
         fresh_path_distance_m: the corridor ends this far beyond the stopping distance v^2 / a_max [m].
@@ -90,12 +92,12 @@ class DeniedAgentConfig:
     flight_level_spacing_m: float = float("inf")
     flight_level_release_m: float = 1.0
     fresh_path_age_s: float = float("inf")
-    fresh_path_half_width_m: float = 0.25
-    fresh_path_near_m: float = 0.3
-    fresh_path_distance_m: float = 1.0
-    fresh_path_rest_s: float = 2.0
+    fresh_path_half_width_m: ClassVar[float] = 0.25
+    fresh_path_near_m: ClassVar[float] = 0.3
+    fresh_path_distance_m: ClassVar[float] = 1.0
+    fresh_path_rest_s: ClassVar[float] = 2.0
     fresh_path_glance_age_s: float = 0.5
-    fresh_path_glance_distance_m: float = 2.0
+    fresh_path_glance_distance_m: ClassVar[float] = 2.0
     map: MapConfig = field(default_factory=MapConfig)
     yaw: YawPlannerConfig = field(default_factory=YawPlannerConfig)
 
@@ -110,11 +112,7 @@ class DeniedAgentConfig:
         require_positive("flight_level_spacing_m", self.flight_level_spacing_m, "m", inf_means="no flight levels")
         require_non_negative("flight_level_release_m", self.flight_level_release_m, "m")
         require_positive("fresh_path_age_s", self.fresh_path_age_s, "s", inf_means="no look before moving")
-        for name in ("fresh_path_half_width_m", "fresh_path_near_m", "fresh_path_distance_m"):
-            require_non_negative(name, getattr(self, name), "m")
-        require_positive("fresh_path_rest_s", self.fresh_path_rest_s, "s")
         require_positive("fresh_path_glance_age_s", self.fresh_path_glance_age_s, "s", inf_means="no glances")
-        require_non_negative("fresh_path_glance_distance_m", self.fresh_path_glance_distance_m, "m")
         require_at_least("swarm_z_scale", self.swarm_z_scale, 1.0)
         require_boolean("perceive_neighbours", self.perceive_neighbours)
         require_boolean("active_yaw", self.active_yaw)

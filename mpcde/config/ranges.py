@@ -77,9 +77,8 @@ RANGES: dict[type, dict[str, B]] = {
         "start_delay_s": B(0, 60, "s"), "swarm_clearance_m": B(0, 10, "m"), "swarm_z_scale": B(0.1, 10),
         "conflict_horizon_s": B(0, 30, "s"),
         "flight_level_spacing_m": B(0.05, 5, "m", inf="no flight levels"), "flight_level_release_m": B(0, 50, "m"),
-        "fresh_path_age_s": B(0.01, 60, "s", inf="no look before moving"), "fresh_path_half_width_m": B(0, 5, "m"),
-        "fresh_path_near_m": B(0, 10, "m"), "fresh_path_distance_m": B(0, 20, "m"), "fresh_path_rest_s": B(0.01, 60, "s"),
-        "fresh_path_glance_age_s": B(0.01, 60, "s", inf="no glances"), "fresh_path_glance_distance_m": B(0, 20, "m"),
+        "fresh_path_age_s": B(0.01, 60, "s", inf="no look before moving"),
+        "fresh_path_glance_age_s": B(0.01, 60, "s", inf="no glances"),
     },
     KinematicLimits: {
         "v_max_mps": B(0, 20, "m/s"), "a_max_mps2": B(0, 100, "m/s^2"), "j_max_mps3": B(0, 1000, "m/s^3", inf="no jerk limit"),

@@ -107,7 +107,7 @@ def test_a_stale_point_begins_a_hold_an_ageing_one_a_glance_and_neither_while_gl
 
 
 def test_a_point_not_refreshed_by_the_look_at_it_rests_the_check_for_the_rest_time():
-    watch = _watch(fresh_path_rest_s=2.0)
+    watch = _watch()  # fresh_path_rest_s: 2 s
     point = np.array([1.0, 0.0, 1.5])
     assert watch.begin(0.0, point, stop=True) is not None
     watch.end()
