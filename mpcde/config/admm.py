@@ -28,6 +28,7 @@ __all__ = ["EXCHANGES_PER_ITERATION", "AdmmAgentConfig", "GraphKind"]
 EXCHANGES_PER_ITERATION = 2  # Algorithm 2: copies (Step 4), then means (Step 6)
 
 GraphKind = Literal["complete", "ring"]
+SolverKind = Literal["admm", "dsqp"]
 
 
 _PLANNER = AdmmFormationConfig()  # the planner's defaults, which this section mirrors
@@ -44,9 +45,16 @@ class AdmmAgentConfig:
     Attributes:
         horizon_steps: K, prediction steps (our DMPC: 15).
         step_s: h, prediction step and MPC sampling interval [s] (paper Sec. 5.1: 0.2 s).
-        l_max: ADMM iterations per MPC step (paper Sec. 5.1: 5). Each takes
-            two radio sub-rounds (copies, then means), so the radio runs at
-            2 l_max / h (default 50 Hz).
+        l_max: ADMM iterations per MPC step (paper Sec. 5.1: 5), per SQP
+            iteration with dSQP. Each takes two radio sub-rounds (copies,
+            then means), so the radio runs at 2 x the iterations per step / h
+            (default 50 Hz).
+        solver: ``"admm"`` (Algorithm 2, no distance constraints) or
+            ``"dsqp"`` (Algorithm 3: the minimum-distance constraints of Eq. 8
+            between every pair of neighbours, :mod:`planners.dmpc.admm.distance`).
+        sqp_iterations: q_max, dSQP's outer iterations per MPC step (Sec. 5.2: 5).
+        d_min_m: d of Eq. 8 [m] (Sec. 5.2: 0.4 m), with ``solver: dsqp``.
+        downwash: c of the distance's Theta = diag(1, 1, c), with ``solver: dsqp``.
         rho: ADMM penalty rho (paper Sec. 5.1: 1).
         weight_formation: q_f on ||(p_i - p_j) - d_ij||^2 per edge, k < K [1/m^2].
         weight_tracking: q_g on ||p_i - r_i||^2, the drone's own reference, k < K [1/m^2].
@@ -72,11 +80,12 @@ class AdmmAgentConfig:
             ``radio.rate_hz`` is set to 2 l_max / h, one radio sub-round per
             exchange (so a file written for DMPC's 5 Hz flies ADMM too);
             false: the file's ``radio.rate_hz`` must already equal it.
-        max_start_offset_m: the planner has no collision avoidance: every
-            start must lie within this of its slot in the goals' formation
-            moved to the starts' centroid [m] (chosen: 0.5 m, a few robot
-            radii), else the scenario is refused. Keeping the formation then
-            keeps the drones apart.
+        max_start_offset_m: with ``solver: admm`` the planner has no
+            collision avoidance: every start must lie within this of its slot
+            in the goals' formation moved to the starts' centroid [m] (chosen:
+            0.5 m, a few robot radii), else the scenario is refused. Keeping
+            the formation then keeps the drones apart. dSQP keeps them apart
+            itself, so it flies any start.
         state_tolerance_m: a step starts from the own plan's state when the
             pose estimate is within this of it [m], else from the estimate
             (0 = always the estimate). The DMPC agent's rule and default,
@@ -88,6 +97,10 @@ class AdmmAgentConfig:
     horizon_steps: int = _PLANNER.horizon_steps
     step_s: float = _PLANNER.step_s
     l_max: int = _PLANNER.l_max
+    solver: SolverKind = "admm"
+    sqp_iterations: int = _PLANNER.sqp_iterations
+    d_min_m: float = _PLANNER.d_min_m
+    downwash: float = _PLANNER.downwash
     rho: float = _PLANNER.rho
     weight_formation: float = _PLANNER.weight_formation
     weight_tracking: float = _PLANNER.weight_tracking
@@ -106,7 +119,7 @@ class AdmmAgentConfig:
     state_tolerance_mps: float = TOLERANCE_MPS
 
     def __post_init__(self) -> None:
-        for name, low in (("horizon_steps", 2), ("l_max", 1)):
+        for name, low in (("horizon_steps", 2), ("l_max", 1), ("sqp_iterations", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise ConfigError(name, value, f"an integer >= {low}")
@@ -136,19 +149,24 @@ class AdmmAgentConfig:
                 raise ConfigError(name, getattr(self, name), "true or false")
 
     @property
+    def iterations_per_step(self) -> int:
+        """ADMM iterations of one MPC step: l_max, or q_max l_max with dSQP."""
+        return self.l_max * (self.sqp_iterations if self.solver == "dsqp" else 1)
+
+    @property
     def radio_rate_hz(self) -> float:
-        """The radio rate ADMM needs [Hz]: 2 l_max exchanges per step h."""
-        return EXCHANGES_PER_ITERATION * self.l_max / self.step_s
+        """The radio rate the formation DMPC needs [Hz]: 2 exchanges per ADMM iteration, per step h."""
+        return EXCHANGES_PER_ITERATION * self.iterations_per_step / self.step_s
 
     @property
     def sub_round_s(self) -> float:
-        """One radio sub-round [s]: h / (2 l_max)."""
-        return self.step_s / (EXCHANGES_PER_ITERATION * self.l_max)
+        """One radio sub-round [s]: h / (2 x iterations per step)."""
+        return self.step_s / (EXCHANGES_PER_ITERATION * self.iterations_per_step)
 
     @property
     def rounds_per_step(self) -> int:
-        """Radio sub-rounds per MPC step: 2 l_max."""
-        return EXCHANGES_PER_ITERATION * self.l_max
+        """Radio sub-rounds per MPC step: 2 x iterations per step."""
+        return EXCHANGES_PER_ITERATION * self.iterations_per_step
 
     def box_world(self, arena_size_m: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
         """(lower (3,), upper (3,)) corners of the soft position box [m] in an arena of ``arena_size_m`` (x, y) [m]."""
@@ -172,7 +190,8 @@ class AdmmAgentConfig:
             weight_terminal_formation=self.weight_terminal_formation,
             weight_terminal_tracking=self.weight_terminal_tracking, weight_slack=self.weight_slack,
             pos_min_world=tuple(float(v) for v in lo), pos_max_world=tuple(float(v) for v in hi), limits=self.limits,
-            rho=self.rho, l_max=self.l_max, delay_compensation=True, warm_start=self.warm_start,
+            rho=self.rho, l_max=self.l_max, delay_compensation=True, warm_start=self.warm_start, solver=self.solver,
+            sqp_iterations=self.sqp_iterations, d_min_m=self.d_min_m, downwash=self.downwash,
         )  # fmt: skip
 
     def formation(self, goals_world: np.ndarray) -> FormationGraph:

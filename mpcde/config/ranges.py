@@ -118,6 +118,7 @@ RANGES: dict[type, dict[str, B]] = {
     },
     AdmmAgentConfig: {
         "horizon_steps": B(1, 100), "step_s": B(0.01, 5, "s"), "l_max": B(1, 100), "rho": B(0, 1e6),
+        "sqp_iterations": B(1, 100), "d_min_m": B(0, 10, "m"), "downwash": B(1, 10),
         "weight_formation": B(0, 1e8), "weight_tracking": B(0, 1e8), "weight_input": B(0, 1e8),
         "weight_terminal_formation": B(0, 1e8), "weight_terminal_tracking": B(0, 1e8), "weight_slack": B(0, 1e8),
         "altitude_range_m": B(0, 20, "m"),

@@ -19,7 +19,7 @@ flight. Derived fields (target <- source):
   ``camera.hfov_deg`` / ``vfov_deg``: the yaw planner predicts with the
   optimiser's speed limit, turns at the heading limit, calls a track recent
   as the tracker does, and covers the camera's field of view (Alg. 1);
-* a stack's own ``derived`` fields: ``radio.rate_hz`` <- ``2 admm.l_max / admm.step_s``
+* a stack's own ``derived`` fields: ``radio.rate_hz`` <- 2 x the ADMM iterations per step (``admm.l_max``, times ``admm.sqp_iterations`` with dSQP) / ``admm.step_s``
   with ``planner.kind: admm`` and ``admm.radio_rate_from_step``: one radio sub-round per ADMM exchange;
   ``dmpc.obstacle_range_m`` <- max(3, sqrt(2) ``dmpc.qp.limits.v_max_mps`` K h + the inflation) with ``dmpc`` or
   ``auto`` and ``dmpc.commit_when_unheard``: every obstacle a plan flown to its halt can reach gets its plane.

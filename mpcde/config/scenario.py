@@ -193,7 +193,7 @@ class ScenarioConfig:
         mlr: the MLR-DMPC agent's settings.
         admm: the ADMM formation DMPC agent's settings. With ``planner.kind:
             admm`` and ``admm.radio_rate_from_step`` (default) the scenario's
-            ``radio.rate_hz`` is derived, ``2 admm.l_max / admm.step_s``
+            ``radio.rate_hz`` is derived, 2 x the ADMM iterations per step / ``admm.step_s``
             (:mod:`mpcde.config.resolve`, with the other derived fields).
         faults: lost camera frames, detector misses and false boxes, drone
             failures (:mod:`sim.faults`; the radio's and the sensors' own

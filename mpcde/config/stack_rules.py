@@ -81,12 +81,12 @@ def check_admm(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> No
         radio = replace(radio, rate_hz=admm.radio_rate_hz)
     elif abs(radio.rate_hz * admm.step_s - admm.rounds_per_step) > 1e-6:
         allowed = (
-            f"must equal 2 x admm.l_max / admm.step_s = {admm.radio_rate_hz:g} Hz for planner.kind 'admm' (one "
+            f"must equal 2 x the ADMM iterations per step / admm.step_s = {admm.radio_rate_hz:g} Hz for planner.kind 'admm' (one "
             "radio sub-round per ADMM exchange), or set admm.radio_rate_from_step: true"
         )
         raise ConfigError("radio.rate_hz", radio.rate_hz, allowed)
     if not radio.delay_s < admm.sub_round_s:
-        allowed = f"< one ADMM sub-round admm.step_s / (2 admm.l_max) = {admm.sub_round_s:g} s for planner.kind 'admm'"
+        allowed = f"< one ADMM sub-round, admm.step_s / (2 x the iterations per step) = {admm.sub_round_s:g} s for planner.kind 'admm'"
         raise ConfigError("radio.delay_s", radio.delay_s, allowed)
     if cfg.physics.physics_hz < radio.rate_hz - 1e-9:
         allowed = f">= the ADMM radio rate {radio.rate_hz:g} Hz for planner.kind 'admm' (a tick per sub-round)"
@@ -97,6 +97,8 @@ def check_admm(cfg: ScenarioConfig, starts: np.ndarray, goals: np.ndarray) -> No
         raise ConfigError("planner.cruise_speed_mps", cfg.planner.line_speed_mps, allowed)
     planner = admm.planner_config(cfg.world.arena_size_m)  # the soft position box fits the arena
     _require_inside_box(starts, goals, planner, "the ADMM position box", "admm")
+    if admm.solver == "dsqp":
+        return  # dSQP keeps the neighbours apart: any start flies
     # no collision avoidance: the drones must start in the goals' formation (moved to the starts' centroid)
     slots = goals - goals.mean(axis=0) + starts.mean(axis=0)
     offset = np.linalg.norm(starts - slots, axis=1)

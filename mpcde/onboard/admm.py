@@ -157,7 +157,7 @@ class AdmmAgent(SampledPlanAgent):
         self._last_round: int | None = None
         self._step: int | None = None  # the MPC step in progress (the coordinates of the planner's gamma)
         self._broken = False  # the step in progress cannot go on (failed QP, missed sub-round)
-        self._history: deque[MeanRecord] = deque(maxlen=config.l_max)  # own means sent, the latest first
+        self._history: deque[MeanRecord] = deque(maxlen=config.iterations_per_step)  # own means sent, the latest first
         self._pending: dict[tuple[int, int, int], np.ndarray] = {}  # (j, step, iteration) missed -> w_ji then
 
     # ------------------------------------------------------------------ inputs
@@ -202,7 +202,7 @@ class AdmmAgent(SampledPlanAgent):
         """Phase 0: finish step s - 1 with its last means, adopt its plan, start step s."""
         cfg = self.config
         if self._step is not None and self._step == s - 1 and not self._broken:
-            self._update(s - 1, cfg.l_max, inbox)
+            self._update(s - 1, cfg.iterations_per_step, inbox)
             self._adopt(self.admm.result(), s * cfg.step_s)
         elif self._step is not None:
             self.stats.aborted_steps += 1  # its last means (in the inbox) are dropped
@@ -281,7 +281,7 @@ class AdmmAgent(SampledPlanAgent):
         """Rule 2: the Step 8 terms of missed means that a bundle now repeats."""
         if not self._pending:
             return
-        K, rho, l_max = self.config.horizon_steps, self.config.rho, self.config.l_max
+        K, rho, l_max = self.config.horizon_steps, self.config.rho, self.config.iterations_per_step
         for b in inbox:
             if b.kind != "means":
                 continue

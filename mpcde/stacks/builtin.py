@@ -174,7 +174,7 @@ BUILTIN: tuple[Stack, ...] = (
         uses=Uses(radio=True, joint=True), section="admm", check=check_admm, flies_formation=lambda cfg: True,
         derived=(
             Derivation(
-                "radio.rate_hz", "2 admm.l_max / admm.step_s (admm.radio_rate_from_step: true)",
+                "radio.rate_hz", "2 x the ADMM iterations per step / admm.step_s (admm.radio_rate_from_step: true)",
                 lambda c: c.admm.radio_rate_hz, lambda c: c.admm.radio_rate_from_step,
             ),
         ),

@@ -50,7 +50,7 @@ def test_every_derived_field_equals_its_source_after_loading(tmp_path):
         ("planner:\n  kind: mpcde\n  cruise_speed_mps: 2.0\ndenied:\n  limits:\n    v_max_mps: 1.0\n", "denied.limits.v_max_mps", "planner.cruise_speed_mps"),
         ("planner:\n  kind: dmpc\n  cruise_speed_mps: 0.5\ndmpc:\n  qp:\n    limits:\n      v_max_mps: 2.0\n", "dmpc.qp.limits.v_max_mps", "planner.cruise_speed_mps"),
         ("planner:\n  kind: admm\nradio:\n  rate_hz: 5.0\nworld:\n  obstacle_density_per_100m2: 0\n"
-         "drones:\n  starts: [[0, 0, 1.5], [1, 0, 1.5]]\n  goals: [[3, 0, 1.5], [4, 0, 1.5]]\n", "radio.rate_hz", "2 admm.l_max"),
+         "drones:\n  starts: [[0, 0, 1.5], [1, 0, 1.5]]\n  goals: [[3, 0, 1.5], [4, 0, 1.5]]\n", "radio.rate_hz", "2 x the ADMM iterations per step"),
     ],
 )  # fmt: skip
 def test_a_set_value_that_a_derivation_would_replace_is_refused_in_one_line(tmp_path, text, field, source):
