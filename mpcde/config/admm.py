@@ -29,6 +29,7 @@ EXCHANGES_PER_ITERATION = 2  # Algorithm 2: copies (Step 4), then means (Step 6)
 
 GraphKind = Literal["complete", "ring"]
 SolverKind = Literal["admm", "dsqp"]
+DistanceRowsKind = Literal["copies", "means"]
 
 
 _PLANNER = AdmmFormationConfig()  # the planner's defaults, which this section mirrors
@@ -55,6 +56,9 @@ class AdmmAgentConfig:
         sqp_iterations: q_max, dSQP's outer iterations per MPC step (Sec. 5.2: 5).
         d_min_m: d of Eq. 8 [m] (Sec. 5.2: 0.4 m), with ``solver: dsqp``.
         downwash: c of the distance's Theta = diag(1, 1, c), with ``solver: dsqp``.
+        distance_rows: ``"copies"`` (QP (6c) as published) or ``"means"`` (each
+            drone's rows against the neighbour's latest consensus mean), with
+            ``solver: dsqp`` (:mod:`planners.dmpc.admm.distance`).
         rho: ADMM penalty rho (paper Sec. 5.1: 1).
         weight_formation: q_f on ||(p_i - p_j) - d_ij||^2 per edge, k < K [1/m^2].
         weight_tracking: q_g on ||p_i - r_i||^2, the drone's own reference, k < K [1/m^2].
@@ -101,6 +105,7 @@ class AdmmAgentConfig:
     sqp_iterations: int = _PLANNER.sqp_iterations
     d_min_m: float = _PLANNER.d_min_m
     downwash: float = _PLANNER.downwash
+    distance_rows: DistanceRowsKind = "copies"
     rho: float = _PLANNER.rho
     weight_formation: float = _PLANNER.weight_formation
     weight_tracking: float = _PLANNER.weight_tracking
@@ -144,6 +149,9 @@ class AdmmAgentConfig:
             raise ConfigError("altitude_range_m", self.altitude_range_m, allowed)
         if self.graph not in get_args(GraphKind):  # from_dict checks the Literal; this catches replace()
             raise ConfigError("graph", self.graph, f"allowed: {', '.join(repr(a) for a in get_args(GraphKind))}")
+        for name, kind in (("solver", SolverKind), ("distance_rows", DistanceRowsKind)):
+            if getattr(self, name) not in get_args(kind):
+                raise ConfigError(name, getattr(self, name), f"allowed: {', '.join(repr(a) for a in get_args(kind))}")
         for name in ("warm_start", "radio_rate_from_step"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(name, getattr(self, name), "true or false")
@@ -192,6 +200,7 @@ class AdmmAgentConfig:
             pos_min_world=tuple(float(v) for v in lo), pos_max_world=tuple(float(v) for v in hi), limits=self.limits,
             rho=self.rho, l_max=self.l_max, delay_compensation=True, warm_start=self.warm_start, solver=self.solver,
             sqp_iterations=self.sqp_iterations, d_min_m=self.d_min_m, downwash=self.downwash,
+            distance_rows=self.distance_rows,
         )  # fmt: skip
 
     def formation(self, goals_world: np.ndarray) -> FormationGraph:

@@ -94,6 +94,11 @@ class AdmmFormationConfig:
             neighbours' planned positions [m] (Sec. 5.2: 0.4 m).
         downwash: c >= 1 of Theta = diag(1, 1, c) in the distance (DMPC-Swarm
             Eq. 2; 1 is the paper's Euclidean norm; chosen 2.0, our DMPC's).
+        distance_rows: what a drone's distance rows constrain: ``"copies"``
+            (QP (6c) as published: its own positions and its copy of the
+            neighbour's) or ``"means"`` (its own positions against the
+            neighbour's latest consensus mean, a constant;
+            :mod:`planners.dmpc.admm.distance`).
         delay_compensation: paper Remark 1: u_i[0] is fixed to the input that
             is already being applied on [t, t + h) (decided in the previous
             step) and the step decides u_i[1], applied from t + h, so the
@@ -141,6 +146,7 @@ class AdmmFormationConfig:
     sqp_iterations: int = 5
     d_min_m: float = 0.4
     downwash: float = 2.0
+    distance_rows: str = "copies"
     delay_compensation: bool = True
     warm_start: bool = True
     osqp_eps_abs: float = 1e-4
@@ -168,6 +174,8 @@ class AdmmFormationConfig:
         require_integer_at_least("sqp_iterations", self.sqp_iterations, 1)
         require_positive("d_min_m", self.d_min_m)
         require_at_least("downwash", self.downwash, 1.0)
+        if self.distance_rows not in ("copies", "means"):
+            raise ConfigError("distance_rows", self.distance_rows, "one of copies, means")
         require_boolean("delay_compensation", self.delay_compensation)
         require_boolean("warm_start", self.warm_start)
         require_positive("osqp_eps_abs", self.osqp_eps_abs)

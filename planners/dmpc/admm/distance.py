@@ -26,7 +26,20 @@ linearised row
 is an inner approximation: a point that meets it meets h <= 0. Only the row's
 values change from one SQP iteration to the next; its bound d does not.
 Where delta_bar vanishes (the plans coincide) the direction of the current
-separation is used, else +x. With Remark 1 (u[0] fixed) p[1] is data, so the
+separation is used, else +x.
+
+**Against the means** (``distance_rows: means``, not in the paper). QP (6c)
+constrains the drone's copy w_mo as well as its own p_o, and with few ADMM
+iterations per step the cheapest way to meet the row is to move the copy:
+the copy then sits where the formation term wants the neighbour while the
+neighbour's own plan goes through (measured: docs/results/admm_formation.md#dsqp-rho-screen).
+Holding the row against the latest consensus mean wbar_mo (a constant of the
+QP, the average the last Step 9 sent) instead,
+
+    a' p_o[k] + s_o >= d + a' wbar_mo[k],
+
+puts the whole separation on the holder's own plan; it is the same tangent
+at zbar, so the inner approximation holds against wbar. With Remark 1 (u[0] fixed) p[1] is data, so the
 k = 1 rows are left free, as the soft box rows of :mod:`planners.dmpc.admm.ocp`.
 """
 
@@ -93,18 +106,22 @@ class DistanceRows:
         d_min_m: d [m].
         downwash: c of Theta.
         first_step_free: leave the k = 1 rows free (Remark 1: p[1] is data).
+        against_means: hold the rows against the means wbar (constants), not
+            the copies (module docstring); the entries on w_mo are then 0.
     """
 
     def __init__(self, layout: DroneLayout, partners: tuple[int, ...], d_min_m: float, downwash: float,
-                 first_step_free: bool) -> None:  # fmt: skip
+                 first_step_free: bool, against_means: bool = False) -> None:  # fmt: skip
         missing = [m for m in partners if m not in layout.neighbour_ids]
         if missing:
             raise ValueError(f"partners {missing}: not neighbours of this drone (a held pair needs a copy)")
         self.layout, self.partners = layout, tuple(partners)
         self.d_min_m, self.downwash = float(d_min_m), float(downwash)
         self.first_step_free = bool(first_step_free)
+        self.against_means = bool(against_means)
         K = layout.horizon_steps
         self.count = K * len(self.partners)
+        self._shift = np.zeros(self.count)  # a' wbar per row (against the means)
 
     def add_to(self, pattern: SparsePattern, first_row: int) -> slice:
         """Add the rows' entries (placeholder values) to ``pattern`` from ``first_row`` on; their COO slice.
@@ -124,21 +141,31 @@ class DistanceRows:
         return pattern.add(np.array(rows, int), np.array(cols, int), vals)
 
     def values(self, zbar: np.ndarray, fallback_world: np.ndarray | None = None) -> np.ndarray:
-        """(7 K P,) the rows' entries linearised at ``zbar`` (n_o,), in :meth:`add_to`'s order."""
+        """(7 K P,) the rows' entries linearised at ``zbar`` (n_o,), in :meth:`add_to`'s order.
+
+        Against the means it also keeps a' wbar for :meth:`bounds`.
+        """
         lay, K = self.layout, self.layout.horizon_steps
         own = zbar[lay.pos].reshape(K, 3)
         out = np.empty((len(self.partners), K, 7))
+        shift = np.zeros((len(self.partners), K))
         for m_idx, m in enumerate(self.partners):
-            a = distance_gradient(own, zbar[lay.copy(m)].reshape(K, 3), self.downwash, fallback_world)
+            wbar = zbar[lay.copy(m)].reshape(K, 3)
+            a = distance_gradient(own, wbar, self.downwash, fallback_world)
             out[m_idx, :, 0:3] = a
-            out[m_idx, :, 3:6] = -a
+            out[m_idx, :, 3:6] = 0.0 if self.against_means else -a
             out[m_idx, :, 6] = 1.0
+            shift[m_idx] = np.einsum("kd,kd->k", a, wbar) if self.against_means else 0.0
+        self._shift = shift.ravel()
         return out.ravel()
 
     def bounds(self, free: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """(lower, upper) (K P,): [d, inf), the k = 1 rows free with ``first_step_free``, every row free with ``free``."""
+        """(lower, upper) (K P,): [d (+ a' wbar against the means), inf), the k = 1 rows free with
+        ``first_step_free``, every row free with ``free``."""
         K = self.layout.horizon_steps
-        lower = np.full((len(self.partners), K), -_INF if free else self.d_min_m)
+        lower = (self.d_min_m + self._shift).reshape(len(self.partners), K)
+        if free:
+            lower = np.full_like(lower, -_INF)
         if self.first_step_free:
             lower[:, 0] = -_INF
         return lower.ravel(), np.full(self.count, _INF)

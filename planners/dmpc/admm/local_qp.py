@@ -119,7 +119,8 @@ class LocalAdmmQp:
         self.distance = None
         if distance_partners:
             self.distance = DistanceRows(lay, tuple(distance_partners), config.d_min_m, config.downwash,
-                                         first_step_free=config.delay_compensation)  # fmt: skip
+                                         first_step_free=config.delay_compensation,
+                                         against_means=config.distance_rows == "means")  # fmt: skip
         pattern = SparsePattern()
         pattern.add(A_own.row, A_own.col, A_own.data)
         m_own = A_own.shape[0]
@@ -207,7 +208,7 @@ class LocalAdmmQp:
         data = self.A.data
         data[self._coo_to_csc[self._distance_slice]] = self.distance.values(zbar, fallback_world)
         self._core.update_data_mat(P_x=None, P_i=None, A_x=data, A_i=None)
-        if bool(free) != self._distance_free:
+        if bool(free) != self._distance_free or self.distance.against_means:  # the means move the bounds too
             self._distance_free = bool(free)
             self.lower[self._m_own :], self.upper[self._m_own :] = self.distance.bounds(free=self._distance_free)
             self._bounds_dirty = True
