@@ -1,19 +1,14 @@
 """The ``mpcde`` command line.
 
-Subcommands: ``fly`` (a headless scenario -> run folder), ``train-detector``
-(render a dataset, train the drone detector on CPU -> weights + model card),
-``eval-detector`` (held-out renders -> results.json), ``eval-tracking``
-(tracker evaluation -> results.json), ``eval-dmpc`` (on-demand DMPC vs
-BVC -> results.json), ``compare`` (one scenario in each mode, paired by
-seed -> results.json + run folders), ``eval-mlr`` (DMPC-Swarm's message-loss
-recovery experiments -> results.json), ``sweep`` (a grid of conditions x
-seeds on local processes or Ray -> a resumable results.jsonl + report),
-``report`` (a sweep folder's tables and plots), ``paper`` (the paper
-reproduction's reports from sweep stores: Table III, the summary, the goals;
-:mod:`mpcde.paper.commands`), ``explain`` (each collision of a sweep's store
-re-flown and named) and ``bench`` (the hot-path benchmarks -> their printed
-figures + results.json). Bad input prints one
-line ``mpcde: error: <field>=<value>: <allowed>`` and exits with status 2,
+Subcommands: ``fly`` (a headless scenario -> run folder), ``train-detector`` (render a dataset, train the drone
+detector on CPU -> weights + model card), ``eval-detector`` (held-out renders -> results.json), ``eval-tracking``
+(tracker evaluation -> results.json), ``eval-dmpc`` (on-demand DMPC vs BVC -> results.json), ``compare`` (one scenario
+in each mode, paired by seed -> results.json + run folders), ``eval-mlr`` (DMPC-Swarm's message-loss recovery
+experiments, or a loss sweep file -> results.json), ``sweep`` (a grid of conditions x seeds on local processes or Ray
+-> a resumable results.jsonl + report), ``report`` (a sweep folder's tables and plots), ``paper`` (the paper
+reproduction's reports from sweep stores: Table III, the summary, the goals; :mod:`mpcde.paper.commands`), ``explain``
+(each collision of a sweep's store re-flown and named) and ``bench`` (the hot-path benchmarks -> their printed figures
++ results.json). Bad input prints one line ``mpcde: error: <field>=<value>: <allowed>`` and exits with status 2,
 having written nothing.
 """
 
@@ -128,28 +123,21 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--backend", choices=["local", "ray"], default="local", help="local processes (default) or Ray tasks")
     sw.add_argument("--ray-address", default=None, help="with --backend ray: 'auto' joins a cluster started by 'ray start'")
     sw.add_argument("--quiet", action="store_true", help="no progress bar")
-    rp = sub.add_parser(
-        "report", help="tables and plots of a sweep folder (also on a partial one); with several, paired across them"
-    )
+    rp = sub.add_parser("report", help="tables and plots of a sweep folder (also on a partial one); with several, paired across them")
     rp.add_argument("folder", type=Path, nargs="+", help="a folder written by mpcde sweep; several: one base scenario")
     rp.add_argument("--out", type=Path, default=None, help="with several folders: where the cross-store report goes")
     rp.add_argument(
         "--pair-on", nargs="+", default=None, metavar="FIELD",
         help="with several folders: fields two paired cells share (default: each two stores' common fields whose values meet)",
     )  # fmt: skip
-    em = sub.add_parser(
-        "eval-mlr", help="MLR-DMPC: message-loss recovery, event-triggered compute units (DMPC-Swarm Fig. 3-4)"
-    )
+    em = sub.add_parser("eval-mlr", help="MLR-DMPC: message-loss recovery, event-triggered compute units (DMPC-Swarm Fig. 3-4)")
     em.add_argument("--out", required=True, type=Path)
     em.add_argument(
         "--experiments", nargs="+", choices=["fig4_swap", "fig3b_cus", "fig3c_triggers"],
         default=["fig4_swap", "fig3b_cus", "fig3c_triggers"], help="which of the paper's experiments (default all)",
     )  # fmt: skip
     em.add_argument("--seeds", type=int, default=1, help="runs per row (seeds 0..N-1)")
-    em.add_argument(
-        "--sweep", type=Path, default=None, metavar="FILE",
-        help="instead: a loss sweep file (data/sweeps/mlr/): swarm sizes, radios, MlrConfig variants, seeds",
-    )  # fmt: skip
+    em.add_argument("--sweep", type=Path, default=None, metavar="FILE", help="instead: a loss sweep file (data/sweeps/mlr/)")
     em.add_argument("--jobs", type=int, default=1, help="with --sweep: runs in parallel processes")
     paper.add_parser(sub)
     ex = sub.add_parser("explain", help="re-fly every colliding flight of a sweep's store and name each collision's cause, per cell")
@@ -332,13 +320,12 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 def _cmd_eval_mlr(args: argparse.Namespace) -> int:
     from mpcde.evals.mlr import run_eval_mlr
+    from mpcde.evals.mlr_loss import load_loss_sweep, run_loss_sweep
 
     _at_least("--seeds", args.seeds, 1)
     _at_least("--jobs", args.jobs, 1)
     _check_out_dir(args.out)
     if args.sweep is not None:
-        from mpcde.evals.mlr_loss import load_loss_sweep, run_loss_sweep
-
         run_loss_sweep(load_loss_sweep(args.sweep), args.out, args.jobs)  # prints its table
         print(f"-> {args.out / 'results.json'}, {args.out / 'table.md'}, {args.out / 'arrivals.png'}")
         return 0

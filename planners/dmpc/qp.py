@@ -16,17 +16,16 @@ P = A0_p x0 + Lambda_p U (on-demand DMPC Eq. 10, :mod:`planners.dmpc.model`)::
                     first predicted conflict of each obstacle (one row per slot)     planners.dmpc.obstacle)
          optional terminal halt: v[K] = 0 (a[K] = 0)                                (DMPC-Swarm Eq. 13e)
 
-with d_ij the desired offset p_j - p_i (on-demand DMPC design goal 2),
-u[-1] the input applied in the previous round (read from the previous plan),
+with d_ij the desired offset p_j - p_i (on-demand DMPC design goal 2), u[-1] the input applied in the previous
+round (read from the previous plan),
 and p(t_c) the position at the on-demand plane's time, affine in U like p[k]
 (t_c on a grid of h / ``conflict_substeps``; the closest approach of the
 conflict that starts at the first conflict k_c, or k_c itself with
 ``on_demand_time="first_conflict"``; see :mod:`planners.dmpc.collision`).
-Neighbours are read at the round's times from their :class:`NeighborPrediction`
-(a received plan, possibly stale: its tail extrapolates at constant velocity).
-If more neighbours are given than ``max_neighbours`` slots, the nearest are
-kept (on demand: nearest at the conflict; BVC: nearest over the horizon).
-Written for OSQP as  min 1/2 z^T P z + q^T z  s.t.  l <= A z <= u.
+Neighbours are read at the round's times from their :class:`NeighborPrediction` (a received plan, possibly
+stale: its tail extrapolates at constant velocity).
+If more neighbours are given than ``max_neighbours`` slots, the nearest are kept (on demand: nearest at the
+conflict; BVC: nearest over the horizon). Written for OSQP as  min 1/2 z^T P z + q^T z  s.t.  l <= A z <= u.
 
 Build, then solve: :class:`DmpcProblem` sets OSQP up once with a FIXED sparsity
 pattern sized for every row it may need (:mod:`planners.dmpc.sparse_qp.qp_layout`;
@@ -34,20 +33,15 @@ an unused row keeps its entries at 0 with bounds (-inf, inf)). Each round update
 ``q``, ``l``, ``u`` and ``Ax`` (``Px`` when the number of formation neighbours changes)
 and warm-starts from the previous primal and dual solution shifted by one step.
 
-Speed. On-demand rows change only in rounds with a conflict, and an unused
-slot (neighbour or obstacle) keeps its last coefficients with bounds
-(-inf, inf), so most on-demand rounds need no KKT refactorisation; BVC planes
-and every-step obstacle planes change every round. P's pattern holds only its
-structural nonzeros (the cost is separable by axis: goal, formation and
-smoothness weigh x, y and z alike and apart), since explicit zeros would enter
-qdldl's factorisation. An unused on-demand slot's slack is pinned at 0 with
-price 0 (same optimum; otherwise its bound carries the multiplier xi of the
-linear price and slows ADMM). The QP stays condensed (dense in U); obstacle
-rows that the velocity and input limits already imply are culled
-(:meth:`DmpcProblem._fill_obstacles`); OSQP's Python wrapper is bypassed
-(:mod:`planners.dmpc.sparse_qp.osqp_core`); ``osqp_scaling = 4`` because OSQP
-re-runs its Ruiz equilibration in every refactorisation.
-Measured, with the alternatives tried:
+Speed. On-demand rows change only in rounds with a conflict, and an unused slot (neighbour or obstacle) keeps its last
+coefficients with bounds (-inf, inf), so most on-demand rounds need no KKT refactorisation; BVC planes and every-step
+obstacle planes change every round. P's pattern holds only its structural nonzeros (the cost is separable by axis:
+goal, formation and smoothness weigh x, y and z alike and apart), since explicit zeros would enter qdldl's
+factorisation. An unused on-demand slot's slack is pinned at 0 with price 0 (same optimum; otherwise its bound carries
+the multiplier xi of the linear price and slows ADMM). The QP stays condensed (dense in U); obstacle rows that the
+velocity and input limits already imply are culled (:meth:`DmpcProblem._fill_obstacles`); OSQP's Python wrapper is
+bypassed (:mod:`planners.dmpc.sparse_qp.osqp_core`); ``osqp_scaling = 4`` because OSQP re-runs its Ruiz equilibration
+in every refactorisation. Measured, with the alternatives tried:
 docs/results/dmpc_qp.md#why-the-qp-is-built-as-it-is-issue-6s-speed-goals-2026-11-22-to-2026-11-25.
 """
 
