@@ -57,8 +57,9 @@ class AdmmAgentConfig:
         d_min_m: d of Eq. 8 [m] (Sec. 5.2: 0.4 m), with ``solver: dsqp``.
         downwash: c of the distance's Theta = diag(1, 1, c), with ``solver: dsqp``.
         distance_rows: ``"copies"`` (QP (6c) as published) or ``"means"`` (each
-            drone's rows against the neighbour's latest consensus mean), with
-            ``solver: dsqp`` (:mod:`planners.dmpc.admm.distance`).
+            drone's rows against the neighbour's latest consensus mean; the
+            default, chosen on the swap), with ``solver: dsqp``
+            (:mod:`planners.dmpc.admm.distance`).
         rho: ADMM penalty rho (paper Sec. 5.1: 1).
         weight_formation: q_f on ||(p_i - p_j) - d_ij||^2 per edge, k < K [1/m^2].
         weight_tracking: q_g on ||p_i - r_i||^2, the drone's own reference, k < K [1/m^2].
@@ -105,7 +106,7 @@ class AdmmAgentConfig:
     sqp_iterations: int = _PLANNER.sqp_iterations
     d_min_m: float = _PLANNER.d_min_m
     downwash: float = _PLANNER.downwash
-    distance_rows: DistanceRowsKind = "copies"
+    distance_rows: DistanceRowsKind = _PLANNER.distance_rows
     rho: float = _PLANNER.rho
     weight_formation: float = _PLANNER.weight_formation
     weight_tracking: float = _PLANNER.weight_tracking

@@ -98,7 +98,9 @@ class AdmmFormationConfig:
             (QP (6c) as published: its own positions and its copy of the
             neighbour's) or ``"means"`` (its own positions against the
             neighbour's latest consensus mean, a constant;
-            :mod:`planners.dmpc.admm.distance`).
+            :mod:`planners.dmpc.admm.distance`; chosen: on the four-drone swap
+            the paper's rows kept no rho both safe and arriving, these did at
+            rho = 1: docs/results/admm_formation.md#dsqp-rows-screen).
         delay_compensation: paper Remark 1: u_i[0] is fixed to the input that
             is already being applied on [t, t + h) (decided in the previous
             step) and the step decides u_i[1], applied from t + h, so the
@@ -146,7 +148,7 @@ class AdmmFormationConfig:
     sqp_iterations: int = 5
     d_min_m: float = 0.4
     downwash: float = 2.0
-    distance_rows: str = "copies"
+    distance_rows: str = "means"
     delay_compensation: bool = True
     warm_start: bool = True
     osqp_eps_abs: float = 1e-4

@@ -88,7 +88,7 @@ def _swap(cfg: AdmmFormationConfig):
 
 def test_the_sqp_outer_loop_on_a_two_robot_swap_meets_the_distance_within_its_slack():
     """Two drones head-on (5 cm apart sideways) swap: ADMM plans them through each other, dSQP keeps d_min."""
-    distance, res = _swap(AdmmFormationConfig(solver="dsqp", rho=100.0, l_max=10, sqp_iterations=20))
+    distance, res = _swap(AdmmFormationConfig(solver="dsqp", rho=100.0, l_max=10, sqp_iterations=20, distance_rows="copies"))
     slack = max(r.slack for r in res)
     assert slack < 0.01 and distance.min() >= 0.4 - slack - 2e-3
     assert res[0].iterations == 200 and max(r.primal_residual[-1] for r in res) < 2e-3  # consensus reached
