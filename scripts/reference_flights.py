@@ -11,9 +11,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import mpcde  # isort: skip  (before numpy: the portable numerics profile, docs/design.md section 15)
 import numpy as np
-
-import mpcde
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "data" / "reference"

@@ -39,6 +39,9 @@ FIG6_PAPER = {0.5: 0.98, 1.0: 0.95, 2.0: 0.90}
 """MP-CDE's success rate in Fig. 6 by cruise speed [m/s], as issue 28 reads the figure (its goals)."""
 AKF_PAPER = {"low": (0.06, 0.25), "high": (0.23, 0.34)}
 """The AKF's position [m] and velocity [m/s] RMSE at low and high speed (Sec. V-B2)."""
+DENIED_KINDS = ("mpcde", "mpcde_paper")
+"""The ``planner.kind`` values of the denied stack: ``mpcde`` (``denied``, and MP-CDE as published in stores flown
+before 2026-12-03) and ``mpcde_paper``."""
 
 
 def revisions(*stores: Path) -> tuple[str, str]:
@@ -131,7 +134,7 @@ def fig6(runs: Path) -> list[str]:
             continue
         # the paper ranks MP-CDE against view-gated baselines; another store (auto over the scenario's radio) sits beside it
         role, paper, radio = ("baseline", "below MP-CDE", "view-gated") if gated[b["store"]] else ("beside", "-", "scenario's radio (not view-gated)")
-        if b["settings"].get("planner.kind") == "mpcde":
+        if b["settings"].get("planner.kind") in DENIED_KINDS:
             radio = "the denied stack (no radio)"  # a variant of MP-CDE itself (flight levels): the radio plays no part
         against = f"against MP-CDE's {p['a_success_paired']}"
         rows.append(_pair_row(role, paper, a, b, p, p["b_success_paired"], radio, against, skip, revs))
@@ -152,7 +155,7 @@ def variant_of(c: dict, first: str, skip: tuple) -> str | None:
     """What sets cell ``c`` of the cross-store report apart from MP-CDE's store ``first`` when it is a variant of the
     denied stack (a flown cell of another store of planner.kind mpcde): its settings less ``skip`` and planner.kind;
     None for any other cell."""
-    if c["store"] == first or not c["flights"] or c["settings"].get("planner.kind") != "mpcde":
+    if c["store"] == first or not c["flights"] or c["settings"].get("planner.kind") not in DENIED_KINDS:
         return None
     return ", ".join(f"{k}={val}" for k, val in c["settings"].items() if k not in skip and k != "planner.kind")
 

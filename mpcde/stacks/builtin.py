@@ -126,6 +126,11 @@ def _dmpc_formation(cfg: Any) -> bool:
     return bool(cfg.dmpc.formation_from_goals)
 
 
+SAFE_PRESET = {"denied.fresh_path_age_s": 1.0}
+"""``denied``'s preset: MP-CDE with look before moving (:mod:`mpcde.onboard.denied.look`) at the age its forest
+sweep flew, the mechanism the held-out geometries favoured (docs/results/denied_default.md#the-decision). The
+section's own defaults stay the paper's, so ``auto``'s fallback and ``minco_comm``, measured that way, fly as before."""
+
 PAPER_PRESET = {
     "denied.fresh_path_age_s": float("inf"),
     "denied.flight_level_spacing_m": float("inf"),
@@ -146,8 +151,9 @@ BUILTIN: tuple[Stack, ...] = (
         "placeholder", _placeholder, "a blind minimum-jerk straight line to the goal", kind="min_jerk_line",
     ),
     Stack(
-        "denied", _denied, "MP-CDE without radio: own detector, tracks, active yaw, A* + MINCO", kind="mpcde",
-        uses=Uses(cameras="required"), section="denied", check=_DENIED_CHECKS, speed_fields=("denied.limits.v_max_mps",),
+        "denied", _denied, "MP-CDE without radio: own detector, tracks, active yaw, A* + MINCO; looks before moving",
+        kind="mpcde", uses=Uses(cameras="required"), section="denied", check=_DENIED_CHECKS,
+        speed_fields=("denied.limits.v_max_mps",), preset=SAFE_PRESET,
     ),
     Stack(
         "mpcde_paper", _denied, "denied as MP-CDE publishes it: without look before moving or flight levels",
