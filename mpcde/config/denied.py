@@ -58,7 +58,8 @@ class DeniedAgentConfig:
             into the obstacle band is flown as a glance instead (the camera turns, the plan is kept).
             Not in MP-CDE. Why: a drone that only moves into space it looked at within this time sees a
             neighbour in its way unless the neighbour moved there since, so it removes the contacts of
-            drones that close outside each other's view (docs/results/safety.md#look-before-moving). inf (default): off,
+            drones that close outside each other's view (docs/results/safety.md#look-before-moving). inf (this section's
+            default, the paper's; the ``denied`` stack's preset sets 1 s, docs/results/denied_default.md#the-decision): off,
             the paper's stack.
         fresh_path_half_width_m: half width [m] of that corridor (a class constant, as the next three and
             ``fresh_path_glance_distance_m``: no scenario or sweep sets them).
