@@ -29,9 +29,9 @@ def _mpcde(argv: list, capsys) -> tuple[int, str, str]:  # noqa: ANN001
 # the causes of the kept store outage_speeds, as its kept collision_causes.jsonl gives them (no flight to fly again)
 OUTAGE_CAUSES = """
 cell                                                 flights with coll.  causes (events)
-planner.kind="mpcde", planner.cruise_speed_mps=0.5        20          0  -
-planner.kind="mpcde", planner.cruise_speed_mps=1.0        20          0  -
-planner.kind="mpcde", planner.cruise_speed_mps=2.0        20          0  -
+planner.kind="mpcde_paper", planner.cruise_speed_mps=0.5      20          0  -
+planner.kind="mpcde_paper", planner.cruise_speed_mps=1.0      20          0  -
+planner.kind="mpcde_paper", planner.cruise_speed_mps=2.0      20          0  -
 planner.kind="dmpc", planner.cruise_speed_mps=0.5         20          0  -
 planner.kind="dmpc", planner.cruise_speed_mps=1.0         20          0  -
 planner.kind="dmpc", planner.cruise_speed_mps=2.0         20          0  -
