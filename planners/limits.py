@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 from sim.checks import ConfigError, require_positive
 
-__all__ = ["KinematicLimits", "require_infinite_jerk"]
+__all__ = ["KinematicLimits", "require_finite_jerk", "require_infinite_jerk"]
 
 
 @dataclass(frozen=True)
@@ -48,3 +48,9 @@ def require_infinite_jerk(limits: KinematicLimits, why: str) -> None:
     """Refuse a finite ``limits.j_max_mps3`` for a planner that cannot bound the jerk; ``why`` says why not."""
     if limits.j_max_mps3 != math.inf:
         raise ConfigError("limits.j_max_mps3", limits.j_max_mps3, f".inf: {why}")
+
+
+def require_finite_jerk(limits: KinematicLimits, why: str) -> None:
+    """Refuse an infinite ``limits.j_max_mps3`` for a planner whose input is the jerk; ``why`` says why it must bound it."""
+    if limits.j_max_mps3 == math.inf:
+        raise ConfigError("limits.j_max_mps3", limits.j_max_mps3, f"a finite number > 0 [m/s^3]: {why}")

@@ -53,7 +53,7 @@ import numpy as np
 from perception.types import DistanceField, NeighborPrediction, OccupancySnapshot, trilinear_compiled
 from planners.limits import KinematicLimits, require_infinite_jerk
 from planners.trajectory_penalty import _inflation, _neighbor_state, _penalty_kernel, _sample_positions
-from sim.checks import ConfigError
+from sim.checks import ConfigError, require_instance
 
 __all__ = ["NeighborTable", "PenaltyParameters", "PenaltyTerms", "TrajectoryCost"]
 
@@ -110,8 +110,7 @@ class PenaltyParameters:
         lo, hi = self.altitude_band_m
         if not lo < hi or np.isnan(lo) or np.isnan(hi):
             raise ConfigError("altitude_band_m", self.altitude_band_m, "must be (z_lo, z_hi) with z_lo < z_hi")
-        if not isinstance(self.limits, KinematicLimits):
-            raise ConfigError("limits", self.limits, "a planners.limits.KinematicLimits")
+        require_instance("limits", self.limits, KinematicLimits)
         require_infinite_jerk(self.limits, "MINCO's penalties bound speed and acceleration only (Eq. 15)")
         for name in ("swarm_clearance_m",):
             if not getattr(self, name) > 0.0:

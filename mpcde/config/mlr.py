@@ -10,7 +10,7 @@ import numpy as np
 
 from mpcde.errors import ConfigError
 from planners.dmpc.mlr.config import MlrConfig
-from planners.limits import KinematicLimits
+from planners.limits import KinematicLimits, require_finite_jerk
 from sim.checks import is_finite_at_least, require_at_least, require_instance, require_non_negative, require_positive
 
 __all__ = ["MlrAgentConfig", "TriggerKind"]
@@ -76,8 +76,7 @@ class MlrAgentConfig:
             require_positive(name, getattr(self, name), unit)
         require_at_least("downwash", self.downwash, 1.0)
         require_instance("limits", self.limits, KinematicLimits)
-        if self.limits.j_max_mps3 == math.inf:
-            raise ConfigError("limits.j_max_mps3", self.limits.j_max_mps3, "a finite number > 0 [m/s^3]: the jerk is the input (Eq. 13c)")
+        require_finite_jerk(self.limits, "the jerk is the input (Eq. 13c)")
         require_non_negative("arena_margin_m", self.arena_margin_m, "m")
         lo, hi = self.altitude_range_m
         if not (is_finite_at_least(lo, 0.0) and math.isfinite(hi) and lo < hi):

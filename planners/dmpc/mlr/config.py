@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.limits import KinematicLimits
+from planners.limits import KinematicLimits, require_finite_jerk
 from sim.checks import (
     ConfigError,
     require_at_least,
@@ -214,8 +214,7 @@ class MlrConfig:
             allowed = f"a multiple of input_steps_per_round={self.input_steps_per_round}"
             raise ConfigError("collision_checks_per_round", self.collision_checks_per_round, allowed)
         require_instance("limits", self.limits, KinematicLimits)
-        if self.limits.j_max_mps3 == float("inf"):
-            raise ConfigError("limits.j_max_mps3", self.limits.j_max_mps3, "a finite number > 0 [m/s^3]: the jerk is the input (Eq. 13c)")
+        require_finite_jerk(self.limits, "the jerk is the input (Eq. 13c)")
         for name in ("d_hat_min_m", "weight_pos"):
             require_positive(name, getattr(self, name))
         for name in ("weight_vel", "weight_acc", "weight_jerk", "bvc_margin_m"):
