@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import pathlib
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -41,6 +40,7 @@ from mpcde.evals.mlr_swarm import MlrSwarmConfig, run_mlr_swarm
 from mpcde.evals.text_table import cell
 from mpcde.flight.run_folder import staged_output
 from planners.dmpc.mlr.config import MlrConfig
+from sim.checks import require_at_least, require_integer_at_least
 from sim.radio import RadioConfig
 
 __all__ = ["LossSweep", "Variant", "format_loss_table", "load_loss_sweep", "run_loss_sweep"]
@@ -83,15 +83,12 @@ def _mapping(data: Any, path: str, keys: set[str]) -> dict:
 
 
 def _integer(value: Any, path: str, low: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise ConfigError(path, value, f"an integer >= {low}")
-    return value
+    require_integer_at_least(path, value, low)
+    return int(value)
 
 
 def _number(value: Any, path: str, low: float, strict: bool = False) -> float:
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-    if not ok or value < low or (strict and value == low):
-        raise ConfigError(path, value, f"a finite number {'>' if strict else '>='} {low:g}")
+    require_at_least(path, value, low, strict)
     return float(value)
 
 

@@ -187,6 +187,14 @@ class MlrRunResult:
         return out
 
 
+_SUMMARY_FIELDS = (
+    "rounds_with_mlr", "deprecated_trackers", "recovery_requests", "qp_failures", "qp_solve_ms_median", "qp_solve_ms_max",
+    "qp_step_ms_median", "qp_iterations_median", "cu_rounds", "cu_modes", "deprecations_by_cause", "rounds_all_deprecated",
+    "recovery_answered",
+)  # fmt: skip
+"""The :class:`MlrRunResult` fields that :func:`summarize_reports` gives under the same name."""
+
+
 class _Motion:
     """Actual UAV positions: reference + tracking transient + disturbance (see the module docstring)."""
 
@@ -333,22 +341,10 @@ def run_mlr_swarm(
         arrival_time_s=float((k + 1) * T) if done else float("nan"),
         formation_times_s=tuple(formation_times),
         rounds=k + 1,
-        rounds_with_mlr=summary["rounds_with_mlr"],
-        deprecated_trackers=summary["deprecated_trackers"],
-        recovery_requests=summary["recovery_requests"],
         qp_solves=summary["computations"],
-        qp_failures=summary["qp_failures"],
-        qp_solve_ms_median=summary["qp_solve_ms_median"],
-        qp_solve_ms_max=summary["qp_solve_ms_max"],
-        qp_step_ms_median=summary["qp_step_ms_median"],
-        qp_iterations_median=summary["qp_iterations_median"],
+        **{name: summary[name] for name in _SUMMARY_FIELDS},
         max_reference_jump_m=max_jump,
         cu_deaf_drops=deaf_drops,
-        cu_rounds=summary["cu_rounds"],
-        cu_modes=summary["cu_modes"],
-        deprecations_by_cause=summary["deprecations_by_cause"],
-        rounds_all_deprecated=summary["rounds_all_deprecated"],
-        recovery_answered=summary["recovery_answered"],
         halts_begun=halts_begun,
         halts_released=halts_released,
         halted_uav_rounds=halted_rounds,

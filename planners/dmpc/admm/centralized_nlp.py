@@ -105,9 +105,8 @@ def centralized_formation_nlp(
             x = ca.mtimes(ca.DM(A), x) + ca.mtimes(ca.DM(B), U[i][k, :].T)
             rows.append(x.T)
             if k >= 1:  # x[1] is data with u[0] fixed: its soft rows are free (planners.dmpc.admm.ocp)
-                opti.subject_to(opti.bounded(config.pos_min_world[0] - S[i], x[0], config.pos_max_world[0] + S[i]))
-                opti.subject_to(opti.bounded(config.pos_min_world[1] - S[i], x[1], config.pos_max_world[1] + S[i]))
-                opti.subject_to(opti.bounded(config.pos_min_world[2] - S[i], x[2], config.pos_max_world[2] + S[i]))
+                for c in range(3):
+                    opti.subject_to(opti.bounded(config.pos_min_world[c] - S[i], x[c], config.pos_max_world[c] + S[i]))
                 for c in range(3, 6):
                     opti.subject_to(opti.bounded(-lim.v_max_mps - S[i], x[c], lim.v_max_mps + S[i]))
         X = ca.vertcat(*rows)  # (K, 6): x[1..K]
